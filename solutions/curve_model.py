@@ -1,0 +1,27 @@
+"""Chapter 1 exercise: the curve-fitting model ``y = exp(a x^2 + b x + c)``."""
+
+import numpy as np
+
+
+def residuals_and_jacobian(params, x, y):
+    """Residuals and Jacobian of the exponential model, vectorized over the points.
+
+    Model: ``y_hat_k = exp(a x_k^2 + b x_k + c)`` with ``params = (a, b, c)``.
+    Residual: ``r_k = y_hat_k - y_k``. Jacobian row: ``dr_k/d(a, b, c) = y_hat_k (x_k^2, x_k, 1)``.
+
+    Args:
+        params: (3,) the parameters ``a, b, c``.
+        x, y: (m,) sample positions and measured values.
+
+    Returns:
+        r: (m,) residuals; J: (m, 3) Jacobian ``dr/dparams``.
+
+    Hint: compute ``y_hat`` once and reuse it for every column; no Python loop.
+    """
+    # BEGIN SOLUTION
+    a, b, c = params
+    y_hat = np.exp(a * x**2 + b * x + c)
+    r = y_hat - y
+    J = y_hat[:, None] * np.stack([x**2, x, np.ones_like(x)], axis=1)
+    return r, J
+    # END SOLUTION

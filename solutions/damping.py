@@ -1,0 +1,153 @@
+"""Chapter 1 exercise: H. P. Gavin's three Levenberg-Marquardt damping update types.
+
+Source: H. P. Gavin, "The Levenberg-Marquardt algorithm for nonlinear least squares
+curve-fitting problems" (Duke University), section 4.1.1, eqs. 12-16, and the
+defaults of its ``lm.m``. Notation in ``course/damping.py``: ``b = J^T W r`` is minus
+Gavin's ``J^T W (y - y_hat)``, and the damped system is ``(H + diag(d)) h = -b``.
+"""
+
+import numpy as np
+
+from course.damping import DampingState, DampingStrategy
+
+#: lambda bounds of lm.m (Gavin, section 4.1.1)
+LAMBDA_MIN = 1e-7
+LAMBDA_MAX = 1e7
+#: lower bound on type 2's line-search alpha (this course's safeguard, see step_scale)
+ALPHA_MIN = 1e-1
+
+
+class GavinType1(DampingStrategy):
+    """Type 1 (Marquardt): ``[H + lambda diag(H)] h = -b``.
+
+    Constants (Gavin section 4.1.1 and lm.m defaults): lambda_0 = 1e-2,
+    L_down = 9, L_up = 11, eps_4 = 1e-1, lambda clamped to [1e-7, 1e7].
+    """
+
+    name = "lm-type1"
+
+    def __init__(self, lambda_0=1e-2, l_down=9.0, l_up=11.0):
+        self.lambda_0, self.l_down, self.l_up = lambda_0, l_down, l_up
+
+    def initial_state(self, diag_H):
+        """lambda_0 as given (default 1e-2), independent of H."""
+        # BEGIN SOLUTION
+        return DampingState(lam=self.lambda_0)
+        # END SOLUTION
+
+    def damping_diagonal(self, diag_H, lam):
+        """``d = lambda diag(H)`` (n,), Gavin eq. 13."""
+        # BEGIN SOLUTION
+        return lam * np.asarray(diag_H)
+        # END SOLUTION
+
+    def gain_denominator(self, h, b, diag_H, lam):
+        """Gavin eq. 16: ``h^T (lambda diag(H) h + J^T W (y - y_hat))`` = ``h^T (lambda diag(H) h - b)``.
+
+        This is the decrease of chi2 that the quadratic model predicts for h.
+        """
+        # BEGIN SOLUTION
+        return float(h @ (lam * np.asarray(diag_H) * h - b))
+        # END SOLUTION
+
+    def update(self, state, rho, accepted, alpha=1.0, dchi2=0.0):
+        """Accepted: ``lambda = max(lambda / L_down, 1e-7)``; rejected: ``min(lambda L_up, 1e7)``."""
+        # BEGIN SOLUTION
+        if accepted:
+            return DampingState(lam=max(state.lam / self.l_down, LAMBDA_MIN), nu=state.nu)
+        return DampingState(lam=min(state.lam * self.l_up, LAMBDA_MAX), nu=state.nu)
+        # END SOLUTION
+
+
+class GavinType2(DampingStrategy):
+    """Type 2: ``[H + lambda I] h = -b`` with Gavin's line search on the step length.
+
+    Constants: lambda_0 = tau max diag(H) with tau = lambda_0 of lm.m (1e-2),
+    eps_4 = 1e-1, lambda clamped below at 1e-7 (Gavin section 4.1.1).
+    """
+
+    name = "lm-type2"
+
+    def __init__(self, tau=1e-2):
+        self.tau = tau
+
+    def initial_state(self, diag_H):
+        """``lambda_0 = tau max diag(H)`` (Gavin eq. 14 start)."""
+        # BEGIN SOLUTION
+        return DampingState(lam=self.tau * float(np.max(diag_H)))
+        # END SOLUTION
+
+    def damping_diagonal(self, diag_H, lam):
+        """``d = lambda (1, ..., 1)`` (n,), i.e. lambda I."""
+        # BEGIN SOLUTION
+        return np.full(len(diag_H), float(lam))
+        # END SOLUTION
+
+    def step_scale(self, h, b, chi2, chi2_full_step):
+        """Gavin's alpha: ``(g^T h) / ((chi2(p+h) - chi2(p)) / 2 + 2 g^T h)`` with ``g = -b``,
+        as printed in section 4.1.1 and coded in lm.m, bounded below by ``ALPHA_MIN``.
+
+        The bound is this course's: from a far start (the default (0, 0, 0)) the full
+        step overflows the exponential, alpha underflows to ~1e-27, chi2(p + alpha h)
+        rounds to chi2(p), and lambda never grows again.
+        """
+        # BEGIN SOLUTION
+        gh = float(-b @ h)
+        return max(gh / ((chi2_full_step - chi2) / 2.0 + 2.0 * gh), ALPHA_MIN)
+        # END SOLUTION
+
+    def gain_denominator(self, h, b, diag_H, lam):
+        """Gavin eq. 15: ``h^T (lambda h - b)`` (h is already the scaled step alpha h)."""
+        # BEGIN SOLUTION
+        return float(h @ (lam * h - b))
+        # END SOLUTION
+
+    def update(self, state, rho, accepted, alpha=1.0, dchi2=0.0):
+        """Accepted: ``max(lambda / (1 + alpha), 1e-7)``; rejected: ``lambda + |dchi2| / (2 alpha)``."""
+        # BEGIN SOLUTION
+        if accepted:
+            return DampingState(lam=max(state.lam / (1.0 + alpha), LAMBDA_MIN), nu=state.nu)
+        return DampingState(lam=state.lam + abs(dchi2) / (2.0 * alpha), nu=state.nu)
+        # END SOLUTION
+
+
+class GavinType3(DampingStrategy):
+    """Type 3 (Nielsen): system and lambda_0 as type 2, nu_0 = 2.
+
+    Constants: tau = 1e-2 (lm.m lambda_0), eps_4 = 1e-1, nu_0 = 2 (Gavin section 4.1.1;
+    Madsen, Nielsen and Tingleff 2004, algorithm 3.16).
+    """
+
+    name = "lm-type3"
+
+    def __init__(self, tau=1e-2):
+        self.tau = tau
+
+    def initial_state(self, diag_H):
+        """``lambda_0 = tau max diag(H)``, ``nu = 2``."""
+        # BEGIN SOLUTION
+        return DampingState(lam=self.tau * float(np.max(diag_H)), nu=2.0)
+        # END SOLUTION
+
+    def damping_diagonal(self, diag_H, lam):
+        """``d = lambda (1, ..., 1)`` (n,), i.e. lambda I."""
+        # BEGIN SOLUTION
+        return np.full(len(diag_H), float(lam))
+        # END SOLUTION
+
+    def gain_denominator(self, h, b, diag_H, lam):
+        """Gavin eq. 15: ``h^T (lambda h - b)``."""
+        # BEGIN SOLUTION
+        return float(h @ (lam * h - b))
+        # END SOLUTION
+
+    def update(self, state, rho, accepted, alpha=1.0, dchi2=0.0):
+        """Accepted: ``lambda max(1/3, 1 - (2 rho - 1)^3)``, ``nu = 2``; rejected: ``lambda nu``, ``nu = 2 nu``."""
+        # BEGIN SOLUTION
+        if accepted:
+            return DampingState(lam=state.lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), nu=2.0)
+        return DampingState(lam=state.lam * state.nu, nu=2.0 * state.nu)
+        # END SOLUTION
+
+
+STRATEGIES = {cls.name: cls for cls in (GavinType1, GavinType2, GavinType3)}

@@ -1,0 +1,41 @@
+"""Chapter 1 exercise: the normal equations and the (damped) Gauss-Newton step."""
+
+import numpy as np
+
+
+def normal_equations(J, r, w):
+    """The Gauss-Newton normal equations.
+
+    Args:
+        J: (m, n) Jacobian ``dr/dp``; r: (m,) residuals; w: (m,) weights (W = diag(w)).
+
+    Returns:
+        H: (n, n) ``J^T W J``; b: (n,) ``J^T W r``.
+
+    Hint: scale the rows of J by w instead of building the m x m matrix W.
+    """
+    # BEGIN SOLUTION
+    Jw = J * w[:, None]
+    return Jw.T @ J, Jw.T @ r
+    # END SOLUTION
+
+
+def solve_step(H, b, damping=None):
+    """Solve ``(H + diag(damping)) h = -b`` for the step h.
+
+    Args:
+        H: (n, n) symmetric positive (semi)definite; b: (n,);
+        damping: (n,) diagonal added to H, or None for the plain Gauss-Newton step.
+
+    Returns:
+        h: (n,) the step. Raises ``numpy.linalg.LinAlgError`` when the matrix is
+        not positive definite.
+
+    Hint: H is symmetric positive definite: a Cholesky factorization
+    ``H = L L^T`` and two triangular solves beat a general inverse.
+    """
+    # BEGIN SOLUTION
+    A = H if damping is None else H + np.diag(damping)
+    L = np.linalg.cholesky(A)
+    return -np.linalg.solve(L.T, np.linalg.solve(L, b))
+    # END SOLUTION
