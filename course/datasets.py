@@ -31,12 +31,13 @@ from pathlib import Path
 import numpy as np
 
 from course import geometry
+from course.errors import CourseError
 from course.graph import PoseGraph
 
 log = logging.getLogger(__name__)
 
 
-class DatasetError(ValueError):
+class DatasetError(CourseError, ValueError):
     """A dataset that cannot be found or read; the message names the file and line."""
 
 
@@ -49,10 +50,11 @@ _FIELDS = {
     "EDGE2": ("id1", "id2", "dx", "dy", "dtheta", "I11", "I12", "I22", "I33", "I13", "I23"),
     "EDGE_SE2": ("id1", "id2", "dx", "dy", "dtheta", "I11", "I12", "I13", "I22", "I23", "I33"),
 }
-_EDGE_TAGS = ("EDGE2", "EDGE_SE2")
-# Where I11 I12 I13 I22 I23 I33 sit among a TORO edge's six information values.
-_TORO_TO_UPPER = [0, 1, 4, 2, 5, 3]
-_UPPER = (np.array([0, 0, 0, 1, 1, 2]), np.array([0, 1, 2, 1, 2, 2]))
+# (rows, cols) of an edge's six information values, in file order.
+_INFO_CELLS = {
+    "EDGE2": (np.array([0, 0, 1, 2, 0, 1]), np.array([0, 1, 1, 2, 2, 2])),
+    "EDGE_SE2": (np.array([0, 0, 0, 1, 1, 2]), np.array([0, 1, 2, 1, 2, 2])),
+}
 
 
 class _Records:
@@ -62,7 +64,7 @@ class _Records:
         self.vertex_ids, self.vertex_tokens, self.vertex_where = [], [], []
         self.edge_ids, self.edge_tokens, self.edge_where, self.edge_tags = [], [], [], []
         self.fixed, self.fixed_where = [], []
-        self.skipped = {"EQUIV": 0}
+        self.equiv = 0  # EQUIV lines skipped
         self.first_line = {}  # vertex id -> (path, line)
 
     def read(self, path: Path):
@@ -80,7 +82,7 @@ class _Records:
                     self.fixed.append(_int(tok, "id", where))
                     self.fixed_where.append(where)
             elif tag == "EQUIV":
-                self.skipped["EQUIV"] += 1
+                self.equiv += 1
             else:
                 known = ", ".join([*_FIELDS, "FIX", "EQUIV"])
                 _fail(where, f"unknown tag {tag!r} (known: {known})")
@@ -90,7 +92,7 @@ class _Records:
         if len(parts) - 1 != len(names):
             _fail(where, f"{tag} line has {len(parts) - 1} values, expected {len(names)} "
                          f"({' '.join(names)})")
-        if tag in _EDGE_TAGS:
+        if tag in _INFO_CELLS:
             self.edge_ids.append((_int(parts[1], "id1", where), _int(parts[2], "id2", where)))
             self.edge_tokens.append(parts[3:])
             self.edge_where.append(where)
@@ -119,12 +121,12 @@ class _Records:
                 edges[k, col] = index[vid]
         names = [_FIELDS[t][2:] for t in self.edge_tags]
         values = _floats(self.edge_tokens, self.edge_where, names, 9)
-        toro = np.array([t == "EDGE2" for t in self.edge_tags], dtype=bool)
-        upper = values[:, 3:].copy()
-        upper[toro] = upper[toro][:, _TORO_TO_UPPER]
         info = np.zeros((len(values), 3, 3))
-        info[:, _UPPER[0], _UPPER[1]] = upper
-        info[:, _UPPER[1], _UPPER[0]] = upper
+        tags = np.array(self.edge_tags, dtype=object)
+        for tag, (rows, cols) in _INFO_CELLS.items():
+            block = np.zeros((np.sum(tags == tag), 3, 3))
+            block[:, rows, cols] = block[:, cols, rows] = values[tags == tag, 3:]
+            info[tags == tag] = block
         _check_spd(info, self.edge_where, self.edge_tags)
         fixed = []
         for vid, where in zip(self.fixed, self.fixed_where):
@@ -132,8 +134,8 @@ class _Records:
                 _fail(where, f"FIX refers to missing vertex id {vid}")
             if index[vid] not in fixed:
                 fixed.append(index[vid])
-        if self.skipped["EQUIV"]:
-            log.info("%s: skipped %d EQUIV lines", source, self.skipped["EQUIV"])
+        if self.equiv:
+            log.info("%s: skipped %d EQUIV lines", source, self.equiv)
         return PoseGraph(
             poses, edges[:, 0], edges[:, 1], values[:, :3], info,
             fixed=fixed or [0], ids=np.array(self.vertex_ids, dtype=np.int64),
@@ -189,9 +191,9 @@ def _check_spd(info, where, tags):
     if len(bad):
         k = bad[0]
         order = " ".join(_FIELDS[tags[k]][5:])
+        eig = np.linalg.eigvalsh(info[k])
         _fail(where[k], f"information matrix is not symmetric positive definite "
-                        f"(eigenvalues {np.linalg.eigvalsh(info[k])}; {tags[k]} order is {order}): "
-                        f"{info[k].tolist()}")
+                        f"(eigenvalues {eig}; {tags[k]} order is {order}): {info[k].tolist()}")
 
 
 def _toro_pair(path: Path) -> tuple[Path, Path] | None:
@@ -236,9 +238,10 @@ def _numbers(a) -> list[str]:
     return [" ".join(map(repr, row)) for row in np.asarray(a, dtype=float).tolist()]
 
 
-def _write(graph: PoseGraph, path, vertex_tag, edge_tag, info_cols, fix: bool):
+def _write(graph: PoseGraph, path, vertex_tag, edge_tag, fix: bool):
     ids = np.asarray(graph.ids, dtype=np.int64)
-    info = np.asarray(graph.information)[:, info_cols[0], info_cols[1]]
+    rows, cols = _INFO_CELLS[edge_tag]
+    info = np.asarray(graph.information)[:, rows, cols]
     lines = [f"{vertex_tag} {i} {v}" for i, v in zip(ids.tolist(), _numbers(graph.poses))]
     lines += [
         f"{edge_tag} {a} {b} {z} {w}"
@@ -256,7 +259,7 @@ def write_g2o(graph: PoseGraph, path) -> None:
     Uses the file ids ``graph.ids`` and the upper triangle of each information matrix.
     Floats are written at round-trip precision, so ``read_graph`` gives back the arrays.
     """
-    _write(graph, path, "VERTEX_SE2", "EDGE_SE2", _UPPER, fix=True)
+    _write(graph, path, "VERTEX_SE2", "EDGE_SE2", fix=True)
 
 
 def write_toro(graph: PoseGraph, path) -> None:
@@ -264,8 +267,7 @@ def write_toro(graph: PoseGraph, path) -> None:
 
     TORO has no FIX record: a reader fixes the first vertex.
     """
-    rows, cols = _UPPER[0][_TORO_TO_UPPER], _UPPER[1][_TORO_TO_UPPER]
-    _write(graph, path, "VERTEX2", "EDGE2", (rows, cols), fix=False)
+    _write(graph, path, "VERTEX2", "EDGE2", fix=False)
 
 
 # ---------------------------------------------------------------------------------------
@@ -299,8 +301,9 @@ def manhattan(num_poses: int, seed: int = 0, *, grid: int | None = None,
     for _ in range(num_poses - 1):
         (x, y), h = cells[-1], headings[-1]
         x, y = x + step[h][0], y + step[h][1]
-        allowed = [t for t in (-1, 0, 1)
-                   if 0 <= x + step[(h + t) % 4][0] < size and 0 <= y + step[(h + t) % 4][1] < size]
+        allowed = [t for t in (-1, 0, 1)  # turns after which the next step stays inside
+                   if 0 <= x + step[(h + t) % 4][0] < size
+                   and 0 <= y + step[(h + t) % 4][1] < size]
         turn = int(rng.choice([-1, 1])) if rng.random() < turn_prob else 0
         if turn not in allowed:
             turn = int(rng.choice(allowed))
@@ -348,7 +351,8 @@ class DatasetInfo:
     reason: str = ""
 
 
-# name -> (where: "data" or "gtsam", relative path (a TORO pair as its prefix), format, poses, edges)
+# name -> (folder: "data" or "gtsam", relative path (a TORO pair as its prefix), format,
+#          documented poses, documented edges)
 _NAMED = {
     "intel": ("data", "intel_toro/intel", "toro pair", 729, 3070),
     "test_quadrat": ("data", "test_quadrat/test_quadrat", "toro pair", 4, 5),
