@@ -1,0 +1,23 @@
+"""Chapter 2 exercise: the error of one 2D pose-graph edge and its Jacobians."""
+
+import numpy as np
+
+
+def edge_error_and_jacobians(x_i, x_j, z_ij):
+    """Error ``e_ij`` (3,) and Jacobians ``A_ij = de/dx_i``, ``B_ij = de/dx_j`` (3, 3).
+
+    Poses and the measurement are ``(x, y, theta)``; the measurement is pose j seen
+    from pose i. With ``t = (x, y)`` and ``R(theta)`` the 2D rotation::
+
+        e_t     = R_ij^T (R_i^T (t_j - t_i) - t_ij)
+        e_theta = wrap(theta_j - theta_i - theta_ij)      wrapped to [-pi, pi)
+
+        A_ij = [[-R_ij^T R_i^T,  R_ij^T dR_i^T/dtheta_i (t_j - t_i)],
+                [ 0    0,        -1                               ]]
+        B_ij = [[ R_ij^T R_i^T,  0],
+                [ 0    0,        1]]
+
+    Hint: ``dR^T/dtheta = [[-sin, cos], [-cos, -sin]]``; ``course.geometry.wrap_angle``
+    wraps angles.
+    """
+    raise NotImplementedError("TODO pose_graph_edge.edge_error_and_jacobians: not implemented yet")

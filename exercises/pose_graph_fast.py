@@ -1,0 +1,44 @@
+"""Chapter 2, going further: the pose-graph linearization vectorized over edges.
+
+The reference solver uses this module; an implementation that leaves it unwritten
+falls back to the per-edge loop of ``pose_graph_assembly`` (fine for small graphs).
+"""
+
+import numpy as np
+import scipy.sparse as sp
+
+
+def edge_errors_and_jacobians(poses, edges_i, edges_j, measurements):
+    """All edges at once: ``e`` (M, 3), ``A`` (M, 3, 3), ``B`` (M, 3, 3).
+
+    Same formulas as ``pose_graph_edge.edge_error_and_jacobians``, with no Python
+    loop over edges. Note ``R_ij^T R_i^T = R(theta_i + theta_ij)^T``.
+    """
+    raise NotImplementedError("TODO pose_graph_fast.edge_errors_and_jacobians: not implemented yet")
+
+
+class SparseAssembler:
+    """Scatter-add edge blocks into the upper triangle of a sparse H, pattern fixed.
+
+    Each edge k contributes ``J_k^T Omega_k J_k`` with ``J_k = [A_k B_k]`` (3, 6) to
+    the rows and columns of its two poses; only the 21 entries of the upper triangle
+    of that 6x6 matrix are needed. The pattern (upper triangle, CSC, every diagonal
+    entry present) and the position in ``H.data`` of every one of those 21 entries
+    of every edge are computed once here; ``assemble`` then costs two batched
+    products and one ``np.bincount``. Fixed poses get identity blocks and zero rows,
+    columns and b.
+    """
+
+    #: row and column of the 21 upper-triangle entries of a 6x6 edge block
+    UPPER = np.triu_indices(6)
+
+    def __init__(self, num_poses, edges_i, edges_j, fixed):
+        raise NotImplementedError("TODO pose_graph_fast.SparseAssembler.__init__: not implemented yet")
+
+    def assemble(self, e, A, B, information):
+        """Upper-triangular ``H`` (CSC, (3N, 3N)), ``b`` (3N,) and ``chi2`` from the blocks.
+
+        Args: e (M, 3), A, B (M, 3, 3) from ``edge_errors_and_jacobians``;
+        information (M, 3, 3).
+        """
+        raise NotImplementedError("TODO pose_graph_fast.SparseAssembler.assemble: not implemented yet")

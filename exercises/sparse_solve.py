@@ -1,0 +1,40 @@
+"""Chapter 2 exercise: solve ``H dx = -b`` densely and sparsely."""
+
+import numpy as np
+import qdldl
+import scipy.linalg
+import scipy.sparse as sp
+
+
+def dense_solve(H, b):
+    """``dx`` (n,) with ``H dx = -b`` for a dense symmetric positive definite ``H`` (n, n).
+
+    Hint: ``scipy.linalg.cho_factor`` / ``cho_solve``; this costs O(n^3) whatever the
+    sparsity, which is the point of comparing it with the sparse solve.
+    """
+    raise NotImplementedError("TODO sparse_solve.dense_solve: not implemented yet")
+
+
+def upper_triangle_csc(H):
+    """The upper triangle (diagonal included) of a symmetric ``H`` as a CSC matrix.
+
+    Args: H: (n, n) dense array or scipy sparse matrix. Returns: scipy.sparse CSC (n, n).
+    """
+    raise NotImplementedError("TODO sparse_solve.upper_triangle_csc: not implemented yet")
+
+
+class SparseCholeskySolver:
+    """Sparse ``L D L^T`` solves of ``H dx = -b`` that reuse the analysis of the pattern.
+
+    The first ``solve`` computes a fill-reducing ordering (AMD) and the symbolic
+    factorization; later calls with the same sparsity pattern redo only the numeric
+    factorization. ``qdldl.Solver(A, upper=True)`` does the first, ``.update(A, upper=True)``
+    the second and ``.solve(rhs)`` the triangular solves.
+    """
+
+    def __init__(self):
+        self._solver = None
+
+    def solve(self, H_upper, b):
+        """``dx`` (n,) with ``H dx = -b``; ``H_upper`` the upper triangle of H (CSC, (n, n))."""
+        raise NotImplementedError("TODO sparse_solve.SparseCholeskySolver.solve: not implemented yet")

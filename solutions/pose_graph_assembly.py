@@ -1,0 +1,48 @@
+"""Chapter 2 exercise: assemble H and b over all edges, one edge at a time."""
+
+import numpy as np
+
+from . import pose_graph_edge
+
+
+def assemble_normal_equations(poses, edges_i, edges_j, measurements, information, fixed):
+    """Dense ``H`` (3N, 3N), ``b`` (3N,) and ``chi2`` of a pose graph, edge by edge.
+
+    For each edge k from pose i to pose j, with ``e, A, B`` from
+    ``pose_graph_edge.edge_error_and_jacobians`` and ``Omega = information[k]``::
+
+        H[i,i] += A^T Omega A    H[i,j] += A^T Omega B
+        H[j,i] += B^T Omega A    H[j,j] += B^T Omega B
+        b[i]   += A^T Omega e    b[j]   += B^T Omega e       chi2 += e^T Omega e
+
+    where ``H[i,j]`` is the 3x3 block at rows ``3i:3i+3``, columns ``3j:3j+3``.
+    Then hold every pose in ``fixed`` still: zero its rows and columns of H and its
+    entries of b, and put the identity on its diagonal block, so that its step is 0.
+
+    Args:
+        poses: (N, 3); edges_i, edges_j: (M,) int; measurements: (M, 3);
+        information: (M, 3, 3); fixed: (K,) int indices of fixed poses.
+    """
+    # BEGIN SOLUTION
+    n = 3 * len(poses)
+    H = np.zeros((n, n))
+    b = np.zeros(n)
+    chi2 = 0.0
+    for i, j, z, omega in zip(edges_i, edges_j, measurements, information):
+        e, A, B = pose_graph_edge.edge_error_and_jacobians(poses[i], poses[j], z)
+        si, sj = slice(3 * i, 3 * i + 3), slice(3 * j, 3 * j + 3)
+        H[si, si] += A.T @ omega @ A
+        H[si, sj] += A.T @ omega @ B
+        H[sj, si] += B.T @ omega @ A
+        H[sj, sj] += B.T @ omega @ B
+        b[si] += A.T @ omega @ e
+        b[sj] += B.T @ omega @ e
+        chi2 += e @ omega @ e
+    for k in fixed:
+        sk = slice(3 * k, 3 * k + 3)
+        H[sk, :] = 0.0
+        H[:, sk] = 0.0
+        H[sk, sk] = np.eye(3)
+        b[sk] = 0.0
+    return H, b, float(chi2)
+    # END SOLUTION
