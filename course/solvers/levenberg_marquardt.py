@@ -61,9 +61,12 @@ def minimize(problem, method="gauss-newton", impl="solutions", options=None) -> 
             trace.append(_record(iteration, lin.chi2, state, np.nan, h, False, start, factorizations))
             break
         x_new = problem.retract(x, h)
-        chi2_new = problem.chi2(x_new)
-        alpha = 1.0
-        if strategy is not None:
+        if strategy is None:
+            # Gauss-Newton takes every step: linearize at once, its chi2 comes with it
+            lin_new = problem.linearize(x_new)
+            chi2_new, alpha = lin_new.chi2, 1.0
+        else:
+            chi2_new = problem.chi2(x_new)
             alpha = float(strategy.step_scale(h, lin.b, lin.chi2, chi2_new))
             if not np.isfinite(alpha) or alpha <= 0:
                 raise NonFiniteError(f"damping.{type(strategy).__name__}.step_scale returned {alpha}")
@@ -93,7 +96,7 @@ def minimize(problem, method="gauss-newton", impl="solutions", options=None) -> 
         if accepted:
             x = x_new
             previous = lin.chi2
-            lin = problem.linearize(x)
+            lin = lin_new if strategy is None else problem.linearize(x)
             diag_H = lin.diagonal()
             if abs(previous - lin.chi2) <= options.cost_tolerance * previous:
                 reason = "cost_tolerance"

@@ -1,0 +1,53 @@
+"""Chapter 3 exercise: Powell's dogleg step and its trust-region radius.
+
+Source: K. Madsen, H. B. Nielsen, O. Tingleff, "Methods for non-linear least squares
+problems" (2004), section 3.3 and algorithm 3.21; the stable root for beta as in
+Ceres Solver's dogleg strategy. Notation: ``F = chi2 / 2``, gradient ``g = b = J^T W r``,
+``H = J^T W J``, quadratic model ``L(h) = F + g^T h + h^T H h / 2``.
+"""
+
+import numpy as np
+
+#: the three cases of the dogleg step
+GAUSS_NEWTON, STEEPEST_DESCENT, DOGLEG = "gauss-newton", "steepest-descent", "dogleg"
+
+
+def cauchy_point(g, Hg):
+    """The minimizer of the model along steepest descent.
+
+    Args: g (n,) the gradient; Hg (n,) the product ``H g``.
+    Returns: ``(h_cp, alpha)``: ``alpha = |g|^2 / g^T H g`` and ``h_cp = -alpha g`` (n,).
+    """
+    raise NotImplementedError("TODO dogleg.cauchy_point: not implemented yet")
+
+
+def dogleg_step(g, h_gn, alpha, radius):
+    """The dogleg step for trust-region ``radius``, its predicted decrease and its case.
+
+    Cases (Madsen et al., algorithm 3.21), with ``a = -alpha g`` the Cauchy point:
+    1. ``|h_gn| <= radius``: the Gauss-Newton step; ``L(0) - L(h) = -g^T h_gn / 2``.
+    2. ``|a| >= radius``: steepest descent clipped to the boundary,
+       ``h = -(radius / |g|) g``; ``L(0) - L(h) = radius (2 |a| - radius) / (2 alpha)``.
+    3. otherwise ``h = a + beta (h_gn - a)`` with ``|h| = radius``;
+       ``L(0) - L(h) = alpha (1 - beta)^2 |g|^2 / 2 + beta (2 - beta) (-g^T h_gn / 2)``.
+    Solve the quadratic for beta without cancellation: with ``c = a^T (h_gn - a)``,
+    ``d = sqrt(c^2 + |h_gn - a|^2 (radius^2 - |a|^2))``,
+    ``beta = (d - c) / |h_gn - a|^2`` if ``c <= 0`` else ``(radius^2 - |a|^2) / (d + c)``.
+
+    Madsen et al. write ``F(x)`` where this uses ``-g^T h_gn / 2 = L(0) - L(h_gn)``:
+    the two agree only when the linearized residual vanishes; this is exact.
+
+    Args: g (n,), h_gn (n,) the Gauss-Newton step (``H h_gn = -g``), alpha from
+    ``cauchy_point``, radius > 0.
+    Returns: ``(h (n,), predicted_decrease (float, in F = chi2/2 units), case)``.
+    """
+    raise NotImplementedError("TODO dogleg.dogleg_step: not implemented yet")
+
+
+def update_radius(radius, rho, step_norm):
+    """The next trust-region radius (Madsen et al., algorithm 3.21).
+
+    ``rho > 0.75``: ``max(radius, 3 |step|)``; ``rho < 0.25``: ``radius / 2``;
+    otherwise unchanged.
+    """
+    raise NotImplementedError("TODO dogleg.update_radius: not implemented yet")

@@ -1,0 +1,78 @@
+"""Chapter 3 exercise: Powell's dogleg step and its trust-region radius.
+
+Source: K. Madsen, H. B. Nielsen, O. Tingleff, "Methods for non-linear least squares
+problems" (2004), section 3.3 and algorithm 3.21; the stable root for beta as in
+Ceres Solver's dogleg strategy. Notation: ``F = chi2 / 2``, gradient ``g = b = J^T W r``,
+``H = J^T W J``, quadratic model ``L(h) = F + g^T h + h^T H h / 2``.
+"""
+
+import numpy as np
+
+#: the three cases of the dogleg step
+GAUSS_NEWTON, STEEPEST_DESCENT, DOGLEG = "gauss-newton", "steepest-descent", "dogleg"
+
+
+def cauchy_point(g, Hg):
+    """The minimizer of the model along steepest descent.
+
+    Args: g (n,) the gradient; Hg (n,) the product ``H g``.
+    Returns: ``(h_cp, alpha)``: ``alpha = |g|^2 / g^T H g`` and ``h_cp = -alpha g`` (n,).
+    """
+    # BEGIN SOLUTION
+    alpha = float(g @ g) / float(g @ Hg)
+    return -alpha * g, alpha
+    # END SOLUTION
+
+
+def dogleg_step(g, h_gn, alpha, radius):
+    """The dogleg step for trust-region ``radius``, its predicted decrease and its case.
+
+    Cases (Madsen et al., algorithm 3.21), with ``a = -alpha g`` the Cauchy point:
+    1. ``|h_gn| <= radius``: the Gauss-Newton step; ``L(0) - L(h) = -g^T h_gn / 2``.
+    2. ``|a| >= radius``: steepest descent clipped to the boundary,
+       ``h = -(radius / |g|) g``; ``L(0) - L(h) = radius (2 |a| - radius) / (2 alpha)``.
+    3. otherwise ``h = a + beta (h_gn - a)`` with ``|h| = radius``;
+       ``L(0) - L(h) = alpha (1 - beta)^2 |g|^2 / 2 + beta (2 - beta) (-g^T h_gn / 2)``.
+    Solve the quadratic for beta without cancellation: with ``c = a^T (h_gn - a)``,
+    ``d = sqrt(c^2 + |h_gn - a|^2 (radius^2 - |a|^2))``,
+    ``beta = (d - c) / |h_gn - a|^2`` if ``c <= 0`` else ``(radius^2 - |a|^2) / (d + c)``.
+
+    Madsen et al. write ``F(x)`` where this uses ``-g^T h_gn / 2 = L(0) - L(h_gn)``:
+    the two agree only when the linearized residual vanishes; this is exact.
+
+    Args: g (n,), h_gn (n,) the Gauss-Newton step (``H h_gn = -g``), alpha from
+    ``cauchy_point``, radius > 0.
+    Returns: ``(h (n,), predicted_decrease (float, in F = chi2/2 units), case)``.
+    """
+    # BEGIN SOLUTION
+    gn_decrease = -float(g @ h_gn) / 2.0
+    if np.linalg.norm(h_gn) <= radius:
+        return h_gn, gn_decrease, GAUSS_NEWTON
+    g_norm = np.linalg.norm(g)
+    a = -alpha * g
+    a_norm = alpha * g_norm
+    if a_norm >= radius:
+        return -(radius / g_norm) * g, radius * (2.0 * a_norm - radius) / (2.0 * alpha), STEEPEST_DESCENT
+    diff = h_gn - a
+    c = float(a @ diff)
+    diff_sq = float(diff @ diff)
+    d = np.sqrt(c * c + diff_sq * (radius**2 - a_norm**2))
+    beta = (d - c) / diff_sq if c <= 0 else (radius**2 - a_norm**2) / (d + c)
+    decrease = alpha * (1.0 - beta) ** 2 * g_norm**2 / 2.0 + beta * (2.0 - beta) * gn_decrease
+    return a + beta * diff, decrease, DOGLEG
+    # END SOLUTION
+
+
+def update_radius(radius, rho, step_norm):
+    """The next trust-region radius (Madsen et al., algorithm 3.21).
+
+    ``rho > 0.75``: ``max(radius, 3 |step|)``; ``rho < 0.25``: ``radius / 2``;
+    otherwise unchanged.
+    """
+    # BEGIN SOLUTION
+    if rho > 0.75:
+        return max(radius, 3.0 * step_norm)
+    if rho < 0.25:
+        return radius / 2.0
+    return radius
+    # END SOLUTION
