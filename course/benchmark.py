@@ -1,0 +1,75 @@
+"""Benchmarks: ratios against a peer measured in the same run, medians of several runs.
+
+``python -m course benchmark`` prints, on w10000 and m3500, our Gauss-Newton time per
+iteration over g2o's (g2opy) and, on intel, the dense over the sparse solve of one
+Gauss-Newton system. Nothing here is a test: the machine is shared and noisy.
+"""
+
+import statistics
+import time
+
+import numpy as np
+
+from course import datasets
+from course.problems.posegraph import PoseGraphProblem
+from course.solvers import minimize
+
+
+def _median_seconds_per_iteration(run, repeats):
+    values = []
+    for _ in range(repeats):
+        result = run()
+        values.append(result.seconds / max(result.iterations, 1))
+    return statistics.median(values), result
+
+
+def gauss_newton_vs_g2o(name, repeats=5, impl="solutions"):
+    """``(ours, g2o, ours_result, g2o_result)`` seconds per GN iteration, medians of ``repeats``."""
+    from course.backends import g2o_posegraph
+
+    graph = datasets.load_dataset(name)
+    ours, ours_result = _median_seconds_per_iteration(
+        lambda: minimize(PoseGraphProblem(graph, impl), "gauss-newton", impl=impl), repeats
+    )
+    theirs, g2o_result = _median_seconds_per_iteration(
+        lambda: g2o_posegraph.solve(graph, "gauss-newton"), repeats
+    )
+    return ours, theirs, ours_result, g2o_result
+
+
+def dense_vs_sparse(name="intel", repeats=5, impl="solutions"):
+    """``(dense, sparse)`` median seconds to solve one Gauss-Newton system of ``name``."""
+    from course import impl as impl_loader
+
+    solve = impl_loader.load(impl).module("sparse_solve")
+    problem = PoseGraphProblem(datasets.load_dataset(name), impl)
+    lin = problem.linearize(problem.x0)
+    full = lin.H.toarray()
+    full = full + full.T - np.diag(full.diagonal())
+    dense, sparse = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        dx_dense = solve.dense_solve(full, lin.b)
+        t1 = time.perf_counter()
+        dx_sparse = solve.SparseCholeskySolver().solve(lin.H, lin.b)
+        t2 = time.perf_counter()
+        dense.append(t1 - t0)
+        sparse.append(t2 - t1)
+    np.testing.assert_allclose(dx_sparse, dx_dense, rtol=1e-6, atol=1e-9)
+    return statistics.median(dense), statistics.median(sparse)
+
+
+def main(repeats=5, graphs=("w10000", "m3500"), out=print):
+    out(f"Gauss-Newton seconds per iteration, ours over g2o (g2opy), median of {repeats}:")
+    out(f"{'graph':10} {'ours ms/it':>11} {'g2o ms/it':>10} {'ratio':>6} {'ours chi2':>14} {'g2o chi2':>14}")
+    for name in graphs:
+        ours, theirs, r_ours, r_g2o = gauss_newton_vs_g2o(name, repeats)
+        out(f"{name:10} {ours * 1e3:11.2f} {theirs * 1e3:10.2f} {ours / theirs:6.2f} "
+            f"{r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")
+    try:
+        dense, sparse = dense_vs_sparse("intel", repeats)
+    except datasets.DatasetError as exc:
+        out(f"intel dense vs sparse skipped: {exc}")
+    else:
+        out(f"intel: dense solve {dense * 1e3:.1f} ms, sparse {sparse * 1e3:.2f} ms, "
+            f"dense/sparse = {dense / sparse:.0f}x (median of {repeats})")
