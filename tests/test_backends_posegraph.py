@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from solutions.ceres_edge_cost import SE2EdgeCost
 from course import datasets, geometry
 from course.graph import PoseGraph
 from course.backends import POSE_GRAPH_BACKENDS, POSE_GRAPH_METHODS
@@ -131,7 +132,7 @@ def _random_cost(rng):
     z = rng.normal(size=3)
     a = rng.normal(size=(3, 3))
     root = ceres_posegraph.sqrt_information(a @ a.T + np.eye(3))
-    return z, root, ceres_posegraph.SE2EdgeCost(z, root)
+    return z, root, SE2EdgeCost(z, root)
 
 
 def _evaluate(cost, xi, xj):
@@ -188,7 +189,7 @@ def test_ceres_twice_cost_is_our_chi2(w100, w100_runs):
 
 
 def test_ceres_accepts_another_cost_class(w100, w100_runs):
-    class Doubled(ceres_posegraph.SE2EdgeCost):
+    class Doubled(SE2EdgeCost):
         """Residuals times 2: chi2 times 4, same minimizer."""
 
         def __init__(self, measurement, sqrt_information):

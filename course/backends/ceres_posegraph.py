@@ -16,9 +16,9 @@ and a residual block whose parameter blocks are all constant segfault with a Pyt
 cost function (so edges between two fixed vertices stay out of the problem, see
 ``build_problem``); ``CostFunction.evaluate(*blocks)`` works.
 
-The cost class is a seam for a student exercise: ``solve(..., cost_class=MyCost)``
-builds ``MyCost(measurement (3,), sqrt_information (3, 3))`` per edge instead of
-``SE2EdgeCost``.
+The cost class is the chapter 2 exercise ``ceres_edge_cost.SE2EdgeCost``:
+``solve(..., impl="exercises")`` uses the student's, ``cost_class=`` any class built as
+``Cost(measurement (3,), sqrt_information (3, 3))``.
 """
 
 import math
@@ -27,6 +27,7 @@ import time
 import numpy as np
 import pyceres
 
+from course import impl as impl_loader
 from course.graph import PoseGraph
 from course.trace import IterationRecord, RunResult
 
@@ -39,80 +40,13 @@ def _wrap(angle: float) -> float:
     return (angle + math.pi) % _TWO_PI - math.pi
 
 
-class SE2EdgeCost(pyceres.CostFunction):
-    """Whitened error of one pose-graph edge, for Ceres.
-
-    Residual ``r = U e`` (3,) with parameter blocks ``x_i = (x, y, theta)`` and ``x_j``:
-
-        e = [R_ij^T (R_i^T (t_j - t_i) - t_ij); wrap(theta_j - theta_i - theta_ij)]
-
-    With ``phi = theta_i + theta_ij`` and ``d = t_j - t_i`` this is
-    ``e_t = R(phi)^T d - R_ij^T t_ij``, so, writing ``Q = R(phi)^T``:
-
-        de/dx_i = [[-Q, (-sin phi dx + cos phi dy, -cos phi dx - sin phi dy)^T], [0 0 -1]]
-        de/dx_j = [[ Q, 0], [0 0 1]]
-
-    and the Jacobians Ceres receives are ``U de/dx_i``, ``U de/dx_j`` (3x3, row-major).
-
-    Args:
-        measurement: (3,) ``z_ij = (dx, dy, dtheta)``, pose j in the frame of pose i.
-        sqrt_information: (3, 3) ``U`` with ``U^T U = Omega_ij`` (any square root works;
-            the back end passes the upper Cholesky factor).
-    """
-
-    def __init__(self, measurement, sqrt_information):
-        pyceres.CostFunction.__init__(self)  # without it pyceres segfaults
-        self.set_num_residuals(3)
-        self.set_parameter_block_sizes([3, 3])
-        zx, zy, zt = (float(v) for v in np.asarray(measurement, dtype=float).reshape(3))
-        c, s = math.cos(zt), math.sin(zt)
-        self._zt = zt
-        self._c, self._s = c, s
-        self._tz = (c * zx + s * zy, -s * zx + c * zy)  # R_ij^T t_ij
-        self._u = tuple(float(v) for v in np.asarray(sqrt_information, dtype=float).reshape(9))
-
-    def Evaluate(self, parameters, residuals, jacobians):  # noqa: N802 (the pyceres name)
-        xi, yi, ti = parameters[0].tolist()
-        xj, yj, tj = parameters[1].tolist()
-        dx, dy = xj - xi, yj - yi
-        phi = ti + self._zt
-        cp, sp = math.cos(phi), math.sin(phi)
-        qx = cp * dx + sp * dy  # R(phi)^T d
-        qy = -sp * dx + cp * dy
-        e0 = qx - self._tz[0]
-        e1 = qy - self._tz[1]
-        e2 = _wrap(tj - ti - self._zt)
-        u00, u01, u02, u10, u11, u12, u20, u21, u22 = self._u
-        residuals[:] = (
-            u00 * e0 + u01 * e1 + u02 * e2,
-            u10 * e0 + u11 * e1 + u12 * e2,
-            u20 * e0 + u21 * e1 + u22 * e2,
-        )
-        if jacobians is None:
-            return True
-        # de_t/dtheta_i = dR(phi)^T/dphi d = (qy, -qx)
-        if jacobians[0] is not None:
-            jacobians[0][:] = (
-                -u00 * cp + u01 * sp, -u00 * sp - u01 * cp, u00 * qy - u01 * qx - u02,
-                -u10 * cp + u11 * sp, -u10 * sp - u11 * cp, u10 * qy - u11 * qx - u12,
-                -u20 * cp + u21 * sp, -u20 * sp - u21 * cp, u20 * qy - u21 * qx - u22,
-            )
-        if jacobians[1] is not None:
-            jacobians[1][:] = (
-                u00 * cp - u01 * sp, u00 * sp + u01 * cp, u02,
-                u10 * cp - u11 * sp, u10 * sp + u11 * cp, u12,
-                u20 * cp - u21 * sp, u20 * sp + u21 * cp, u22,
-            )
-        return True
-
-
 def sqrt_information(information) -> np.ndarray:
     """Upper Cholesky factors ``U`` (..., 3, 3) with ``U^T U = information``."""
     lower = np.linalg.cholesky(np.asarray(information, dtype=float))
     return np.ascontiguousarray(np.swapaxes(lower, -1, -2))
 
 
-def build_problem(graph: PoseGraph, cost_class=None, poses=None):
+def build_problem(graph: PoseGraph, cost_class=None, poses=None, impl="solutions"):
     """The Ceres problem for ``graph`` at ``poses`` (default ``graph.poses``).
 
     Returns ``(problem, blocks, costs, constant_chi2)``: ``blocks`` the N parameter
@@ -124,7 +58,8 @@ def build_problem(graph: PoseGraph, cost_class=None, poses=None):
     constant): ``constant_chi2`` is the sum of its ``|r|^2``, evaluated through the
     cost function's C++ ``evaluate``.
     """
-    cost_class = SE2EdgeCost if cost_class is None else cost_class
+    if cost_class is None:
+        cost_class = impl_loader.load(impl).module("ceres_edge_cost").SE2EdgeCost
     poses = graph.poses if poses is None else np.asarray(poses, dtype=float)
     blocks = [np.array(p, dtype=np.float64, order="C", copy=True) for p in poses]
     roots = sqrt_information(graph.information)
@@ -192,6 +127,7 @@ def solve(
     max_iterations: int = 100,
     *,
     cost_class=None,
+    impl="solutions",
     function_tolerance: float = 1e-12,
     parameter_tolerance: float = 1e-12,
     gradient_tolerance: float = 1e-14,
@@ -224,7 +160,7 @@ def solve(
         raise ValueError(f"unknown Ceres method {method!r}; choose one of {METHODS}")
     if max_iterations < 1:
         raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
-    problem, blocks, costs, constant_chi2 = build_problem(graph, cost_class)
+    problem, blocks, costs, constant_chi2 = build_problem(graph, cost_class, impl=impl)
 
     options = pyceres.SolverOptions()
     options.linear_solver_type = pyceres.LinearSolverType.SPARSE_NORMAL_CHOLESKY
