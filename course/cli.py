@@ -1,0 +1,166 @@
+"""Command line: ``python -m course {demo,compare,release,benchmark} ...``.
+
+``main(argv=None) -> int`` is cheap to import: every subcommand imports what it needs
+(numpy, pyceres, matplotlib, ...) when it runs. Exit codes: 0 success, 1 a failed
+check or a solver/implementation error, 2 a usage error (unknown dataset, method, ...).
+"""
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+
+def _default_impl() -> str:
+    """``solutions`` in the course repository, ``exercises`` in a student tree (no solutions/)."""
+    from course.impl import REPO_ROOT
+
+    return "solutions" if (REPO_ROOT / "solutions" / "__init__.py").is_file() else "exercises"
+
+
+def _names(text):
+    return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
+
+
+def _add_run_arguments(parser):
+    parser.add_argument("--impl", default=None,
+                        help="solutions, exercises or a directory laid out like exercises/ "
+                             "(default: solutions when present, else exercises)")
+    parser.add_argument("--methods", default=None, help="comma-separated method names (default: all)")
+    parser.add_argument("--backends", default=None,
+                        help="comma-separated back ends among ours, ceres, g2o, gtsam, scipy (default: all)")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="solve each pair this many times and keep the median-time run")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m course",
+        description="SLAM back ends from the inside: run our solvers and the peers (Ceres, scipy, g2o, GTSAM).",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    demo = sub.add_parser("demo", help="chapter 1: every method and peer on generated curve data, with plots")
+    _add_run_arguments(demo)
+    demo.add_argument("--out", default="out", help="folder for the PNG plots and the JSON (default: out)")
+    demo.add_argument("--points", type=int, default=100, help="number of samples (default 100)")
+    demo.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    demo.set_defaults(func=cmd_demo, repeat=3)
+
+    compare = sub.add_parser("compare", help="one dataset through our methods and the peers")
+    compare.add_argument("dataset", help="the dataset: 'curve' (generated data)")
+    _add_run_arguments(compare)
+    compare.add_argument("--json", metavar="FILE", help="write {dataset, runs[]} as JSON")
+    compare.add_argument("--plot", metavar="FILE", help="write chi2 per iteration as a PNG")
+    compare.set_defaults(func=cmd_compare)
+
+    release = sub.add_parser("release", help="regenerate exercises/ from solutions/")
+    release.add_argument("--check", action="store_true",
+                         help="only check: exit 1 and list the stale files when exercises/ is out of date")
+    release.add_argument("--student", metavar="DIR", help="also write a student tree (no solutions/) to DIR")
+    release.add_argument("--root", metavar="DIR", default=None,
+                         help="repository holding solutions/ and exercises/ (default: this checkout)")
+    release.set_defaults(func=cmd_release)
+
+    bench = sub.add_parser("benchmark", help="our Gauss-Newton time per iteration against g2o's (course.benchmark)")
+    bench.add_argument("--repeats", type=int, default=5)
+    bench.set_defaults(func=cmd_benchmark)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from course.errors import CourseError
+
+    try:
+        return int(args.func(args) or 0)
+    except (CourseError, NotImplementedError, ArithmeticError) as exc:
+        from course.compare import UnknownDatasetError
+
+        print(f"error: {exc}", file=sys.stderr)
+        return 2 if isinstance(exc, UnknownDatasetError) else 1
+    except ValueError as exc:  # unknown method, backend, implementation path
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+# ---------------------------------------------------------------- subcommands
+
+
+def cmd_demo(args) -> int:
+    """Chapter 1's experiment: the table on the terminal, the plots in ``args.out``."""
+    from course import compare, plot
+    from course.problems.curve import generate
+
+    impl = args.impl or _default_impl()
+    data = generate(num_points=args.points, seed=args.seed)
+    runs = compare.run_curve(impl=impl, methods=_names(args.methods), backends=_names(args.backends),
+                             data=data, repeat=args.repeat)
+    title = (f"Curve fit y = exp(a x^2 + b x + c), {args.points} points, sigma {data.sigma:g}, seed {args.seed}, "
+             f"start {tuple(data.start.tolist())}, truth {tuple(data.truth.tolist())}; impl {impl}; "
+             f"median of {args.repeat} runs")
+    print(compare.format_table(runs, title=title))
+    out = Path(args.out)
+    lm_runs = [r for r in runs if r.backend == "ours" and r.method.startswith("lm-type")]
+    written = [out / "curve_chi2.png", out / "curve_lambda.png", out / "curve_fit.png"]
+    plot.chi2_per_iteration(runs, written[0])
+    plot.damping_per_iteration(lm_runs, written[1], title="lambda per iteration, Gavin's damping types 1-3")
+    plot.curve_fit(data, runs, written[2])
+    json_path = out / "curve.json"
+    out.mkdir(parents=True, exist_ok=True)
+    json_path.write_text(json.dumps(compare.to_json("curve", runs), indent=1))
+    print("\nwrote " + ", ".join(str(p) for p in written + [json_path]))
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from course import compare
+
+    runner = compare.find_runner(args.dataset)  # fails early and clearly on unknown names
+    impl = args.impl or _default_impl()
+    runs = runner.run(args.dataset, impl=impl, methods=_names(args.methods), backends=_names(args.backends),
+                      repeat=args.repeat)
+    print(compare.format_table(runs, title=f"{args.dataset} (impl {impl})"))
+    if args.json:
+        path = Path(args.json)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(compare.to_json(args.dataset, runs), indent=1))
+        print(f"wrote {path}")
+    if args.plot:
+        from course import plot
+
+        plot.chi2_per_iteration(runs, args.plot, title=f"{args.dataset}: chi2 per iteration")
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def cmd_release(args) -> int:
+    from course.impl import REPO_ROOT
+    from course.release import release
+
+    root = Path(args.root) if args.root else REPO_ROOT
+    if not (root / "solutions").is_dir():
+        print(f"error: {root} has no solutions/ folder to release from", file=sys.stderr)
+        return 2
+    stale = release(check=args.check, student_dir=args.student, root=root)
+    if args.check:
+        if stale:
+            print("exercises/ is out of date with solutions/; run `python -m course release`. Stale files:")
+            for rel in stale:
+                print(f"  exercises/{rel}")
+            return 1
+        print("exercises/ is up to date")
+        return 0
+    print("rewrote exercises/: " + ", ".join(stale) if stale else "exercises/ was already up to date")
+    if args.student:
+        print(f"wrote the student tree to {args.student}")
+    return 0
+
+
+def cmd_benchmark(args) -> int:
+    from course import benchmark
+
+    benchmark.main(repeats=args.repeats)
+    return 0

@@ -1,0 +1,208 @@
+"""Run one dataset through our methods and the peers; format the table; write JSON.
+
+A *runner* turns a dataset name into ``list[RunResult]``; ``RUNNERS`` maps a dataset
+kind to its runner and ``run(dataset, ...)`` picks the first kind whose ``matches``
+accepts the name. Chapter 1 registers ``curve`` (generated data); the pose-graph
+chapter registers its own kind whose ``matches`` accepts named datasets (``intel``,
+``m3500``, ...) and file paths::
+
+    register("posegraph", run_posegraph_dataset, matches=is_posegraph_name)
+
+A runner is called as ``runner(dataset, impl=..., methods=..., backends=..., repeat=...)``
+(``python -m course compare`` passes exactly these; ``repeat`` = solves per pair, the
+median-time run kept) and returns ``list[RunResult]`` with ``final_chi2`` evaluated by
+our own error, whatever the back end.
+"""
+
+import importlib
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+import numpy as np
+
+from course.errors import CourseError
+from course.trace import RunResult
+
+#: our methods on the curve, in table order; "dogleg" runs once course.solvers.dogleg exists
+OUR_CURVE_METHODS = ("gauss-newton", "lm-type1", "lm-type2", "lm-type3", "dogleg")
+#: the peers' methods on the curve: backend -> (module, methods)
+PEER_CURVE_METHODS = {
+    "ceres": ("course.backends.ceres_curve", ("levenberg-marquardt", "dogleg")),
+    "scipy": ("course.backends.scipy_curve", ("lm", "trf")),
+}
+
+
+class UnknownDatasetError(CourseError, ValueError):
+    """No registered runner accepts the dataset name."""
+
+
+@dataclass
+class Runner:
+    kind: str
+    run: Callable
+    matches: Callable[[str], bool]
+    description: str = ""
+
+
+RUNNERS: dict = {}
+
+
+def register(kind: str, runner: Callable, matches: Optional[Callable[[str], bool]] = None, description=""):
+    """Register ``runner`` for dataset ``kind``; ``matches(name)`` defaults to ``name == kind``."""
+    RUNNERS[kind] = Runner(kind, runner, matches or (lambda name, kind=kind: name == kind), description)
+
+
+def find_runner(dataset: str) -> Runner:
+    """The runner for ``dataset``, or ``UnknownDatasetError`` listing what is known."""
+    for runner in RUNNERS.values():
+        if runner.matches(dataset):
+            return runner
+    known = "; ".join(f"{r.kind}: {r.description}" if r.description else r.kind for r in RUNNERS.values())
+    raise UnknownDatasetError(f"unknown dataset {dataset!r}; known datasets: {known}")
+
+
+def run(dataset: str, impl="solutions", methods=None, backends=None, **options) -> list:
+    """Run ``dataset`` through every (backend, method) pair (filtered by ``methods``/``backends``)."""
+    return find_runner(dataset).run(dataset, impl=impl, methods=methods, backends=backends, **options)
+
+
+# ---------------------------------------------------------------- curve (chapter 1)
+
+
+def curve_plan(methods=None, backends=None) -> list:
+    """The ``(backend, method)`` pairs to run on the curve, filtered, in table order.
+
+    ``methods`` and ``backends`` are iterables of names (None = all); a method name
+    selects it in every backend that has it (``dogleg`` is ours and Ceres').
+    """
+    pairs = [("ours", m) for m in OUR_CURVE_METHODS]
+    pairs += [(backend, m) for backend, (_, names) in PEER_CURVE_METHODS.items() for m in names]
+    all_backends = sorted({b for b, _ in pairs})
+    all_methods = sorted({m for _, m in pairs})
+    if backends is not None:
+        backends = list(backends)
+        unknown = [b for b in backends if b not in all_backends]
+        if unknown:
+            raise ValueError(f"unknown backend(s) {unknown} for the curve; choose from {all_backends}")
+        pairs = [p for p in pairs if p[0] in backends]
+    if methods is not None:
+        methods = list(methods)
+        unknown = [m for m in methods if m not in all_methods]
+        if unknown:
+            raise ValueError(f"unknown method(s) {unknown} for the curve; choose from {all_methods}")
+        pairs = [p for p in pairs if p[1] in methods]
+    if not pairs:
+        raise ValueError(f"no (backend, method) pair left for backends={backends} and methods={methods}")
+    return pairs
+
+
+def _dogleg_missing(exc: ModuleNotFoundError) -> bool:
+    """True when the error says our dogleg is not written yet (loop or exercise module)."""
+    name = exc.name or ""
+    return name == "course.solvers.dogleg" or name.endswith(".dogleg")
+
+
+def _median_run(solve, repeat: int) -> RunResult:
+    """Run ``solve()`` ``repeat`` times and keep the run with the median time."""
+    runs = [solve() for _ in range(max(int(repeat), 1))]
+    return sorted(runs, key=lambda r: r.seconds)[len(runs) // 2]
+
+
+def run_curve(impl="solutions", methods=None, backends=None, data=None, repeat=1, max_iterations=100,
+              solver_options=None) -> list:
+    """The chapter 1 comparison: our methods and the peers on one ``CurveData``.
+
+    Args:
+        impl: ``solutions``, ``exercises`` or a path (whose pieces our solvers use).
+        methods, backends: filters, see ``curve_plan`` (None = everything).
+        data: a ``CurveData``; default ``course.problems.curve.generate()``.
+        repeat: solve each pair ``repeat`` times and keep the median-time run.
+        max_iterations: for every solver (step attempts; scipy: ``max_nfev - 1``).
+        solver_options: a ``SolverOptions`` for our solvers (its ``max_iterations``
+            wins); default ``SolverOptions(max_iterations=max_iterations)``. The peers
+            keep their own tight tolerances.
+
+    Returns:
+        ``list[RunResult]`` in ``curve_plan`` order. Our ``dogleg`` is skipped while
+        ``course.solvers.dogleg`` (or the implementation's ``dogleg`` module) does not
+        exist; any other error propagates.
+    """
+    from course.problems.curve import CurveProblem, generate
+    from course.solvers import SolverOptions, minimize
+
+    data = generate() if data is None else data
+    options = SolverOptions(max_iterations=max_iterations) if solver_options is None else solver_options
+    results = []
+    for backend, method in curve_plan(methods, backends):
+        if backend == "ours":
+            def solve(method=method):
+                return minimize(CurveProblem(data, impl=impl), method, impl=impl, options=options)
+        else:
+            module = importlib.import_module(PEER_CURVE_METHODS[backend][0])
+
+            def solve(module=module, method=method):
+                return module.solve(data, method, max_iterations=max_iterations)
+        try:
+            results.append(_median_run(solve, repeat))
+        except ModuleNotFoundError as exc:
+            if backend == "ours" and method == "dogleg" and _dogleg_missing(exc):
+                continue
+            raise
+    return results
+
+
+def _curve_runner(dataset, impl="solutions", methods=None, backends=None, **options):
+    return run_curve(impl=impl, methods=methods, backends=backends, **options)
+
+
+register("curve", _curve_runner, description="y = exp(a x^2 + b x + c), 100 generated points (chapter 1)")
+
+
+# ---------------------------------------------------------------- table and JSON
+
+
+def _params_text(params) -> Optional[str]:
+    p = np.asarray(params, dtype=float)
+    if p.ndim != 1 or p.size > 6:
+        return None
+    return " ".join(f"{v:.6f}" for v in p)
+
+
+def format_table(runs, title: str = "") -> str:
+    """A plain-text table: backend, method, iterations, initial and final chi2, total
+    and per-iteration time (milliseconds), and the parameters when they are few (the curve)."""
+    header = ["backend", "method", "iters", "initial chi2", "final chi2", "total ms", "ms/iter"]
+    params = [_params_text(r.params) for r in runs]
+    show_params = bool(runs) and all(p is not None for p in params)
+    if show_params:
+        header.append("params")
+    rows = []
+    for r, p in zip(runs, params):
+        row = [
+            r.backend,
+            r.method,
+            str(r.iterations),
+            f"{r.initial_chi2:.6g}",
+            f"{r.final_chi2:.10g}",
+            f"{1e3 * r.seconds:.3f}",
+            f"{1e3 * r.seconds_per_iteration:.4f}",
+        ]
+        if show_params:
+            row.append(p)
+        rows.append(row)
+    widths = [max(len(h), *(len(row[k]) for row in rows)) if rows else len(h) for k, h in enumerate(header)]
+    numeric = {2, 3, 4, 5, 6}
+
+    def line(cells):
+        return "  ".join(c.rjust(w) if k in numeric else c.ljust(w) for k, (c, w) in enumerate(zip(cells, widths))).rstrip()
+
+    out = [title] if title else []
+    out += [line(header), line(["-" * w for w in widths])]
+    out += [line(row) for row in rows]
+    return "\n".join(out)
+
+
+def to_json(dataset: str, runs) -> dict:
+    """``{"dataset": dataset, "runs": [RunResult.to_json(), ...]}`` (JSON-ready)."""
+    return {"dataset": str(dataset), "runs": [r.to_json() for r in runs]}
+

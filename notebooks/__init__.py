@@ -1,0 +1,1 @@
+"""Generated notebooks (``python -m notebooks.build [--execute] [--small]``)."""

@@ -1,0 +1,106 @@
+"""Chapter 1 peers: Ceres (pyceres) and scipy.optimize.least_squares on the curve."""
+
+import numpy as np
+import pytest
+
+from course.problems.curve import CurveProblem, generate
+from course.solvers import minimize
+
+pytest.importorskip("pyceres")
+
+from course.backends import ceres_curve, scipy_curve  # noqa: E402
+
+RTOL = 1e-6
+PEERS = [(ceres_curve, m) for m in ceres_curve.METHODS] + [(scipy_curve, m) for m in scipy_curve.METHODS]
+IDS = [f"{module.__name__.rsplit('.', 1)[1]}-{method}" for module, method in PEERS]
+
+
+@pytest.fixture(scope="module")
+def data():
+    return generate()
+
+
+@pytest.fixture(scope="module")
+def reference(data):
+    return minimize(CurveProblem(data), "lm-type3")
+
+
+@pytest.fixture(scope="module")
+def peer_runs(data):
+    return {(module.__name__, method): module.solve(data, method) for module, method in PEERS}
+
+
+@pytest.mark.parametrize(("module", "method"), PEERS, ids=IDS)
+def test_peer_agrees_with_ours(peer_runs, reference, module, method):
+    run = peer_runs[(module.__name__, method)]
+    np.testing.assert_allclose(run.params, reference.params, rtol=RTOL)
+    assert run.final_chi2 == pytest.approx(reference.final_chi2, rel=1e-9)
+    assert run.initial_chi2 == pytest.approx(reference.initial_chi2, rel=1e-12)
+    assert run.method == method
+    assert run.backend == ("ceres" if module is ceres_curve else "scipy")
+
+
+@pytest.mark.parametrize(("module", "method"), PEERS, ids=IDS)
+def test_peer_trace_schema(peer_runs, module, method):
+    run = peer_runs[(module.__name__, method)]
+    trace = run.trace
+    assert run.iterations == len(trace) - 1 > 0
+    assert [r.iteration for r in trace] == list(range(len(trace)))
+    assert trace[0].chi2 == pytest.approx(run.initial_chi2, rel=1e-9)  # Ceres: 2 * cost
+    kept = trace[0].chi2
+    for record in trace[1:]:
+        if record.accepted:
+            assert record.chi2 <= kept * (1 + 1e-12), record
+            kept = record.chi2
+    assert kept == pytest.approx(run.final_chi2, rel=1e-9)
+    times = [r.seconds for r in trace]
+    assert times == sorted(times)
+    assert 0 < run.seconds < 5
+    json = run.to_json()
+    assert json["backend"] in ("ceres", "scipy") and len(json["trace"]) == len(trace)
+
+
+def test_ceres_reports_half_chi2_and_counts_attempts(data, peer_runs):
+    run = peer_runs[(ceres_curve.__name__, "levenberg-marquardt")]
+    # far start: Ceres' first LM steps (radius 1e4) overflow and are rejected
+    assert not run.trace[1].accepted
+    assert run.trace[0].damping == pytest.approx(1e-4)  # 1 / initial radius
+    assert "convergence" in run.stop_reason
+
+
+def test_ceres_one_block_per_point_gives_the_same_minimum(data, reference):
+    run = ceres_curve.solve(data, "levenberg-marquardt", per_point=True)
+    np.testing.assert_allclose(run.params, reference.params, rtol=RTOL)
+
+
+def test_scipy_lm_trace_counts_residual_evaluations(peer_runs):
+    run = peer_runs[(scipy_curve.__name__, "lm")]
+    assert "nfev" in run.stop_reason
+    nfev = int(run.stop_reason.split("nfev ")[1].split(",")[0])
+    assert run.iterations == nfev - 1 == len(run.trace) - 1
+
+
+@pytest.mark.parametrize(("module", "method"), PEERS, ids=IDS)
+def test_peers_use_the_weights(module, method):
+    weights = np.where(np.arange(40) % 3 == 0, 4.0, 0.25)
+    d = generate(num_points=40, seed=5, weights=weights, start=(0.5, 1.5, 0.5))
+    ours = minimize(CurveProblem(d), "lm-type1")
+    unweighted = minimize(CurveProblem(generate(num_points=40, seed=5, start=(0.5, 1.5, 0.5))), "lm-type1")
+    assert not np.allclose(ours.params, unweighted.params, rtol=1e-3)  # the weights matter here
+    run = module.solve(d, method)
+    np.testing.assert_allclose(run.params, ours.params, rtol=RTOL)
+    assert run.final_chi2 == pytest.approx(ours.final_chi2, rel=1e-9)
+
+
+def test_max_iterations_is_honoured(data):
+    assert ceres_curve.solve(data, "levenberg-marquardt", max_iterations=3).iterations <= 3
+    assert scipy_curve.solve(data, "trf", max_iterations=3).iterations <= 3
+
+
+def test_unknown_method_and_option(data):
+    with pytest.raises(ValueError, match="unknown method"):
+        ceres_curve.solve(data, "gauss-newton")
+    with pytest.raises(ValueError, match="unknown method"):
+        scipy_curve.solve(data, "dogbox")
+    with pytest.raises(ValueError, match="no option 'not_an_option'"):
+        ceres_curve.solve(data, "dogleg", not_an_option=1)

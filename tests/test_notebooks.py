@@ -1,0 +1,89 @@
+"""The generated notebooks: current with notebooks/build.py, and they run.
+
+Execution uses ``notebooks.build.execute``, which starts the kernel on this test's own
+interpreter (``sys.executable``): the ``python3`` kernelspec when it resolves to it,
+else a kernelspec written to a temporary ``JUPYTER_PATH`` folder.
+"""
+
+import sys
+
+import nbformat
+import pytest
+
+pytest.importorskip("nbclient")
+pytest.importorskip("ipykernel")
+pytest.importorskip("pyceres")
+
+from notebooks import build  # noqa: E402
+
+
+def _sources(nb):
+    return [(cell.cell_type, cell.get("id"), cell.source) for cell in nb.cells]
+
+
+@pytest.mark.parametrize("path", list(build.NOTEBOOKS), ids=lambda p: p.name)
+def test_committed_notebook_is_current(path):
+    assert path.is_file(), f"{path.name} missing: run `python -m notebooks.build`"
+    committed = nbformat.read(path, as_version=4)
+    nbformat.validate(committed)
+    assert _sources(committed) == _sources(build.NOTEBOOKS[path]()), (
+        f"{path.name} is stale: run `python -m notebooks.build --execute`"
+    )
+
+
+def _kernel_executable():
+    """sys.executable as seen by a kernel started by ``build.execute``."""
+    from nbformat.v4 import new_code_cell, new_notebook
+
+    nb = new_notebook(cells=[new_code_cell("import sys; print(sys.executable, end='')")])
+    build.execute(nb, timeout=120)
+    return nb.cells[0].outputs[0]["text"]
+
+
+def test_kernel_runs_this_interpreter():
+    assert _kernel_executable() == sys.executable
+
+
+def test_kernel_falls_back_to_a_temporary_kernelspec(monkeypatch):
+    """When the ``python3`` spec names another interpreter, a temporary spec is used."""
+    import os
+
+    from jupyter_client.kernelspec import KernelSpecManager
+
+    original = KernelSpecManager.get_kernel_spec
+
+    def fake(self, name):
+        spec = original(self, name)
+        if name == "python3":
+            spec.argv = ["/some/other/python3.9", *spec.argv[1:]]
+        return spec
+
+    monkeypatch.setattr(KernelSpecManager, "get_kernel_spec", fake)
+    before = os.environ.get("JUPYTER_PATH")
+    with build.kernel_for_this_interpreter() as name:
+        assert name == "course-python"
+    assert os.environ.get("JUPYTER_PATH") == before
+    assert _kernel_executable() == sys.executable
+
+
+@pytest.mark.slow
+def test_chapter1_executes(tmp_path):
+    nb = build.chapter1()
+    build.execute(nb, timeout=300, small=True)
+    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
+    assert not errors, errors
+    text = "\n".join(
+        o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "stream"
+    )
+    for word in ("lm-type1", "lm-type2", "lm-type3", "levenberg-marquardt", "scipy", "source iters",
+                 "largest relative difference"):
+        assert word in text
+    images = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if "image/png" in o.get("data", {})]
+    assert len(images) == 3
+    # same numbers as in-process
+    from course import compare
+    from course.problems.curve import generate
+
+    ours = compare.run_curve(data=generate(), backends=["ours"], methods=["lm-type1"])[0]
+    assert f"{ours.final_chi2:.6f}" in text
+    nbformat.write(nb, tmp_path / "executed.ipynb")
