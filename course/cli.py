@@ -46,14 +46,21 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", default="out", help="folder for the PNG plots and the JSON (default: out)")
     demo.add_argument("--points", type=int, default=100, help="number of samples (default 100)")
     demo.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    demo.add_argument("--curve-only", action="store_true", help="skip the pose graphs (w10000, intel)")
     demo.set_defaults(func=cmd_demo, repeat=3)
 
     compare = sub.add_parser("compare", help="one dataset through our methods and the peers")
-    compare.add_argument("dataset", help="the dataset: 'curve' (generated data)")
+    compare.add_argument("dataset", help="'curve' (generated data), a named pose graph "
+                         "(see `python -m course datasets`), manhattan:N, or a TORO/g2o file")
     _add_run_arguments(compare)
     compare.add_argument("--json", metavar="FILE", help="write {dataset, runs[]} as JSON")
-    compare.add_argument("--plot", metavar="FILE", help="write chi2 per iteration as a PNG")
+    compare.add_argument("--plot", metavar="FILE",
+                         help="write a PNG: chi2 per iteration (curve) or the graph before and after (pose graphs)")
+    compare.add_argument("--max-iterations", type=int, default=100, help="for every solver (default 100)")
     compare.set_defaults(func=cmd_compare)
+
+    listing = sub.add_parser("datasets", help="list the named datasets, their sizes and where each comes from")
+    listing.set_defaults(func=cmd_datasets)
 
     release = sub.add_parser("release", help="regenerate exercises/ from solutions/")
     release.add_argument("--check", action="store_true",
@@ -111,8 +118,42 @@ def cmd_demo(args) -> int:
     json_path = out / "curve.json"
     out.mkdir(parents=True, exist_ok=True)
     json_path.write_text(json.dumps(compare.to_json("curve", runs), indent=1))
-    print("\nwrote " + ", ".join(str(p) for p in written + [json_path]))
+    written.append(json_path)
+    if not args.curve_only:
+        written += _demo_pose_graphs(impl, out)
+    print("\nwrote " + ", ".join(str(p) for p in written))
     return 0
+
+
+#: w10000 in the demo: Gauss-Newton and dogleg of every back end but Ceres, whose
+#: Python cost takes about 0.5 s per iteration there (see `compare w10000` for all)
+DEMO_W10000 = {"methods": ["gauss-newton", "dogleg"], "backends": ["ours", "g2o", "gtsam"]}
+
+
+def _demo_pose_graphs(impl, out) -> list:
+    """w10000 (ships with gtsam) and, when the data folder is there, intel."""
+    from course import compare, datasets, plot
+
+    written = []
+    plans = [("w10000", DEMO_W10000)]
+    try:
+        datasets.load_dataset("intel")
+        plans.insert(0, ("intel", {}))
+    except datasets.DatasetError as exc:
+        print(f"\nintel skipped: {exc}")
+    for name, plan in plans:
+        graph = datasets.load_dataset(name)
+        runs = compare.run_posegraph(graph, impl=impl, **plan)
+        note = "" if not plan else (f"; methods {', '.join(plan['methods'])}, back ends "
+                                    f"{', '.join(plan['backends'])} (Ceres' Python cost is slow here: "
+                                    f"`python -m course compare {name}` runs everything)")
+        print("\n" + compare.format_table(
+            runs, title=f"{name}: {graph.num_poses} poses, {graph.num_edges} edges; impl {impl}{note}"))
+        path = out / f"{name}.png"
+        plot.pose_graph_before_after(graph, runs[0], path)
+        (out / f"{name}.json").write_text(json.dumps(compare.to_json(name, runs)))
+        written += [path, out / f"{name}.json"]
+    return written
 
 
 def cmd_compare(args) -> int:
@@ -121,8 +162,12 @@ def cmd_compare(args) -> int:
     runner = compare.find_runner(args.dataset)  # fails early and clearly on unknown names
     impl = args.impl or _default_impl()
     runs = runner.run(args.dataset, impl=impl, methods=_names(args.methods), backends=_names(args.backends),
-                      repeat=args.repeat)
+                      repeat=args.repeat, max_iterations=args.max_iterations)
     print(compare.format_table(runs, title=f"{args.dataset} (impl {impl})"))
+    if runner.kind == "posegraph":
+        ate = compare.format_ate(runs)
+        if ate:
+            print("\n" + ate)
     if args.json:
         path = Path(args.json)
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -131,8 +176,27 @@ def cmd_compare(args) -> int:
     if args.plot:
         from course import plot
 
-        plot.chi2_per_iteration(runs, args.plot, title=f"{args.dataset}: chi2 per iteration")
+        if runner.kind == "posegraph":
+            from course import datasets
+
+            best = min(runs, key=lambda r: (r.backend != "ours", r.final_chi2))
+            plot.pose_graph_before_after(datasets.load_dataset(args.dataset), best, args.plot)
+        else:
+            plot.chi2_per_iteration(runs, args.plot, title=f"{args.dataset}: chi2 per iteration")
         print(f"wrote {args.plot}")
+    return 0
+
+
+def cmd_datasets(args) -> int:
+    from course import datasets
+
+    print(f"data folder: {datasets.data_dir()} (override with COURSE_DATA)")
+    print(f"{'name':18} {'poses':>6} {'edges':>6}  {'format':9}  where")
+    for info in datasets.list_datasets():
+        poses = "?" if info.poses is None else info.poses
+        edges = "?" if info.edges is None else info.edges
+        where = info.origin if info.available else f"{info.origin} (missing: {info.reason})"
+        print(f"{info.name:18} {poses:>6} {edges:>6}  {info.format:9}  {where}")
     return 0
 
 

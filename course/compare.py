@@ -16,6 +16,7 @@ our own error, whatever the back end.
 
 import importlib
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, Optional
 
 import numpy as np
@@ -156,6 +157,95 @@ def _curve_runner(dataset, impl="solutions", methods=None, backends=None, **opti
 
 
 register("curve", _curve_runner, description="y = exp(a x^2 + b x + c), 100 generated points (chapter 1)")
+
+
+# ---------------------------------------------------------------- pose graphs (chapter 2)
+
+OUR_POSE_GRAPH_METHODS = ("gauss-newton", "lm-type1", "lm-type2", "lm-type3", "dogleg")
+
+
+def posegraph_plan(methods=None, backends=None) -> list:
+    """The ``(backend, method)`` pairs to run on a pose graph, filtered, in table order."""
+    from course.backends import POSE_GRAPH_METHODS
+
+    pairs = [("ours", m) for m in OUR_POSE_GRAPH_METHODS]
+    pairs += [(b, m) for b, names in POSE_GRAPH_METHODS.items() for m in names]
+    if backends is not None:
+        unknown = sorted(set(backends) - {b for b, _ in pairs})
+        if unknown:
+            raise ValueError(f"unknown backend(s) {unknown} for pose graphs")
+        pairs = [p for p in pairs if p[0] in backends]
+    if methods is not None:
+        unknown = sorted(set(methods) - {m for _, m in pairs})
+        if unknown:
+            raise ValueError(f"unknown method(s) {unknown} for pose graphs")
+        pairs = [p for p in pairs if p[1] in methods]
+    if not pairs:
+        raise ValueError(f"no (backend, method) pair left for backends={backends} and methods={methods}")
+    return pairs
+
+
+def run_posegraph(graph, impl="solutions", methods=None, backends=None, repeat=1, max_iterations=100) -> list:
+    """Every method and peer on one ``PoseGraph``, same start, same fixed poses.
+
+    Returns ``list[RunResult]`` (``params`` (N, 3) poses); where the graph has ground
+    truth each result carries ``ate`` (see ``course.trajectory``).
+    """
+    from course.backends import POSE_GRAPH_BACKENDS
+    from course.problems.posegraph import PoseGraphProblem
+    from course.solvers import SolverOptions, minimize
+    from course.trajectory import absolute_trajectory_error
+
+    options = SolverOptions(max_iterations=max_iterations)
+    results = []
+    for backend, method in posegraph_plan(methods, backends):
+        if backend == "ours":
+            def solve(method=method):
+                result = minimize(PoseGraphProblem(graph, impl), method, impl=impl, options=options)
+                result.params = result.params.reshape(-1, 3)
+                return result
+        else:
+            def solve(backend=backend, method=method):
+                kwargs = {"impl": impl} if backend == "ceres" else {}
+                return POSE_GRAPH_BACKENDS[backend](graph, method, max_iterations, **kwargs)
+        result = _median_run(solve, repeat)
+        if graph.ground_truth is not None:
+            result.ate = absolute_trajectory_error(result.params, graph.ground_truth)
+        results.append(result)
+    return results
+
+
+def is_posegraph_name(name: str) -> bool:
+    from course import datasets
+
+    return name in datasets.dataset_names() or name.startswith("manhattan:") or Path(name).exists() \
+        or Path(name + "-v.dat").exists()
+
+
+def _posegraph_runner(dataset, impl="solutions", methods=None, backends=None, **options):
+    from course import datasets
+
+    return run_posegraph(datasets.load_dataset(dataset), impl=impl, methods=methods,
+                         backends=backends, **options)
+
+
+register("posegraph", _posegraph_runner, matches=is_posegraph_name,
+         description="a named pose graph (python -m course datasets), manhattan:N, or a TORO/g2o file")
+
+
+def format_ate(runs) -> str:
+    """Absolute trajectory error per run (only runs that carry ``ate``)."""
+    rows = [r for r in runs if getattr(r, "ate", None)]
+    if not rows:
+        return ""
+    head = f"{'backend':8} {'method':22} " + " ".join(
+        f"{kind[:5]}-{stat:6}" for kind in ("translation", "rotation") for stat in ("rmse", "median", "std", "max", "min"))
+    lines = ["absolute trajectory error (m, rad) after SE(2) alignment", head]
+    for r in rows:
+        cells = [f"{r.ate[kind][stat]:12.4g}" for kind in ("translation", "rotation")
+                 for stat in ("rmse", "median", "std", "max", "min")]
+        lines.append(f"{r.backend:8} {r.method:22} " + " ".join(cells))
+    return "\n".join(lines)
 
 
 # ---------------------------------------------------------------- table and JSON

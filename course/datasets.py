@@ -404,6 +404,11 @@ def _locate(name: str) -> Path:
     return path
 
 
+def dataset_names() -> list:
+    """The names ``load_dataset`` knows (besides ``manhattan:N`` and file paths)."""
+    return list(_NAMED)
+
+
 def list_datasets() -> list[DatasetInfo]:
     """All named datasets, with documented sizes and whether each can be loaded here."""
     out = []

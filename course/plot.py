@@ -139,3 +139,26 @@ def curve_fit(data, runs, path=None, title="data and fitted curves") -> Figure:
     if path is not None:
         save(fig, path)
     return fig
+
+
+def pose_graph_before_after(graph, result, path=None, title=None) -> Figure:
+    """The graph's edges and poses at the start (grey) and after ``result`` (blue), side by side."""
+    fig = _figure(width=11.0, height=5.0)
+    after = np.asarray(result.params).reshape(-1, 3)
+    for k, (poses, colour, name) in enumerate(
+        [(graph.poses, "0.55", f"start, chi2 {result.initial_chi2:.4g}"),
+         (after, "tab:blue", f"{result.backend} {result.method}, chi2 {result.final_chi2:.4g}")]
+    ):
+        ax = fig.add_subplot(1, 2, k + 1)
+        segments = np.stack([poses[graph.edges_i, :2], poses[graph.edges_j, :2]], axis=1)
+        from matplotlib.collections import LineCollection
+
+        ax.add_collection(LineCollection(segments, colors=colour, linewidths=0.3, alpha=0.5))
+        ax.plot(poses[:, 0], poses[:, 1], ".", color=colour, markersize=1.5)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.autoscale()
+        ax.set_title(name, fontsize=9)
+    fig.suptitle(title or f"{graph.name}: {graph.num_poses} poses, {graph.num_edges} edges")
+    if path is not None:
+        save(fig, path)
+    return fig
