@@ -1,0 +1,69 @@
+"""``python -m autograder [--impl exercises|solutions|PATH] [--only NAME] [--json FILE]``.
+
+Exit status 0 whenever grading ran, whatever the score; 2 for usage errors.
+"""
+
+import argparse
+import sys
+from pathlib import Path
+
+from autograder import sandbox
+
+BUILTIN = ("solutions", "exercises")
+
+
+def parser():
+    p = argparse.ArgumentParser(prog="python -m autograder", description=(
+        "Grade an implementation of the exercises. Student code runs in child processes "
+        "under a time and memory limit; one failure costs one check."))
+    p.add_argument("--impl", default="exercises",
+                   help="solutions, exercises (default), or a directory laid out like exercises/")
+    p.add_argument("--only", action="append", metavar="NAME",
+                   help="grade only this check or exercise (e.g. damping.GavinType1); repeatable")
+    p.add_argument("--json", metavar="FILE", help="also write Gradescope's results.json here")
+    p.add_argument("--timeout", type=float, default=sandbox.DEFAULT_TIMEOUT,
+                   help="wall-clock seconds per check (default %(default)g)")
+    p.add_argument("--memory-mb", type=float, default=sandbox.DEFAULT_MEMORY_MB,
+                   help="address-space limit of each child in MiB (default %(default)g)")
+    p.add_argument("--workers", type=int, default=2, help="checks run in parallel (default 2)")
+    p.add_argument("--list", action="store_true", help="list the checks and their points, then exit")
+    return p
+
+
+def main(argv=None) -> int:
+    p = parser()
+    args = p.parse_args(argv)
+    from autograder.checks import all_checks, select
+
+    checks = select(all_checks(), args.only)
+    if args.only and not checks:
+        exercises = sorted({c.exercise for c in all_checks()})
+        p.error(f"--only {' '.join(args.only)!r} matches no check or exercise; exercises: {', '.join(exercises)}")
+    if args.list:
+        for check in checks:
+            print(f"{check.points:>4g}  {check.name}")
+        print(f"{sum(c.points for c in checks):>4g}  total")
+        return 0
+    if args.timeout <= 0 or args.workers < 1 or args.memory_mb <= 0:
+        p.error("--timeout, --memory-mb and --workers must be positive")
+    impl = args.impl
+    if impl not in BUILTIN:
+        path = Path(impl).resolve()
+        if not path.is_dir() or not (path / "__init__.py").is_file():
+            p.error(f"--impl {impl!r}: expected 'solutions', 'exercises' or a directory laid out like "
+                    f"exercises/ (with an __init__.py); {path} is not one")
+        impl = str(path)
+
+    from autograder import report
+    from autograder.grade import run
+
+    results, seconds = run(impl, args.only, timeout=args.timeout, memory_mb=args.memory_mb,
+                           workers=args.workers)
+    if args.json:
+        report.write_json(args.json, report.gradescope(results, seconds))
+    print(report.table(results, impl, seconds, args.workers))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,202 @@
+"""Tolerance comparisons that produce feedback a student can act on.
+
+Every comparison is ``|actual - expected| <= atol + rtol |expected|`` elementwise
+(``numpy.testing.assert_allclose``'s rule) with an explicit rtol and atol. A failed
+comparison names the entry, the expected and the actual value and, when the output
+matches a known mistake (computed in the parent from the inputs), its likely cause.
+"""
+
+import re
+
+import numpy as np
+
+from autograder.checks import Verdict
+
+_TODO = re.compile(r"TODO ([A-Za-z_][\w.]*)")
+
+
+def fmt(x) -> str:
+    """A number or a short vector for feedback."""
+    arr = np.asarray(x, dtype=float)
+    if arr.ndim == 0:
+        return f"{float(arr):.6g}"
+    if arr.size <= 6:
+        return "(" + ", ".join(f"{v:.6g}" for v in arr.ravel()) + ")"
+    return f"array of shape {arr.shape}"
+
+
+def not_implemented_name(error, call=None):
+    """The TODO name when ``error`` is the stub's NotImplementedError, else None."""
+    if error is None or error.kind != "NotImplementedError":
+        return None
+    match = _TODO.search(error.message)
+    if match:
+        return match.group(1)
+    if call is not None and not call.target.startswith("@"):
+        return call.function
+    return "?"
+
+
+def describe_error(error, call=None) -> str:
+    """One line about a call that failed."""
+    function = call.function if call is not None else "your code"
+    where = f" ({error.where})" if error.where else ""
+    todo = not_implemented_name(error, call)
+    if todo:
+        if todo == "?":
+            return f"not implemented: NotImplementedError while running {function}{where}"
+        return f"TODO {todo}: not implemented"
+    if error.kind == "SystemExit":
+        return f"{function} {error.message}{where}: return the result instead of exiting"
+    if error.kind == "MemoryError":
+        return (f"{function} ran out of memory (MemoryError{': ' + error.message if error.message else ''})"
+                f"{where}: the grader allows about 2 GiB; do not build m x m matrices or huge arrays")
+    if error.kind == "Timeout":
+        return f"{function} {error.message}"
+    if error.kind == "Crash":
+        return f"the process running {function} {error.message}"
+    if error.kind == "ImportFailure":
+        return f"{error.message}{where}"
+    if error.kind == "OutputError":
+        return f"{function} {error.message}"
+    return f"{function} raised {error.kind}: {error.message}{where}"
+
+
+def first_error(ctx, hints=None):
+    """A zero Verdict for the first call of the check that failed in the child, or None.
+
+    ``hints`` maps an exception type name to a likely cause appended to the message.
+    Calls whose result was lost because a later call hung or crashed come last.
+    """
+    failed = [(call, o.error) for call, o in zip(ctx.calls, ctx.student) if o.error is not None]
+    failed.sort(key=lambda pair: pair[1].kind == "Lost")
+    if not failed:
+        return None
+    call, error = failed[0]
+    todo = not_implemented_name(error, call)
+    message = describe_error(error, call)
+    if hints and error.kind in hints:
+        message += f": {hints[error.kind]}"
+    return Verdict(0.0, message, (todo,) if todo and todo != "?" else ())
+
+
+def _kind_text(kind: str) -> str:
+    if kind.startswith("tuple:"):
+        return f"a tuple of {kind.split(':')[1]} values"
+    if kind.startswith("dataclass:"):
+        return f"a {kind.split(':')[1]}"
+    return {"value": "a single array or number", "dict": "a dict"}.get(kind, kind or "nothing")
+
+
+def fields_of(outcome, call):
+    """``(fields, None)`` named as ``call.returns`` says, or ``(None, message)``."""
+    returns = call.returns
+    raw = outcome.fields
+    if isinstance(returns, tuple):
+        if outcome.kind != f"tuple:{len(returns)}":
+            return None, (f"{call.function} returned {_kind_text(outcome.kind)}, expected a tuple "
+                          f"({', '.join(returns)})")
+        return {name: raw[str(k)] for k, name in enumerate(returns)}, None
+    if returns == "state":
+        if not outcome.kind.startswith("dataclass:") or not {"lam", "nu"} <= set(raw):
+            return None, (f"{call.function} returned {_kind_text(outcome.kind)}, expected a "
+                          "DampingState(lam, nu) (from course.damping)")
+        return {"lam": raw["lam"], "nu": raw["nu"]}, None
+    if returns == "dict":
+        return dict(raw), None
+    if outcome.kind != "value":
+        return None, f"{call.function} returned {_kind_text(outcome.kind)}, expected one array or number"
+    return {"value": raw["value"]}, None
+
+
+def close(actual, expected, rtol, atol) -> bool:
+    actual, expected = np.asarray(actual, float), np.asarray(expected, float)
+    if actual.shape != expected.shape:
+        return False
+    with np.errstate(invalid="ignore", over="ignore"):
+        return bool(np.all(np.abs(actual - expected) <= atol + rtol * np.abs(expected)))
+
+
+def compare(actual, expected, name, rtol, atol, where="", mistakes=(), cause="", scalar=False):
+    """``None`` when ``actual`` matches ``expected``; otherwise the feedback line.
+
+    ``mistakes``: ``(value, text)`` pairs, the outputs of known wrong formulas on the
+    same inputs; the first that matches ``actual`` gives the likely cause, else ``cause``.
+    ``scalar``: a size-1 array is accepted for a number.
+    """
+    actual = np.asarray(actual, dtype=float)
+    expected = np.asarray(expected, dtype=float)
+    at = f" {where}" if where else ""
+    pattern = name
+    if "{}" in pattern:
+        name = pattern.replace("{}", ":")
+
+    def entry(index):
+        if "{}" in pattern:
+            return pattern.replace("{}", ", ".join(map(str, index)))
+        return f"{name}{_index(index)}"
+
+    if scalar and actual.size == 1:
+        actual = actual.reshape(())
+    if actual.shape != expected.shape:
+        shape = "a number" if expected.ndim == 0 else str(expected.shape)
+        text = f"{name} has shape {actual.shape}, expected {shape}{at}"
+        if actual.ndim == 2 and actual.shape[::-1] == expected.shape:
+            text += f": {name} is transposed"
+        elif actual.size == expected.size:
+            text += ": same numbers, wrong shape (flatten or reshape it)"
+        return text
+    finite = np.isfinite(actual)
+    if not finite.all():
+        index = tuple(int(k) for k in np.argwhere(~finite)[0])
+        return (f"{entry(index)} = {actual[index]} (not a finite number), expected "
+                f"{fmt(expected[index])}{at}")
+    excess = np.abs(actual - expected) - (atol + rtol * np.abs(expected))
+    bad = excess > 0
+    if not bad.any():
+        return None
+    index = tuple(int(k) for k in np.unravel_index(int(np.argmax(excess)), excess.shape)) if excess.ndim else ()
+    text = f"{entry(index)} = {fmt(actual[index])}, expected {fmt(expected[index])}{at}"
+    if expected.ndim:
+        text += f" ({int(bad.sum())} of {bad.size} entries differ; rtol={rtol:g}, atol={atol:g})"
+    else:
+        text += f" (rtol={rtol:g}, atol={atol:g})"
+    for value, why in mistakes:
+        if close(actual, value, rtol, atol):
+            return f"{text}: {why}"
+    return f"{text}: {cause}" if cause else text
+
+
+def _index(index) -> str:
+    return "[" + ", ".join(str(k) for k in index) + "]" if index else ""
+
+
+def values(names, rtol, atol, mistakes=None, cause="", labels=None, scalar=False, errors=None):
+    """A judge comparing the outputs ``names`` of every call with the reference.
+
+    ``mistakes(call, reference_fields)`` returns ``{name: [(value, text), ...]}``;
+    ``cause`` is the fallback hint (a string, or ``{name: text}``); ``labels`` maps an
+    output to its name in feedback (``{"value": "h"}``); ``errors`` maps an exception
+    type name to a likely cause (``{"LinAlgError": "..."}``).
+    """
+    labels = labels or {}
+
+    def judge(ctx):
+        failed = first_error(ctx, errors)
+        if failed:
+            return failed
+        for call, student, reference in zip(ctx.calls, ctx.student, ctx.reference):
+            got, problem = fields_of(student, call)
+            if problem:
+                return Verdict(0.0, problem)
+            want, _ = fields_of(reference, call)
+            known = mistakes(call, want) if mistakes else {}
+            for name in names:
+                hint = cause.get(name, "") if isinstance(cause, dict) else cause
+                text = compare(got[name], want[name], labels.get(name, name), rtol, atol,
+                               call.where, known.get(name, ()), hint, scalar)
+                if text:
+                    return Verdict(0.0, text)
+        return Verdict(1.0, "ok")
+
+    return judge
