@@ -149,7 +149,7 @@ def solve(
     ``num_successful_steps + num_unsuccessful_steps - 1`` (Ceres counts its
     iteration 0, the start, as a successful step). The trace comes from an
     ``IterationCallback``: ``chi2 = 2 * cost`` as Ceres reports it (for a rejected
-    step, the cost of the point kept; plus ``constant_chi2`` of the edges between
+    step, the cost of the rejected candidate, as in our own traces; plus ``constant_chi2`` of the edges between
     fixed vertices, see ``build_problem``), ``damping`` is ``1 / radius`` for LM
     (Ceres' mu) and the radius for dogleg, ``rho`` Ceres' relative decrease,
     ``seconds`` since the solve started. ``stop_reason`` is ``function_tolerance``,
