@@ -60,43 +60,29 @@ def minimize(problem, method="gauss-newton", impl="solutions", options=None) -> 
             reason = "step_tolerance"
             trace.append(_record(iteration, lin.chi2, state, np.nan, h, False, start, factorizations))
             break
-        x_new = problem.retract(x, h)
         if strategy is None:
-            # Gauss-Newton takes every step: linearize at once, its chi2 comes with it
-            lin_new = problem.linearize(x_new)
-            chi2_new, alpha = lin_new.chi2, 1.0
-        else:
-            chi2_new = problem.chi2(x_new)
-            alpha = float(strategy.step_scale(h, lin.b, lin.chi2, chi2_new))
-            if not np.isfinite(alpha) or alpha <= 0:
-                raise NonFiniteError(f"damping.{type(strategy).__name__}.step_scale returned {alpha}")
-            if alpha != 1.0:
-                h = alpha * h
-                x_new = problem.retract(x, h)
-                chi2_new = problem.chi2(x_new)
+            # Gauss-Newton takes every step; linearizing there gives its chi2 too
+            predicted = float(-h @ lin.b)  # decrease of the undamped model, H h = -b
+            x, previous = problem.retract(x, h), lin.chi2
+            lin = problem.linearize(x)
+            rho = (previous - lin.chi2) / predicted if predicted != 0 else np.nan
+            trace.append(_record(iteration, lin.chi2, None, rho, h, True, start, factorizations))
+            if abs(previous - lin.chi2) <= options.cost_tolerance * previous:
+                reason = "cost_tolerance"
+                break
+            continue
+        x_new, h, chi2_new, alpha = _trial_point(problem, strategy, x, h, lin)
         dchi2 = chi2_new - lin.chi2
-        if strategy is None:
-            denominator = float(-h @ lin.b)
-            accepted = True
-        else:
-            denominator = strategy.gain_denominator(h, lin.b, diag_H, state.lam)
-            accepted = None
+        denominator = strategy.gain_denominator(h, lin.b, diag_H, state.lam)
         rho = -dchi2 / denominator if denominator != 0 else np.nan
-        if strategy is not None:
-            accepted = bool(strategy.accepts(rho)) if np.isfinite(rho) else False
-            record_state = state
-            state = strategy.update(state, rho, accepted, alpha=alpha, dchi2=dchi2)
-            if not np.isfinite(state.lam) or state.lam <= 0:
-                raise NonFiniteError(
-                    f"damping.{type(strategy).__name__}.update returned lambda = {state.lam}"
-                )
-        else:
-            record_state = None
-        trace.append(_record(iteration, chi2_new, record_state, rho, h, accepted, start, factorizations))
+        accepted = bool(strategy.accepts(rho)) if np.isfinite(rho) else False
+        trace.append(_record(iteration, chi2_new, state, rho, h, accepted, start, factorizations))
+        state = strategy.update(state, rho, accepted, alpha=alpha, dchi2=dchi2)
+        if not np.isfinite(state.lam) or state.lam <= 0:
+            raise NonFiniteError(f"damping.{type(strategy).__name__}.update returned lambda = {state.lam}")
         if accepted:
-            x = x_new
-            previous = lin.chi2
-            lin = lin_new if strategy is None else problem.linearize(x)
+            x, previous = x_new, lin.chi2
+            lin = problem.linearize(x)
             diag_H = lin.diagonal()
             if abs(previous - lin.chi2) <= options.cost_tolerance * previous:
                 reason = "cost_tolerance"
@@ -114,6 +100,20 @@ def minimize(problem, method="gauss-newton", impl="solutions", options=None) -> 
         stop_reason=reason,
         factorizations=factorizations,
     )
+
+
+def _trial_point(problem, strategy, x, h, lin):
+    """``(x_new, h, chi2_new, alpha)``: the trial point, after the strategy's line search."""
+    x_new = problem.retract(x, h)
+    chi2_new = problem.chi2(x_new)
+    alpha = float(strategy.step_scale(h, lin.b, lin.chi2, chi2_new))
+    if not np.isfinite(alpha) or alpha <= 0:
+        raise NonFiniteError(f"damping.{type(strategy).__name__}.step_scale returned {alpha}")
+    if alpha != 1.0:
+        h = alpha * h
+        x_new = problem.retract(x, h)
+        chi2_new = problem.chi2(x_new)
+    return x_new, h, chi2_new, alpha
 
 
 def _record(iteration, chi2, state, rho, h, accepted, start, factorizations):
