@@ -51,12 +51,19 @@ def test_dogleg_cases_and_exact_predicted_decrease(radius_factor, case):
 
 
 def test_beta_is_stable_when_the_cauchy_point_is_almost_on_the_boundary():
+    # radius^2 - |a|^2 cancels here; the naive root of the quadratic is off by ~1e-4
     g = np.array([1.0, 0.0])
-    h_gn = np.array([-1e8, 1e8])
-    alpha = 1.0  # Cauchy point (-1, 0)
-    h, _, case = dogleg.dogleg_step(g, h_gn, alpha, 1.0 + 1e-12)
+    h_gn = np.array([-1e8, 1e4])
+    radius = 1.0 + 2.0**-40
+    h, _, case = dogleg.dogleg_step(g, h_gn, 1.0, radius)  # Cauchy point (-1, 0)
     assert case == dogleg.DOGLEG
-    assert np.linalg.norm(h) == pytest.approx(1.0 + 1e-12, rel=1e-14)
+    a = np.array([-1.0, 0.0])
+    d = h_gn - a
+    c = a @ d
+    assert c > 0
+    gap = (radius - 1.0) * (radius + 1.0)  # radius^2 - |a|^2 without cancellation
+    beta = gap / (np.sqrt(c * c + (d @ d) * gap) + c)
+    np.testing.assert_allclose(h, a + beta * d, rtol=1e-10)
 
 
 def test_radius_update():

@@ -62,7 +62,7 @@ class PoseGraphProblem:
             H, b, chi2 = self._assembler.assemble(e, A, B, g.information)
             return Linearization(H=H, b=check_array(b, (n,), "SparseAssembler.assemble", "b"),
                                  chi2=float(chi2), upper=True,
-                                 diagonal_positions=self._assembler.diagonal_positions)
+                                 diagonal_positions=getattr(self._assembler, "diagonal_positions", None))
         H, b, chi2 = self.impl.module("pose_graph_assembly").assemble_normal_equations(
             self.poses(x), g.edges_i, g.edges_j, g.measurements, g.information, g.fixed
         )

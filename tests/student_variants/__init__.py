@@ -42,6 +42,13 @@ LOADED_BY = {
     "curve_model.py": ("curve_model", "gauss_newton", "end_to_end"),
     "gauss_newton.py": ("curve_model", "gauss_newton", "end_to_end"),
     "damping.py": ("damping", "end_to_end"),
+    # chapters 2 and 3 (the dogleg end-to-end runs use the reference problem pieces)
+    "pose_graph_edge.py": ("pose_graph_edge", "pose_graph_assembly", "pose_graph.end_to_end"),
+    "pose_graph_assembly.py": ("pose_graph_assembly", "pose_graph_fast", "pose_graph.end_to_end"),
+    "sparse_solve.py": ("sparse_solve", "pose_graph.end_to_end"),
+    "ceres_edge_cost.py": ("ceres_edge_cost",),
+    "pose_graph_fast.py": ("pose_graph_fast",),
+    "dogleg.py": ("dogleg",),
 }
 
 
@@ -147,7 +154,88 @@ HOSTILE = {
         "TODO curve_model.residuals_and_jacobian: not implemented"),
 }
 
-VARIANTS = {**BUGS, **HOSTILE}
+# Chapters 2 and 3 (graded by tests/test_autograder_chapters23.py, each on its LOADED_BY checks).
+EDGE = "pose_graph_edge.edge_error_and_jacobians: "
+ASSEMBLY = "pose_graph_assembly.assemble_normal_equations: "
+DENSE = "sparse_solve.dense_solve: "
+UPPER = "sparse_solve.upper_triangle_csc: "
+SPARSE = "sparse_solve.SparseCholeskySolver: "
+CERES = "ceres_edge_cost.SE2EdgeCost: "
+PG_E2E = "pose_graph.end_to_end: "
+DL_STEP = "dogleg.dogleg_step: "
+DL_RADIUS = "dogleg.update_radius: "
+DL_E2E = "dogleg.end_to_end: "
+
+BUGS_CHAPTERS_2_3 = {
+    "edge_no_angle_wrap": V(
+        "pose_graph_edge.py", [], "e[2] = (x_j[2] - x_i[2] - z_ij[2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[2] = x_j[2] - x_i[2] - z_ij[2]",
+        {EDGE + "e_theta wrapped to [-pi, pi)", PG_E2E + "gauss-newton"}, "e_theta is not wrapped"),
+    "edge_transposed_rotation": V(
+        "pose_graph_edge.py", [], "Ri_T = np.array([[ci, si], [-si, ci]])", "Ri_T = np.array([[ci, -si], [si, ci]])",
+        {EDGE + "e_t (translation error)", EDGE + "A values", EDGE + "B values",
+         EDGE + "A, B vs finite differences of e", PG_E2E + "gauss-newton"},
+        "R_i is used where R_i^T belongs"),
+    "edge_A_wrong_sign": V(
+        "pose_graph_edge.py", [], "return e, A, B", "return e, -A, B",
+        {EDGE + "A values", EDGE + "A, B vs finite differences of e", PG_E2E + "gauss-newton"},
+        "A has the opposite sign"),
+    "assembly_first_pose_not_fixed": V(
+        "pose_graph_assembly.py", [], "for k in fixed:", "for k in ():",
+        {ASSEMBLY + "fixed poses (first pose, and poses 0 and 3)", PG_E2E + "gauss-newton"},
+        "pose 0 is not held fixed"),
+    "assembly_block_at_ji": V(
+        "pose_graph_assembly.py", [], "H[si, sj] += A.T @ omega @ B", "H[sj, si] += A.T @ omega @ B",
+        {ASSEMBLY + "H blocks of the free poses", PG_E2E + "gauss-newton"},
+        "the block A^T Omega B is added at [j,i] instead of [i,j]"),
+    "assembly_edge_arguments_swapped": V(
+        "pose_graph_assembly.py", [], "edge_error_and_jacobians(poses[i], poses[j], z)",
+        "edge_error_and_jacobians(poses[j], poses[i], z)",
+        {ASSEMBLY + "H blocks of the free poses", ASSEMBLY + "b and chi2",
+         ASSEMBLY + "fixed poses (first pose, and poses 0 and 3)", PG_E2E + "gauss-newton"},
+        "was called with arguments that are not (poses[i], poses[j], measurements[k])"),
+    "assembly_b_wrong_sign": V(
+        "pose_graph_assembly.py", [], "b[si] += A.T @ omega @ e\n        b[sj] += B.T @ omega @ e",
+        "b[si] -= A.T @ omega @ e\n        b[sj] -= B.T @ omega @ e",
+        {ASSEMBLY + "b and chi2", PG_E2E + "gauss-newton"}, "b has the opposite sign"),
+    "dense_solve_no_minus": V(
+        "sparse_solve.py", [], "return -scipy.linalg.cho_solve(", "return scipy.linalg.cho_solve(",
+        {DENSE + "dx solves H dx = -b"}, "dx has the opposite sign"),
+    "upper_triangle_full_matrix": V(
+        "sparse_solve.py", [], 'return sp.triu(sp.csc_matrix(H), format="csc")', "return sp.csc_matrix(H)",
+        {UPPER + "upper triangle as CSC", PG_E2E + "gauss-newton"}, "this is the whole of H"),
+    "sparse_never_refactorizes": V(
+        "sparse_solve.py", [], "self._solver.update(H_upper, upper=True)", "pass",
+        {SPARSE + "later solves with new values, same pattern"},
+        "this solve used the first call's matrix"),
+    "ceres_no_whitening": V(
+        "ceres_edge_cost.py", ["def Evaluate"], "residuals[:] = (", "residuals[:] = (e0, e1, e2)\n        _unused = (",
+        {CERES + "residuals r = U e"}, "r is the unwhitened error e"),
+    "dogleg_case_boundaries_swapped": V(
+        "dogleg.py", ["def dogleg_step", "# BEGIN SOLUTION"],
+        "if np.linalg.norm(h_gn) <= radius:", "if alpha * np.linalg.norm(g) <= radius:",
+        {DL_STEP + "dogleg case (|a| < radius < |h_gn|)",
+         DL_STEP + "stable beta (Cauchy point almost on the boundary)"},
+        "so the case is dogleg"),
+    "dogleg_beta_wrong_root": V(
+        "dogleg.py", ["def dogleg_step", "# BEGIN SOLUTION"], "(radius**2 - a_norm**2) / (d + c)",
+        "(radius**2 - a_norm**2) / (c - d)",
+        {DL_STEP + "dogleg case (|a| < radius < |h_gn|)",
+         DL_STEP + "stable beta (Cauchy point almost on the boundary)", DL_E2E + "pose graph"},
+        "the other intersection"),
+    "dogleg_gn_decrease_in_dogleg_case": V(
+        "dogleg.py", [], "return a + beta * diff, decrease, DOGLEG", "return a + beta * diff, gn_decrease, DOGLEG",
+        {DL_STEP + "dogleg case (|a| < radius < |h_gn|)"}, "that is the Gauss-Newton case's formula"),
+    "radius_grows_on_poor_step": V(
+        "dogleg.py", ["def update_radius"], "return radius / 2.0", "return radius * 2.0",
+        {DL_RADIUS + "poor step (rho < 0.25)", DL_E2E + "curve", DL_E2E + "pose graph"},
+        "the radius grew on a poor step"),
+    "radius_without_max": V(
+        "dogleg.py", ["def update_radius"], "return max(radius, 3.0 * step_norm)", "return 3.0 * step_norm",
+        {DL_RADIUS + "good step (rho > 0.75)"}, "a short good step must not shrink the trust region"),
+}
+
+VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3}
 
 
 def apply(text: str, variant: Variant) -> str:
