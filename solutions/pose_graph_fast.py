@@ -48,6 +48,9 @@ class SparseAssembler:
     of every edge are computed once here; ``assemble`` then costs two batched
     products and one ``np.bincount``. Fixed poses get identity blocks and zero rows,
     columns and b.
+
+    Optional attribute ``diagonal_positions`` (3N,): where H's diagonal entries sit in
+    ``H.data``, so the LM loop adds its damping in place instead of building H + D.
     """
 
     #: row and column of the 21 upper-triangle entries of a 6x6 edge block
