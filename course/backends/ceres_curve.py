@@ -23,6 +23,7 @@ import numpy as np
 import pyceres
 
 from course.errors import NonFiniteError
+from course.problems.curve import curve_chi2
 from course.trace import IterationRecord, RunResult
 
 METHODS = ("levenberg-marquardt", "dogleg")
@@ -30,14 +31,6 @@ METHODS = ("levenberg-marquardt", "dogleg")
 #: Ceres' defaults are 1e-6 / 1e-10 / 1e-8 (it stops early); these make the minimum
 #: agree with ours to 1e-6 relative.
 TOLERANCES = {"function_tolerance": 1e-15, "gradient_tolerance": 1e-15, "parameter_tolerance": 1e-15}
-
-
-def curve_chi2(data, params) -> float:
-    """Our chi2 ``sum w (y_hat - y)^2`` at ``params`` (3,), independent of any impl."""
-    a, b, c = np.asarray(params, dtype=float)
-    with np.errstate(over="ignore", invalid="ignore"):
-        r = np.exp(a * data.x**2 + b * data.x + c) - data.y
-        return float(r @ (data.weights * r))
 
 
 class CurveCost(pyceres.CostFunction):

@@ -35,6 +35,7 @@ import time
 import numpy as np
 
 from course.errors import NonFiniteError
+from course.problems.curve import curve_chi2
 from course.trace import IterationRecord, RunResult
 
 METHODS = ("lm", "trf")
@@ -42,14 +43,6 @@ METHODS = ("lm", "trf")
 #: tolerances passed to least_squares unless overridden: far below scipy's 1e-8 so that
 #: the minimum agrees with ours to 1e-6 relative (MINPACK needs them above machine eps).
 TOLERANCES = {"ftol": 1e-15, "xtol": 1e-15, "gtol": 1e-15}
-
-
-def curve_chi2(data, params) -> float:
-    """Our chi2 ``sum w (y_hat - y)^2`` at ``params`` (3,), independent of any impl."""
-    a, b, c = np.asarray(params, dtype=float)
-    with np.errstate(over="ignore", invalid="ignore"):
-        r = np.exp(a * data.x**2 + b * data.x + c) - data.y
-        return float(r @ (data.weights * r))
 
 
 class _Recorder:

@@ -42,6 +42,17 @@ def generate(num_points=100, sigma=1.0, truth=TRUTH, start=START, seed=0, weight
     return CurveData(x, y, w, np.array(truth, float), np.array(start, float), sigma, seed)
 
 
+def curve_chi2(data, params) -> float:
+    """Our chi2 ``sum w (y_hat - y)^2`` at ``params`` (3,), independent of any impl.
+
+    The framework's trusted evaluation, used to score every back end alike.
+    """
+    a, b, c = np.asarray(params, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        r = np.exp(a * data.x**2 + b * data.x + c) - data.y
+        return float(r @ (data.weights * r))
+
+
 class CurveProblem:
     """The curve fit as the loop sees it, with the student's pieces from ``impl``.
 
