@@ -1,5 +1,9 @@
 """The generated notebooks: current with notebooks/build.py, and they run.
 
+Chapters 2 and 3 run in their small setting (``COURSE_NOTEBOOK_SMALL=1``: w100,
+``manhattan:200`` and the curve; a few seconds each); their full setting is
+``python -m notebooks.build --execute`` (``make notebooks``).
+
 Execution uses ``notebooks.build.execute``, which starts the kernel on this test's own
 interpreter (``sys.executable``): the ``python3`` kernelspec when it resolves to it,
 else a kernelspec written to a temporary ``JUPYTER_PATH`` folder.
@@ -87,3 +91,60 @@ def test_chapter1_executes(tmp_path):
     ours = compare.run_curve(data=generate(), backends=["ours"], methods=["lm-type1"])[0]
     assert f"{ours.final_chi2:.6f}" in text
     nbformat.write(nb, tmp_path / "executed.ipynb")
+
+
+def _execute_small(make):
+    """Run notebook ``make()`` in the small setting; returns (text of its outputs, images)."""
+    nb = make()
+    build.execute(nb, timeout=300, small=True)
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
+    errors = [o for o in outputs if o.output_type == "error"]
+    assert not errors, errors
+    text = "\n".join(o.get("text", "") for o in outputs if o.output_type == "stream")
+    text += "\n".join(o["data"]["text/markdown"] for o in outputs if "text/markdown" in o.get("data", {}))
+    images = [o for o in outputs if "image/png" in o.get("data", {})]
+    return nb, text, images
+
+
+@pytest.mark.slow
+def test_chapter2_executes_small():
+    nb, text, images = _execute_small(build.chapter2)
+    for words in ("dense/sparse", "growth exponents", "w100: 100 poses, 300 edges",
+                  "manhattan:200: 200 poses", "errors and Jacobians", "factorization and solve",
+                  "measured in the loop", "Converged (stopped by their own test"):
+        assert words in text
+    assert "w10000" not in text  # the full setting only
+    assert len(images) == 2  # before/after, dense and sparse against N
+    # the written questions are asked, with an empty answer cell each, and not answered
+    markdown = {c.get("id"): c.source for c in nb.cells if c.cell_type == "markdown"}
+    assert "Question 1" in markdown["questions-md"] and "Question 2" in markdown["questions-md"]
+    assert "Your answer to question 1" in markdown["answer-1"]
+    assert "Your answer to question 2" in markdown["answer-2"]
+    # same numbers as in-process
+    from course import compare, datasets
+
+    ours = compare.run_posegraph(datasets.load_dataset("w100"), methods=["gauss-newton"], backends=["ours"])[0]
+    assert f"{ours.final_chi2:.10g}" in text
+
+
+@pytest.mark.slow
+def test_chapter3_executes_small():
+    import re
+
+    _, text, images = _execute_small(build.chapter3)
+    for words in ("curve (start chi2", "manhattan:200 (start chi2", "at GN minimum", "factorizations / step attempts"):
+        assert words in text
+    assert len(images) == 4  # per iteration and per second, on the curve and on manhattan:200
+    # after every rejection the dogleg retries without a factorization; LM type 1 factorizes again
+    assert re.search(r"dogleg: [1-9]\d* retries after a rejection, new factorizations before each: \[0\]", text)
+    assert re.search(r"lm-type1: [1-9]\d* retries after a rejection, new factorizations before each: \[1\]", text)
+
+
+def test_reference_answers_stay_out_of_the_student_tree():
+    from course import release
+    from course.impl import REPO_ROOT
+
+    answers = REPO_ROOT / "solutions" / "answers"
+    assert (answers / "chapter2.md").is_file()
+    files = release.render(REPO_ROOT / "solutions")
+    assert not [name for name in files if name.startswith("answers")]

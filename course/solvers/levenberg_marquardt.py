@@ -57,8 +57,7 @@ def minimize(problem, method="gauss-newton", impl="solutions", options=None) -> 
         h = problem.solve(lin, damping)
         factorizations += 1
         if np.linalg.norm(h) <= options.step_tolerance * (np.linalg.norm(x) + options.step_tolerance):
-            reason = "step_tolerance"
-            trace.append(_record(iteration, lin.chi2, state, np.nan, h, False, start, factorizations))
+            reason = "step_tolerance"  # no step taken: nothing to record
             break
         if strategy is None:
             # Gauss-Newton takes every step; linearizing there gives its chi2 too
