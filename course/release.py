@@ -125,9 +125,12 @@ def release(check=False, student_dir=None, root: Path = REPO_ROOT) -> list:
 
 
 def write_student_tree(target: Path, exercise_files: dict, root: Path) -> None:
-    """A copy of the repository for students: no ``solutions/``, no reference answers."""
+    """A copy of the repository for students: no ``solutions/`` (so no reference answers)
+    and no ``tests/`` or ``.ci/`` (they test the reference). The autograder needs the
+    reference, so it runs on the course's side (e.g. Gradescope), not in this tree."""
     if target.exists():
         raise ReleaseError(f"{target} already exists; choose a new directory")
-    ignore = shutil.ignore_patterns(".git", ".venv", "__pycache__", "out", "solutions", "*.egg-info")
+    ignore = shutil.ignore_patterns(".git", ".venv", "__pycache__", "out", "solutions", "tests", ".ci",
+                                    "*.egg-info", ".pytest_cache")
     shutil.copytree(root, target, ignore=ignore)
     write(target / "exercises", exercise_files)

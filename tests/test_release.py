@@ -84,10 +84,13 @@ def test_bad_markers_are_reported(source, message):
 
 def test_omitted_files_and_student_tree(repo, tmp_path):
     (repo / "solutions" / "answers.py").write_text("# RELEASE: omit\nANSWER = 42\n")
+    (repo / "tests").mkdir()
+    (repo / "tests" / "test_reference.py").write_text("import solutions\n")
     student = tmp_path / "student"
     rel.release(root=repo, student_dir=student)
     assert not (repo / "exercises" / "answers.py").exists()
     assert not (student / "solutions").exists()
+    assert not (student / "tests").exists()
     assert (student / "exercises" / "curve_model.py").read_text() == (repo / "exercises" / "curve_model.py").read_text()
     with pytest.raises(rel.ReleaseError, match="already exists"):
         rel.release(root=repo, student_dir=student)
