@@ -1,4 +1,4 @@
-"""Command line: ``python -m course {demo,compare,release,benchmark} ...``.
+"""Command line: ``python -m course {demo,compare,datasets,benchmark,release} ...``.
 
 ``main(argv=None) -> int`` is cheap to import: every subcommand imports what it needs
 (numpy, pyceres, matplotlib, ...) when it runs. Exit codes: 0 success, 1 a failed

@@ -2,13 +2,11 @@
 
 A *runner* turns a dataset name into ``list[RunResult]``; ``RUNNERS`` maps a dataset
 kind to its runner and ``run(dataset, ...)`` picks the first kind whose ``matches``
-accepts the name. Chapter 1 registers ``curve`` (generated data); the pose-graph
-chapter registers its own kind whose ``matches`` accepts named datasets (``intel``,
-``m3500``, ...) and file paths::
+accepts the name: ``curve`` (chapter 1, generated data) and ``posegraph`` (chapter 2:
+named datasets such as ``intel`` or ``m3500``, ``manhattan:N`` and file paths).
 
-    register("posegraph", run_posegraph_dataset, matches=is_posegraph_name)
-
-A runner is called as ``runner(dataset, impl=..., methods=..., backends=..., repeat=...)``
+A runner is called as ``runner(dataset, impl=..., methods=..., backends=..., repeat=...,
+max_iterations=...)``
 (``python -m course compare`` passes exactly these; ``repeat`` = solves per pair, the
 median-time run kept) and returns ``list[RunResult]`` with ``final_chi2`` evaluated by
 our own error, whatever the back end.
