@@ -109,6 +109,35 @@ def fields_of(outcome, call):
     return {"value": raw["value"]}, None
 
 
+def call_fields(ctx, hints=None, failed=first_error):
+    """The student's and the reference's fields of each call, for a judge to compare.
+
+    Returns ``(triples, failure)``. ``failure`` is the first reason to give no credit
+    before comparing values, as a zero Verdict, or None: a call that failed in the child
+    (``failed(ctx, hints)``, :func:`first_error` unless a chapter has its own), then, in
+    call order, an output ``fields_of`` cannot read or a framework task's dict with other
+    keys than the reference's. ``triples`` holds ``(call, got, want)`` for every call
+    before that failure (none when a call failed in the child).
+
+    A judge that reports the first difference in call order compares the triples, then
+    ends with ``return failure or Verdict(1.0, "ok")``; one that needs every call returns
+    ``failure`` before looking at them.
+    """
+    failure = failed(ctx, hints)
+    if failure:
+        return [], failure
+    triples = []
+    for call, student, reference in zip(ctx.calls, ctx.student, ctx.reference):
+        got, problem = fields_of(student, call)
+        if problem:
+            return triples, Verdict(0.0, problem)
+        want, _ = fields_of(reference, call)
+        if call.returns == "dict" and set(got) != set(want):
+            return triples, Verdict(0.0, "the run returned malformed results")
+        triples.append((call, got, want))
+    return triples, None
+
+
 def close(actual, expected, rtol, atol) -> bool:
     actual, expected = np.asarray(actual, float), np.asarray(expected, float)
     if actual.shape != expected.shape:
@@ -182,14 +211,8 @@ def values(names, rtol, atol, mistakes=None, cause="", labels=None, scalar=False
     labels = labels or {}
 
     def judge(ctx):
-        failed = first_error(ctx, errors)
-        if failed:
-            return failed
-        for call, student, reference in zip(ctx.calls, ctx.student, ctx.reference):
-            got, problem = fields_of(student, call)
-            if problem:
-                return Verdict(0.0, problem)
-            want, _ = fields_of(reference, call)
+        triples, failure = call_fields(ctx, errors)
+        for call, got, want in triples:
             known = mistakes(call, want) if mistakes else {}
             for name in names:
                 hint = cause.get(name, "") if isinstance(cause, dict) else cause
@@ -197,6 +220,6 @@ def values(names, rtol, atol, mistakes=None, cause="", labels=None, scalar=False
                                call.where, known.get(name, ()), hint, scalar)
                 if text:
                     return Verdict(0.0, text)
-        return Verdict(1.0, "ok")
+        return failure or Verdict(1.0, "ok")
 
     return judge

@@ -12,7 +12,7 @@ from functools import lru_cache
 import numpy as np
 
 from autograder.checks import Call, Check, Verdict
-from autograder.compare import compare, fields_of, first_error, fmt, values
+from autograder.compare import call_fields, compare, fmt, values
 
 MODULES = ("curve_model", "gauss_newton", "damping")
 
@@ -80,13 +80,8 @@ def _curve_calls():
 
 
 def _judge_shapes(ctx):
-    failed = first_error(ctx)
-    if failed:
-        return failed
-    for call, student in zip(ctx.calls, ctx.student):
-        got, problem = fields_of(student, call)
-        if problem:
-            return Verdict(0.0, problem)
+    triples, failure = call_fields(ctx)
+    for call, got, _ in triples:
         m = len(call.args[1])
         for name, shape in (("r", (m,)), ("J", (m, 3))):
             if got[name].shape != shape:
@@ -94,7 +89,7 @@ def _judge_shapes(ctx):
                 if name == "J" and got[name].shape == shape[::-1]:
                     text += ": J is transposed (one row per point, columns d/da, d/db, d/dc)"
                 return Verdict(0.0, text)
-    return Verdict(1.0, "ok")
+    return failure or Verdict(1.0, "ok")
 
 
 def _r_mistakes(call, ref):
@@ -122,14 +117,8 @@ def _column_mistakes(j, x, y_hat, J_ref):
 
 
 def _judge_jacobian(ctx):
-    failed = first_error(ctx)
-    if failed:
-        return failed
-    for call, student, reference in zip(ctx.calls, ctx.student, ctx.reference):
-        got, problem = fields_of(student, call)
-        if problem:
-            return Verdict(0.0, problem)
-        want, _ = fields_of(reference, call)
+    triples, failure = call_fields(ctx)
+    for call, got, want in triples:
         if got["J"].shape != want["J"].shape:
             return Verdict(0.0, compare(got["J"], want["J"], "J", 0, 0, call.where))
         x, y = call.args[1], call.args[2]
@@ -139,7 +128,7 @@ def _judge_jacobian(ctx):
                            _column_mistakes(j, x, y_hat, want["J"]), COLUMN_HINTS[j])
             if text:
                 return Verdict(0.0, text)
-    return Verdict(1.0, "ok")
+    return failure or Verdict(1.0, "ok")
 
 
 FD_POINTS = (1, 2, 3)  # indices into _curve_points(): truth, (0.3, -0.7, 0.2), small data
@@ -162,15 +151,10 @@ def _fd_calls():
 
 def _judge_finite_differences(ctx):
     """J of the student against central differences of the student's own r, per column."""
-    failed = first_error(ctx)
-    if failed:
-        return failed
-    fields = []
-    for call, student in zip(ctx.calls, ctx.student):
-        got, problem = fields_of(student, call)
-        if problem:
-            return Verdict(0.0, problem)
-        fields.append(got)
+    triples, failure = call_fields(ctx)
+    if failure:
+        return failure
+    fields = [got for _, got, _ in triples]
     good = [True, True, True]
     messages, minus = {}, []
     for block in range(len(FD_POINTS)):
@@ -502,12 +486,10 @@ def _end_calls(method):
 
 def _judge_end(method):
     def judge(ctx):
-        failed = first_error(ctx)
-        if failed:
-            return failed
-        got, want = ctx.student[0].fields, ctx.reference[0].fields
-        if set(got) != set(want):
-            return Verdict(0.0, "the run returned malformed results")
+        triples, failure = call_fields(ctx)
+        if failure:
+            return failure
+        _, got, want = triples[0]
         params = compare(got["params"], want["params"], "params", 1e-6, 1e-9)
         chi2 = compare(got["final_chi2"], want["final_chi2"], "final chi2", 1e-6, 0.0)
         if params is None and chi2 is None:

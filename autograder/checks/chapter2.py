@@ -14,7 +14,7 @@ from functools import lru_cache
 import numpy as np
 
 from autograder.checks import Call, Check, Verdict
-from autograder.compare import _TODO, compare, fields_of, first_error, fmt, values
+from autograder.compare import _TODO, call_fields, compare, first_error, fmt, values
 
 MODULES = ("pose_graph_edge", "pose_graph_assembly", "sparse_solve", "ceres_edge_cost", "pose_graph_fast")
 
@@ -101,21 +101,6 @@ def _values(*args, **kwargs):
     return wrapped
 
 
-def _fields(ctx):
-    """``(student fields, reference fields)`` per call, or a Verdict."""
-    failed = _failed(ctx)
-    if failed:
-        return failed
-    pairs = []
-    for call, student, reference in zip(ctx.calls, ctx.student, ctx.reference):
-        got, problem = fields_of(student, call)
-        if problem:
-            return Verdict(0.0, problem)
-        want, _ = fields_of(reference, call)
-        pairs.append((got, want))
-    return pairs
-
-
 # ---------------------------------------------------------------- one edge
 
 
@@ -159,10 +144,10 @@ def _edge_parts(call):
 
 
 def _judge_edge_shapes(ctx):
-    pairs = _fields(ctx)
-    if isinstance(pairs, Verdict):
-        return pairs
-    for call, (got, _) in zip(ctx.calls, pairs):
+    triples, failure = call_fields(ctx, failed=_failed)
+    if failure:
+        return failure
+    for call, got, _ in triples:
         for name, shape in (("e", (3,)), ("A", (3, 3)), ("B", (3, 3))):
             if got[name].shape != shape:
                 text = f"{name} has shape {got[name].shape}, expected {shape} {call.where}"
@@ -213,10 +198,10 @@ def _judge_e(part):
     label = {"e_t": "e[{}]", "e_theta": "e[2]"}[part]
 
     def judge(ctx):
-        pairs = _fields(ctx)
-        if isinstance(pairs, Verdict):
-            return pairs
-        for call, (got, want) in zip(ctx.calls, pairs):
+        triples, failure = call_fields(ctx, failed=_failed)
+        if failure:
+            return failure
+        for call, got, want in triples:
             if got["e"].shape != (3,):
                 return Verdict(0.0, f"e has shape {got['e'].shape}, expected (3,) {call.where}")
             split = {"e_t": (got["e"][:2], want["e"][:2]), "e_theta": (got["e"][2], want["e"][2])}
@@ -300,17 +285,14 @@ def _fd_calls():
 
 def _judge_fd(ctx):
     """A and B against central differences of the student's own e (angle differences wrapped)."""
-    failed = _failed(ctx)
-    if failed:
-        return failed
+    triples, failure = call_fields(ctx, failed=_failed)
     fields = []
-    for call, student in zip(ctx.calls, ctx.student):
-        got, problem = fields_of(student, call)
-        if problem:
-            return Verdict(0.0, problem)
+    for call, got, _ in triples:
         if got["e"].shape != (3,) or got["A"].shape != (3, 3) or got["B"].shape != (3, 3):
             return Verdict(0.0, f"e, A or B has the wrong shape {call.where} (see the shapes check)")
         fields.append(got)
+    if failure:
+        return failure
     good, messages, minus = {}, {}, set()
     per_edge = 13
     for block in range(len(FD_EDGES)):
@@ -521,10 +503,10 @@ def _judge_assembly(part):
     """``part``: "H" (free-free blocks), "b" (b and chi2 of free poses), "fixed" (fixed rows, columns, b)."""
 
     def judge(ctx):
-        pairs = _fields(ctx)
-        if isinstance(pairs, Verdict):
-            return pairs
-        for call, (got, want) in zip(ctx.calls, pairs):
+        triples, failure = call_fields(ctx, failed=_failed)
+        if failure:
+            return failure
+        for call, got, want in triples:
             n = 3 * len(call.args[0])
             problem = _shape_problem(got, n, call)
             if problem:
@@ -623,13 +605,13 @@ def _upper_calls():
 
 
 def _judge_upper(ctx):
-    pairs = _fields(ctx)
-    if isinstance(pairs, Verdict):
-        return pairs
+    triples, failure = call_fields(ctx, failed=_failed)
+    if failure:
+        return failure
     from autograder.tasks import decode_text
 
     partial = None
-    for call, (got, want) in zip(ctx.calls, pairs):
+    for call, got, want in triples:
         H = call.args[0]
         known = [(H, "this is the whole of H: keep its upper triangle only, diagonal included "
                      "(scipy.sparse.triu(H, format='csc'))"),
@@ -677,11 +659,11 @@ def _sparse_calls(count):
 
 
 def _judge_sparse(ctx):
-    pairs = _fields(ctx)
-    if isinstance(pairs, Verdict):
-        return pairs
+    triples, failure = call_fields(ctx, failed=_failed)
+    if failure:
+        return failure
     systems = _systems()
-    for call, (got, want) in zip(ctx.calls, pairs):
+    for call, got, want in triples:
         count = len(call.args[3])
         for k in range(count):
             name = f"dx{k}"
@@ -707,12 +689,10 @@ def _judge_sparse(ctx):
 
 
 def _judge_reuse(ctx):
-    failed = _failed(ctx)
-    if failed:
-        return failed
-    got, problem = fields_of(ctx.student[0], ctx.calls[0])
-    if problem:
-        return Verdict(0.0, problem)
+    triples, failure = call_fields(ctx, failed=_failed)
+    if failure:
+        return failure
+    _, got, _ = triples[0]
     created = float(got.get("solvers_created", np.nan))
     calls = len(ctx.calls[0].args[3])
     if not np.isfinite(created):
@@ -789,10 +769,10 @@ def _judge_ceres(names):
     labels = {"r": "residuals[{}]", "J_i": "jacobians[0] as 3x3 [{}]", "J_j": "jacobians[1] as 3x3 [{}]"}
 
     def judge(ctx):
-        pairs = _fields(ctx)
-        if isinstance(pairs, Verdict):
-            return pairs
-        for call, (got, want) in zip(ctx.calls, pairs):
+        triples, failure = call_fields(ctx, failed=_failed)
+        if failure:
+            return failure
+        for call, got, want in triples:
             known = _ceres_mistakes(call, want)
             for name in names:
                 scale = max(1.0, float(np.max(np.abs(want[name]))))
@@ -808,10 +788,10 @@ def _judge_ceres(names):
 def _judge_partial_jacobians(ctx):
     """With jacobians None, [None, J_j] or [J_i, None], Evaluate fills what it is asked for,
     the same as when both Jacobians are requested (the values are graded by the other checks)."""
-    pairs = _fields(ctx)
-    if isinstance(pairs, Verdict):
-        return pairs
-    for call, (got, _) in zip(ctx.calls, pairs):
+    triples, failure = call_fields(ctx, failed=_failed)
+    if failure:
+        return failure
+    for call, got, _ in triples:
         both = f"{call.where}, with both jacobians requested"
         if not got["both_ok"]:
             return Verdict(0.0, f"Evaluate did not return True {both}: return True after filling the buffers")
@@ -870,10 +850,10 @@ def _fast_assembler_calls():
 
 
 def _judge_fast_assembler(ctx):
-    pairs = _fields(ctx)
-    if isinstance(pairs, Verdict):
-        return pairs
-    (got, want), call = pairs[0], ctx.calls[0]
+    triples, failure = call_fields(ctx, failed=_failed)
+    if failure:
+        return failure
+    call, got, want = triples[0]
     note = ""
     for k in range(2):
         where = f"{call.where} (call {k + 1})"
@@ -922,15 +902,13 @@ def _end_calls():
 
 
 def _judge_end(ctx):
-    failed = _failed(ctx)
-    if failed:
-        if "SIGSEGV" in failed.message:
-            failed.message += (": the sparse solver (qdldl) crashes when the matrix it is given is not the upper "
-                               "triangle of a symmetric H; see the upper_triangle_csc and SparseCholeskySolver checks")
-        return failed
-    got, want = ctx.student[0].fields, ctx.reference[0].fields
-    if set(got) != set(want):
-        return Verdict(0.0, "the run returned malformed results")
+    triples, failure = call_fields(ctx, failed=_failed)
+    if failure:
+        if "SIGSEGV" in failure.message:
+            failure.message += (": the sparse solver (qdldl) crashes when the matrix it is given is not the upper "
+                                "triangle of a symmetric H; see the upper_triangle_csc and SparseCholeskySolver checks")
+        return failure
+    _, got, want = triples[0]
     graph = _e2e_graph()
     text = compare(got["final_chi2"], want["final_chi2"], "final chi2", 1e-6, 0.0)
     moved = float(np.max(np.abs(got["params"] - want["params"])))

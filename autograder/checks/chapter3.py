@@ -18,7 +18,7 @@ from functools import lru_cache
 import numpy as np
 
 from autograder.checks import Call, Check, Verdict
-from autograder.compare import compare, fields_of, first_error, fmt, values
+from autograder.compare import call_fields, compare, fmt, values
 
 MODULES = ("dogleg",)
 
@@ -200,14 +200,8 @@ def _judge_step(ctx, predicted=True):
     """The case, h and (unless ``predicted`` is False) the predicted decrease of every call."""
     from autograder.tasks import decode_text
 
-    failed = first_error(ctx)
-    if failed:
-        return failed
-    for call, student, reference in zip(ctx.calls, ctx.student, ctx.reference):
-        got, problem = fields_of(student, call)
-        if problem:
-            return Verdict(0.0, problem)
-        want, _ = fields_of(reference, call)
+    triples, failure = call_fields(ctx)
+    for call, got, want in triples:
         expected = int(want["case_code"])
         code, text = int(got["case_code"]), decode_text(got["case_text"])
         if code != expected and code >= 0:
@@ -227,7 +221,7 @@ def _judge_step(ctx, predicted=True):
         if code < 0:
             return Verdict(0.0, f"the step is right but the case is {text!r} {call.where}: "
                                 f"return the module's constant {CASE_NAMES[expected]} = {CASES[expected]!r}")
-    return Verdict(1.0, "ok")
+    return failure or Verdict(1.0, "ok")
 
 
 # ---------------------------------------------------------------- radius update
@@ -300,13 +294,10 @@ def _judge_end(on):
     from autograder.tasks import STOP_REASONS
 
     def judge(ctx):
-        failed = first_error(ctx)
-        if failed:
-            return failed
-        got, want = ctx.student[0].fields, ctx.reference[0].fields
-        gn = ctx.reference[1].fields  # the minimum, computed here with the reference
-        if set(got) != set(want):
-            return Verdict(0.0, "the run returned malformed results")
+        triples, failure = call_fields(ctx)
+        if failure:
+            return failure
+        (_, got, want), (_, _, gn) = triples  # gn: the minimum, computed here with the reference
         if got["refactorized_after_rejection"] > 0:
             return Verdict(0.0, f"{int(got['refactorized_after_rejection'])} rejected step(s) were followed by a "
                                 "factorization before the retry: a rejection must only shrink the radius and reuse "
