@@ -16,8 +16,6 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:  # when run as plain `pytest` without an installed package
-    sys.path.insert(0, str(ROOT))
 
 from student_variants import BUGS, HOSTILE, apply, build  # noqa: E402
 #: time limit per check in the tests (the infinite loop waits for it)
