@@ -76,20 +76,24 @@ def curve_plan(methods=None, backends=None) -> list:
     """
     pairs = [("ours", m) for m in OUR_CURVE_METHODS]
     pairs += [(backend, m) for backend, (_, names) in PEER_CURVE_METHODS.items() for m in names]
-    all_backends = sorted({b for b, _ in pairs})
-    all_methods = sorted({m for _, m in pairs})
-    if backends is not None:
-        backends = list(backends)
-        unknown = [b for b in backends if b not in all_backends]
+    return filter_pairs(pairs, methods, backends, "the curve")
+
+
+def filter_pairs(pairs, methods, backends, what: str) -> list:
+    """``pairs`` whose backend is in ``backends`` and method in ``methods`` (None = all).
+
+    A method name selects it in every backend that has it; unknown names raise
+    ``ValueError`` listing the valid ones for ``what``.
+    """
+    for names, index, kind in ((backends, 0, "backend"), (methods, 1, "method")):
+        if names is None:
+            continue
+        names = list(names)
+        valid = sorted({p[index] for p in pairs})
+        unknown = [n for n in names if n not in valid]
         if unknown:
-            raise ValueError(f"unknown backend(s) {unknown} for the curve; choose from {all_backends}")
-        pairs = [p for p in pairs if p[0] in backends]
-    if methods is not None:
-        methods = list(methods)
-        unknown = [m for m in methods if m not in all_methods]
-        if unknown:
-            raise ValueError(f"unknown method(s) {unknown} for the curve; choose from {all_methods}")
-        pairs = [p for p in pairs if p[1] in methods]
+            raise ValueError(f"unknown {kind}(s) {unknown} for {what}; choose from {valid}")
+        pairs = [p for p in pairs if p[index] in names]
     if not pairs:
         raise ValueError(f"no (backend, method) pair left for backends={backends} and methods={methods}")
     return pairs
@@ -168,19 +172,7 @@ def posegraph_plan(methods=None, backends=None) -> list:
 
     pairs = [("ours", m) for m in OUR_POSE_GRAPH_METHODS]
     pairs += [(b, m) for b, names in POSE_GRAPH_METHODS.items() for m in names]
-    if backends is not None:
-        unknown = sorted(set(backends) - {b for b, _ in pairs})
-        if unknown:
-            raise ValueError(f"unknown backend(s) {unknown} for pose graphs")
-        pairs = [p for p in pairs if p[0] in backends]
-    if methods is not None:
-        unknown = sorted(set(methods) - {m for _, m in pairs})
-        if unknown:
-            raise ValueError(f"unknown method(s) {unknown} for pose graphs")
-        pairs = [p for p in pairs if p[1] in methods]
-    if not pairs:
-        raise ValueError(f"no (backend, method) pair left for backends={backends} and methods={methods}")
-    return pairs
+    return filter_pairs(pairs, methods, backends, "pose graphs")
 
 
 def run_posegraph(graph, impl="solutions", methods=None, backends=None, repeat=1, max_iterations=100) -> list:
