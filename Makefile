@@ -4,12 +4,12 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test venv release notebooks benchmark clean
+.PHONY: demo test test-fast lint venv release notebooks benchmark clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e .
+	$(PY) -m pip install --quiet -e ".[dev]"
 	touch $(STAMP)
 
 venv: $(STAMP)
@@ -17,8 +17,17 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(PY) -m course demo
 
-test: $(STAMP)
+lint: $(STAMP)
+	$(PY) -m ruff check .
+	$(PY) -m mypy course autograder
+
+# everything: lint, type check and the whole suite (what CI runs)
+test: lint
 	$(PY) -m pytest -q
+
+# the quick loop while working: lint and the tests not marked slow
+test-fast: lint
+	$(PY) -m pytest -q -m "not slow"
 
 release: $(STAMP)
 	$(PY) -m course release

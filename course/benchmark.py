@@ -10,30 +10,31 @@ import time
 
 import numpy as np
 
-from course import datasets
+from course import datasets, registry
 from course.problems.posegraph import PoseGraphProblem
+from course.progress import Progress, quiet
 from course.solvers import minimize
 
 
-def _median_seconds_per_iteration(run, repeats):
+def _median_seconds_per_iteration(run, repeats, progress, backend):
     values = []
     for _ in range(repeats):
-        result = run()
+        with progress.run(backend, "gauss-newton") as callback:
+            result = run(callback)
         values.append(result.seconds / max(result.iterations, 1))
     return statistics.median(values), result
 
 
-def gauss_newton_vs_g2o(name, repeats=5, impl="solutions"):
+def gauss_newton_vs_g2o(name, repeats=5, impl="solutions", progress=None):
     """``(ours, g2o, ours_result, g2o_result)`` seconds per GN iteration, medians of ``repeats``."""
-    from course.backends import g2o_posegraph
-
+    progress = progress or quiet()
+    g2o = registry.peer_solver("posegraph", "g2o")
     graph = datasets.load_dataset(name)
     ours, ours_result = _median_seconds_per_iteration(
-        lambda: minimize(PoseGraphProblem(graph, impl), "gauss-newton", impl=impl), repeats
-    )
+        lambda callback: minimize(PoseGraphProblem(graph, impl), "gauss-newton", impl=impl, callback=callback),
+        repeats, progress, "ours")
     theirs, g2o_result = _median_seconds_per_iteration(
-        lambda: g2o_posegraph.solve(graph, "gauss-newton"), repeats
-    )
+        lambda callback: g2o(graph, "gauss-newton"), repeats, progress, "g2o")
     return ours, theirs, ours_result, g2o_result
 
 
@@ -63,7 +64,9 @@ def main(repeats=5, graphs=("w10000", "m3500"), out=print):
     out(f"Gauss-Newton seconds per iteration, ours over g2o (g2opy), median of {repeats}:")
     out(f"{'graph':10} {'ours ms/it':>11} {'g2o ms/it':>10} {'ratio':>6} {'ours chi2':>14} {'g2o chi2':>14}")
     for name in graphs:
-        ours, theirs, r_ours, r_g2o = gauss_newton_vs_g2o(name, repeats)
+        progress = Progress(2 * repeats, label=name)  # on a terminal only
+        ours, theirs, r_ours, r_g2o = gauss_newton_vs_g2o(name, repeats, progress=progress)
+        progress.close()
         out(f"{name:10} {ours * 1e3:11.2f} {theirs * 1e3:10.2f} {ours / theirs:6.2f} "
             f"{r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")
     try:

@@ -10,6 +10,8 @@ import json
 import sys
 from pathlib import Path
 
+from course.registry import BACKENDS
+
 
 def _default_impl() -> str:
     """``solutions`` in the course repository, ``exercises`` in a student tree (no solutions/)."""
@@ -28,7 +30,7 @@ def _add_run_arguments(parser):
                              "(default: solutions when present, else exercises)")
     parser.add_argument("--methods", default=None, help="comma-separated method names (default: all)")
     parser.add_argument("--backends", default=None,
-                        help="comma-separated back ends among ours, ceres, g2o, gtsam, scipy (default: all)")
+                        help=f"comma-separated back ends among {', '.join(BACKENDS)} (default: all)")
     parser.add_argument("--repeat", type=int, default=1,
                         help="solve each pair this many times and keep the median-time run")
 
@@ -68,6 +70,11 @@ def build_parser() -> argparse.ArgumentParser:
     release.add_argument("--student", metavar="DIR", help="also write a student tree (no solutions/) to DIR")
     release.add_argument("--root", metavar="DIR", default=None,
                          help="repository holding solutions/ and exercises/ (default: this checkout)")
+    release.add_argument("--gradescope", metavar="FILE.zip", default=None,
+                         help="also write the Gradescope autograder zip (setup.sh, run_autograder, the grader "
+                              "and the reference) to FILE.zip; with --check, only when nothing is stale")
+    release.add_argument("--hidden-seed", type=int, default=None,
+                         help="seed of the hidden checks' inputs in the Gradescope zip (default: a random one)")
     release.set_defaults(func=cmd_release)
 
     bench = sub.add_parser("benchmark", help="our Gauss-Newton time per iteration against g2o's (course.benchmark)")
@@ -96,32 +103,51 @@ def main(argv=None) -> int:
 # ---------------------------------------------------------------- subcommands
 
 
+def _ran(runs) -> list:
+    """The runs that ran (a pair stopped at an unwritten TODO is a row, not a curve)."""
+    return [r for r in runs if not r.not_run]
+
+
 def cmd_demo(args) -> int:
-    """Chapter 1's experiment: the table on the terminal, the plots in ``args.out``."""
+    """Chapter 1's experiment: the table on the terminal, the plots in ``args.out``.
+
+    A pair of ours that stops at an unwritten TODO is a row naming it
+    (``not implemented: TODO module.function``), not the end of the demo: a student tree
+    runs the peers and whatever is written so far, and exits 0."""
     from course import compare, plot
     from course.problems.curve import generate
 
     impl = args.impl or _default_impl()
     data = generate(num_points=args.points, seed=args.seed)
-    runs = compare.run_curve(impl=impl, methods=_names(args.methods), backends=_names(args.backends),
-                             data=data, repeat=args.repeat)
+    methods, backends = _names(args.methods), _names(args.backends)
+    progress = _progress("curve", methods, backends, "curve")
+    runs = compare.run_curve(impl=impl, methods=methods, backends=backends, data=data, repeat=args.repeat,
+                             unimplemented="row", progress=progress)
+    progress.close()
     title = (f"Curve fit y = exp(a x^2 + b x + c), {args.points} points, sigma {data.sigma:g}, seed {args.seed}, "
              f"start {tuple(data.start.tolist())}, truth {tuple(data.truth.tolist())}; impl {impl}; "
              f"median of {args.repeat} runs")
     print(compare.format_table(runs, title=title))
     out = Path(args.out)
-    lm_runs = [r for r in runs if r.backend == "ours" and r.method.startswith("lm-type")]
+    lm_runs = [r for r in _ran(runs) if r.backend == "ours" and r.method.startswith("lm-type")]
     written = [out / "curve_chi2.png", out / "curve_lambda.png", out / "curve_fit.png"]
-    plot.chi2_per_iteration(runs, written[0])
+    plot.chi2_per_iteration(_ran(runs), written[0])
     plot.damping_per_iteration(lm_runs, written[1], title="lambda per iteration, Gavin's damping types 1-3")
-    plot.curve_fit(data, runs, written[2])
+    plot.curve_fit(data, _ran(runs), written[2])
     json_path = out / "curve.json"
     out.mkdir(parents=True, exist_ok=True)
     json_path.write_text(json.dumps(compare.to_json("curve", runs), indent=1))
     written.append(json_path)
+    todo = [r for r in runs if r.not_run]
     if not args.curve_only:
-        written += _demo_pose_graphs(impl, out)
+        pose_written, pose_todo = _demo_pose_graphs(impl, out)
+        written += pose_written
+        todo += pose_todo
     print("\nwrote " + ", ".join(str(p) for p in written))
+    if todo:
+        names = sorted({r.not_run.split("TODO ", 1)[-1].split(" ")[0].rstrip(":") for r in todo})
+        print(f"\n{len(todo)} run(s) stopped at a TODO of impl {impl} ({', '.join(names)}); "
+              "write them, and `python -m autograder --only NAME` checks each piece")
     return 0
 
 
@@ -130,11 +156,13 @@ def cmd_demo(args) -> int:
 DEMO_W10000 = {"methods": ["gauss-newton", "dogleg"], "backends": ["ours", "g2o", "gtsam"]}
 
 
-def _demo_pose_graphs(impl, out) -> list:
-    """w10000 (ships with gtsam) and, when the data folder is there, intel."""
+def _demo_pose_graphs(impl, out) -> tuple:
+    """w10000 (ships with gtsam) and, when the data folder is there, intel.
+
+    Returns (paths written, the runs that stopped at a TODO)."""
     from course import compare, datasets, plot
 
-    written = []
+    written, todo = [], []
     plans = [("w10000", DEMO_W10000)]
     try:
         datasets.load_dataset("intel")
@@ -143,17 +171,32 @@ def _demo_pose_graphs(impl, out) -> list:
         print(f"\nintel skipped: {exc}")
     for name, plan in plans:
         graph = datasets.load_dataset(name)
-        runs = compare.run_posegraph(graph, impl=impl, **plan)
+        progress = _progress("posegraph", plan.get("methods"), plan.get("backends"), name)
+        runs = compare.run_posegraph(graph, impl=impl, unimplemented="row", progress=progress, **plan)
+        progress.close()
+        todo += [r for r in runs if r.not_run]
         note = "" if not plan else (f"; methods {', '.join(plan['methods'])}, back ends "
                                     f"{', '.join(plan['backends'])} (Ceres' Python cost is slow here: "
                                     f"`python -m course compare {name}` runs everything)")
         print("\n" + compare.format_table(
             runs, title=f"{name}: {graph.num_poses} poses, {graph.num_edges} edges; impl {impl}{note}"))
-        path = out / f"{name}.png"
-        plot.pose_graph_before_after(graph, runs[0], path)
         (out / f"{name}.json").write_text(json.dumps(compare.to_json(name, runs)))
-        written += [path, out / f"{name}.json"]
-    return written
+        ran = _ran(runs)
+        if ran:  # the first run that ran: ours when written, else a peer
+            path = out / f"{name}.png"
+            plot.pose_graph_before_after(graph, ran[0], path)
+            written.append(path)
+        written.append(out / f"{name}.json")
+    return written, todo
+
+
+def _progress(kind, methods, backends, label):
+    """A progress line over the runs of one comparison (on a terminal only)."""
+    from course import compare
+    from course.progress import Progress
+
+    plan = compare.curve_plan(methods, backends) if kind == "curve" else compare.posegraph_plan(methods, backends)
+    return Progress(len(plan), label=label)
 
 
 def cmd_compare(args) -> int:
@@ -161,8 +204,11 @@ def cmd_compare(args) -> int:
 
     runner = compare.find_runner(args.dataset)  # fails early and clearly on unknown names
     impl = args.impl or _default_impl()
-    runs = runner.run(args.dataset, impl=impl, methods=_names(args.methods), backends=_names(args.backends),
-                      repeat=args.repeat, max_iterations=args.max_iterations)
+    methods, backends = _names(args.methods), _names(args.backends)
+    progress = _progress(runner.kind, methods, backends, args.dataset)
+    runs = runner.run(args.dataset, impl=impl, methods=methods, backends=backends, repeat=args.repeat,
+                      max_iterations=args.max_iterations, progress=progress)
+    progress.close()
     print(compare.format_table(runs, title=f"{args.dataset} (impl {impl})"))
     if runner.kind == "posegraph":
         ate = compare.format_ate(runs)
@@ -179,10 +225,10 @@ def cmd_compare(args) -> int:
         if runner.kind == "posegraph":
             from course import datasets
 
-            best = min(runs, key=lambda r: (r.backend != "ours", r.final_chi2))
+            best = min(_ran(runs), key=lambda r: (r.backend != "ours", r.final_chi2))
             plot.pose_graph_before_after(datasets.load_dataset(args.dataset), best, args.plot)
         else:
-            plot.chi2_per_iteration(runs, args.plot, title=f"{args.dataset}: chi2 per iteration")
+            plot.chi2_per_iteration(_ran(runs), args.plot, title=f"{args.dataset}: chi2 per iteration")
         print(f"wrote {args.plot}")
     return 0
 
@@ -208,18 +254,46 @@ def cmd_release(args) -> int:
     if not (root / "solutions").is_dir():
         print(f"error: {root} has no solutions/ folder to release from", file=sys.stderr)
         return 2
+    data_stale = []
+    if root.resolve() == REPO_ROOT.resolve():  # the public checks' data, before a student tree copies it
+        from autograder.oracle import release_expected
+
+        data_stale = [f"autograder/{rel}" for rel in release_expected(check=args.check)]
     stale = release(check=args.check, student_dir=args.student, root=root)
     if args.check:
+        if data_stale:
+            print("the public checks' data is out of date; run `python -m course release`. Stale files:")
+            print("\n".join(f"  {rel}" for rel in data_stale))
         if stale:
             print("exercises/ is out of date with solutions/; run `python -m course release`. Stale files:")
             for rel in stale:
                 print(f"  exercises/{rel}")
             return 1
+        if data_stale:
+            return 1
         print("exercises/ is up to date")
-        return 0
+        return _write_gradescope(args.gradescope, root, args.hidden_seed)
     print("rewrote exercises/: " + ", ".join(stale) if stale else "exercises/ was already up to date")
+    if data_stale:
+        print("rewrote the public checks' data: " + ", ".join(data_stale))
     if args.student:
         print(f"wrote the student tree to {args.student}")
+    return _write_gradescope(args.gradescope, root, args.hidden_seed)
+
+
+def _write_gradescope(target, root, hidden_seed=None) -> int:
+    """``release --gradescope FILE.zip``: the autograder bundle (course.gradescope)."""
+    if not target:
+        return 0
+    from course.gradescope import BundleError, build_bundle
+
+    try:
+        bundle = build_bundle(target, root, hidden_seed)
+    except BundleError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote the Gradescope autograder to {bundle.path} ({bundle.size / 2**20:.2f} MiB, "
+          f"{len(bundle.members)} files); upload it as the assignment's autograder zip")
     return 0
 
 

@@ -10,25 +10,25 @@ max_iterations=...)``
 (``python -m course compare`` passes exactly these; ``repeat`` = solves per pair, the
 median-time run kept) and returns ``list[RunResult]`` with ``final_chi2`` evaluated by
 our own error, whatever the back end.
+
+``impl=None`` means this tree's own implementation: ``solutions`` where ``solutions/``
+exists, else ``exercises`` (a student tree). ``unimplemented="row"`` (the demo's choice)
+turns a pair that stops at an unwritten TODO (``NotImplementedError``) into a row saying
+so (``RunResult.not_run``) instead of stopping the whole comparison; the default
+``"raise"`` lets the error through.
 """
 
-import importlib
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 
+from course import registry
 from course.errors import CourseError
+from course.progress import quiet
 from course.trace import RunResult
-
-#: our methods on the curve, in table order; "dogleg" runs once course.solvers.dogleg exists
-OUR_CURVE_METHODS = ("gauss-newton", "lm-type1", "lm-type2", "lm-type3", "dogleg")
-#: the peers' methods on the curve: backend -> (module, methods)
-PEER_CURVE_METHODS = {
-    "ceres": ("course.backends.ceres_curve", ("levenberg-marquardt", "dogleg")),
-    "scipy": ("course.backends.scipy_curve", ("lm", "trf")),
-}
 
 
 class UnknownDatasetError(CourseError, ValueError):
@@ -46,9 +46,12 @@ class Runner:
 RUNNERS: dict = {}
 
 
-def register(kind: str, runner: Callable, matches: Optional[Callable[[str], bool]] = None, description=""):
+def register(kind: str, runner: Callable, matches: Callable[[str], bool] | None = None, description=""):
     """Register ``runner`` for dataset ``kind``; ``matches(name)`` defaults to ``name == kind``."""
-    RUNNERS[kind] = Runner(kind, runner, matches or (lambda name, kind=kind: name == kind), description)
+    def same_name(name: str) -> bool:
+        return name == kind
+
+    RUNNERS[kind] = Runner(kind, runner, matches or same_name, description)
 
 
 def find_runner(dataset: str) -> Runner:
@@ -60,7 +63,7 @@ def find_runner(dataset: str) -> Runner:
     raise UnknownDatasetError(f"unknown dataset {dataset!r}; known datasets: {known}")
 
 
-def run(dataset: str, impl="solutions", methods=None, backends=None, **options) -> list:
+def run(dataset: str, impl=None, methods=None, backends=None, **options) -> list:
     """Run ``dataset`` through every (backend, method) pair (filtered by ``methods``/``backends``)."""
     return find_runner(dataset).run(dataset, impl=impl, methods=methods, backends=backends, **options)
 
@@ -74,9 +77,7 @@ def curve_plan(methods=None, backends=None) -> list:
     ``methods`` and ``backends`` are iterables of names (None = all); a method name
     selects it in every backend that has it (``dogleg`` is ours and Ceres').
     """
-    pairs = [("ours", m) for m in OUR_CURVE_METHODS]
-    pairs += [(backend, m) for backend, (_, names) in PEER_CURVE_METHODS.items() for m in names]
-    return filter_pairs(pairs, methods, backends, "the curve")
+    return filter_pairs(registry.pairs("curve"), methods, backends, "the curve")
 
 
 def filter_pairs(pairs, methods, backends, what: str) -> list:
@@ -99,10 +100,35 @@ def filter_pairs(pairs, methods, backends, what: str) -> list:
     return pairs
 
 
-def _dogleg_missing(exc: ModuleNotFoundError) -> bool:
-    """True when the error says our dogleg is not written yet (loop or exercise module)."""
-    name = exc.name or ""
-    return name == "course.solvers.dogleg" or name.endswith(".dogleg")
+def _tree_impl(impl):
+    """``impl``, or this tree's default (``solutions`` when present, else ``exercises``)."""
+    if impl is not None:
+        return impl
+    from course.cli import _default_impl
+
+    return _default_impl()
+
+
+def not_implemented_reason(exc: NotImplementedError) -> str:
+    """``"not implemented: TODO module.function"`` from a stub's error (or its own text)."""
+    text = str(exc).strip()
+    suffix = ": not implemented yet"
+    if text.endswith(suffix):
+        text = text[: -len(suffix)]
+    return f"not implemented: {text}" if text else "not implemented"
+
+
+def _solve_or_row(solve, repeat, backend, method, unimplemented) -> RunResult:
+    """``_median_run(solve, repeat)``; with ``unimplemented="row"`` a ``NotImplementedError``
+    becomes a ``RunResult.skipped`` row naming the TODO."""
+    if unimplemented not in ("raise", "row"):
+        raise ValueError(f"unimplemented must be 'raise' or 'row', got {unimplemented!r}")
+    try:
+        return _median_run(solve, repeat)
+    except NotImplementedError as exc:
+        if unimplemented == "raise":
+            raise
+        return RunResult.skipped(backend, method, not_implemented_reason(exc))
 
 
 def _median_run(solve, repeat: int) -> RunResult:
@@ -111,12 +137,13 @@ def _median_run(solve, repeat: int) -> RunResult:
     return sorted(runs, key=lambda r: r.seconds)[len(runs) // 2]
 
 
-def run_curve(impl="solutions", methods=None, backends=None, data=None, repeat=1, max_iterations=100,
-              solver_options=None) -> list:
+def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_iterations=100,
+              solver_options=None, unimplemented="raise", progress=None) -> list:
     """The chapter 1 comparison: our methods and the peers on one ``CurveData``.
 
     Args:
-        impl: ``solutions``, ``exercises`` or a path (whose pieces our solvers use).
+        impl: ``solutions``, ``exercises`` or a path (whose pieces our solvers use);
+            None: this tree's own (see the module docstring).
         methods, backends: filters, see ``curve_plan`` (None = everything).
         data: a ``CurveData``; default ``course.problems.curve.generate()``.
         repeat: solve each pair ``repeat`` times and keep the median-time run.
@@ -124,37 +151,34 @@ def run_curve(impl="solutions", methods=None, backends=None, data=None, repeat=1
         solver_options: a ``SolverOptions`` for our solvers (its ``max_iterations``
             wins); default ``SolverOptions(max_iterations=max_iterations)``. The peers
             keep their own tight tolerances.
+        unimplemented: ``"raise"`` or ``"row"`` (a pair stopped by a TODO becomes a
+            ``not_run`` row).
+        progress: a ``course.progress.Progress`` to report to (default: quiet).
 
     Returns:
-        ``list[RunResult]`` in ``curve_plan`` order. Our ``dogleg`` is skipped while
-        ``course.solvers.dogleg`` (or the implementation's ``dogleg`` module) does not
-        exist; any other error propagates.
+        ``list[RunResult]`` in ``curve_plan`` order; an error other than a TODO (with
+        ``unimplemented="row"``) propagates.
     """
     from course.problems.curve import CurveProblem, generate
     from course.solvers import SolverOptions, minimize
 
+    impl = _tree_impl(impl)
     data = generate() if data is None else data
     options = SolverOptions(max_iterations=max_iterations) if solver_options is None else solver_options
+    progress = progress or quiet()
     results = []
     for backend, method in curve_plan(methods, backends):
-        if backend == "ours":
-            def solve(method=method):
-                return minimize(CurveProblem(data, impl=impl), method, impl=impl, options=options)
-        else:
-            module = importlib.import_module(PEER_CURVE_METHODS[backend][0])
-
-            def solve(module=module, method=method):
-                return module.solve(data, method, max_iterations=max_iterations)
-        try:
-            results.append(_median_run(solve, repeat))
-        except ModuleNotFoundError as exc:
-            if backend == "ours" and method == "dogleg" and _dogleg_missing(exc):
-                continue
-            raise
+        with progress.run(backend, method) as callback:
+            if backend == "ours":
+                solve = partial(lambda m, c: minimize(CurveProblem(data, impl=impl), m, impl=impl, options=options,
+                                                      callback=c), method, callback)
+            else:
+                solve = partial(registry.peer_solver("curve", backend), data, method, max_iterations=max_iterations)
+            results.append(_solve_or_row(solve, repeat, backend, method, unimplemented))
     return results
 
 
-def _curve_runner(dataset, impl="solutions", methods=None, backends=None, **options):
+def _curve_runner(dataset, impl=None, methods=None, backends=None, **options):
     return run_curve(impl=impl, methods=methods, backends=backends, **options)
 
 
@@ -163,43 +187,52 @@ register("curve", _curve_runner, description="y = exp(a x^2 + b x + c), 100 gene
 
 # ---------------------------------------------------------------- pose graphs (chapter 2)
 
-OUR_POSE_GRAPH_METHODS = ("gauss-newton", "lm-type1", "lm-type2", "lm-type3", "dogleg")
-
-
 def posegraph_plan(methods=None, backends=None) -> list:
     """The ``(backend, method)`` pairs to run on a pose graph, filtered, in table order."""
-    from course.backends import POSE_GRAPH_METHODS
-
-    pairs = [("ours", m) for m in OUR_POSE_GRAPH_METHODS]
-    pairs += [(b, m) for b, names in POSE_GRAPH_METHODS.items() for m in names]
-    return filter_pairs(pairs, methods, backends, "pose graphs")
+    return filter_pairs(registry.pairs("posegraph"), methods, backends, "pose graphs")
 
 
-def run_posegraph(graph, impl="solutions", methods=None, backends=None, repeat=1, max_iterations=100) -> list:
+def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
+                  unimplemented="raise", progress=None) -> list:
     """Every method and peer on one ``PoseGraph``, same start, same fixed poses.
 
     Returns ``list[RunResult]`` (``params`` (N, 3) poses); where the graph has ground
-    truth each result carries ``ate`` (see ``course.trajectory``).
+    truth each result carries ``ate`` (see ``course.trajectory``). ``impl`` and
+    ``unimplemented`` and ``progress`` as in ``run_curve`` (Ceres' cost is the
+    implementation's too).
     """
-    from course.backends import POSE_GRAPH_BACKENDS
-    from course.problems.posegraph import PoseGraphProblem
+    from course.problems.posegraph import MAX_DENSE_POSES, PoseGraphProblem
     from course.solvers import SolverOptions, minimize
     from course.trajectory import absolute_trajectory_error
 
+    impl = _tree_impl(impl)
     options = SolverOptions(max_iterations=max_iterations)
+
+    def problem():
+        try:
+            return PoseGraphProblem(graph, impl)
+        except ValueError as exc:  # too large for the per-edge loop while pose_graph_fast is a stub
+            if unimplemented == "row" and graph.num_poses > MAX_DENSE_POSES and "pose_graph_fast" in str(exc):
+                raise NotImplementedError(
+                    f"TODO pose_graph_fast (the per-edge loop's dense H stops at {MAX_DENSE_POSES} poses)") from exc
+            raise
+
+    def ours(method, callback):
+        result = minimize(problem(), method, impl=impl, options=options, callback=callback)
+        result.params = result.params.reshape(-1, 3)
+        return result
+
+    progress = progress or quiet()
     results = []
     for backend, method in posegraph_plan(methods, backends):
-        if backend == "ours":
-            def solve(method=method):
-                result = minimize(PoseGraphProblem(graph, impl), method, impl=impl, options=options)
-                result.params = result.params.reshape(-1, 3)
-                return result
-        else:
-            def solve(backend=backend, method=method):
+        with progress.run(backend, method) as callback:
+            if backend == "ours":
+                solve = partial(ours, method, callback)
+            else:
                 kwargs = {"impl": impl} if backend == "ceres" else {}
-                return POSE_GRAPH_BACKENDS[backend](graph, method, max_iterations, **kwargs)
-        result = _median_run(solve, repeat)
-        if graph.ground_truth is not None:
+                solve = partial(registry.peer_solver("posegraph", backend), graph, method, max_iterations, **kwargs)
+            result = _solve_or_row(solve, repeat, backend, method, unimplemented)
+        if graph.ground_truth is not None and not result.not_run:
             result.ate = absolute_trajectory_error(result.params, graph.ground_truth)
         results.append(result)
     return results
@@ -212,7 +245,7 @@ def is_posegraph_name(name: str) -> bool:
         or Path(name + "-v.dat").exists()
 
 
-def _posegraph_runner(dataset, impl="solutions", methods=None, backends=None, **options):
+def _posegraph_runner(dataset, impl=None, methods=None, backends=None, **options):
     from course import datasets
 
     return run_posegraph(datasets.load_dataset(dataset), impl=impl, methods=methods,
@@ -225,11 +258,12 @@ register("posegraph", _posegraph_runner, matches=is_posegraph_name,
 
 def format_ate(runs) -> str:
     """Absolute trajectory error per run (only runs that carry ``ate``)."""
-    rows = [r for r in runs if getattr(r, "ate", None)]
+    rows = [r for r in runs if r.ate]
     if not rows:
         return ""
     head = f"{'backend':8} {'method':22} " + " ".join(
-        f"{kind[:5]}-{stat:6}" for kind in ("translation", "rotation") for stat in ("rmse", "median", "std", "max", "min"))
+        f"{kind[:5]}-{stat:6}" for kind in ("translation", "rotation")
+        for stat in ("rmse", "median", "std", "max", "min"))
     lines = ["absolute trajectory error (m, rad) after SE(2) alignment", head]
     for r in rows:
         cells = [f"{r.ate[kind][stat]:12.4g}" for kind in ("translation", "rotation")
@@ -241,7 +275,7 @@ def format_ate(runs) -> str:
 # ---------------------------------------------------------------- table and JSON
 
 
-def _params_text(params) -> Optional[str]:
+def _params_text(params) -> str | None:
     p = np.asarray(params, dtype=float)
     if p.ndim != 1 or p.size > 6:
         return None
@@ -250,14 +284,16 @@ def _params_text(params) -> Optional[str]:
 
 def format_table(runs, title: str = "") -> str:
     """A plain-text table: backend, method, iterations, initial and final chi2, total
-    and per-iteration time (milliseconds), and the parameters when they are few (the curve)."""
+    and per-iteration time (milliseconds), and the parameters when they are few (the curve).
+    A run that did not run (``not_run``) is a row with its backend, method and the reason."""
     header = ["backend", "method", "iters", "initial chi2", "final chi2", "total ms", "ms/iter"]
-    params = [_params_text(r.params) for r in runs]
-    show_params = bool(runs) and all(p is not None for p in params)
+    ran = [r for r in runs if not r.not_run]
+    params = [_params_text(r.params) for r in ran]
+    show_params = bool(ran) and all(p is not None for p in params)
     if show_params:
         header.append("params")
     rows = []
-    for r, p in zip(runs, params):
+    for r, p in zip(ran, params):
         row = [
             r.backend,
             r.method,
@@ -271,14 +307,22 @@ def format_table(runs, title: str = "") -> str:
             row.append(p)
         rows.append(row)
     widths = [max(len(h), *(len(row[k]) for row in rows)) if rows else len(h) for k, h in enumerate(header)]
+    skipped = [[r.backend, r.method] for r in runs if r.not_run]
+    for k in (0, 1):
+        widths[k] = max([widths[k]] + [len(row[k]) for row in skipped])
     numeric = {2, 3, 4, 5, 6}
 
     def line(cells):
-        return "  ".join(c.rjust(w) if k in numeric else c.ljust(w) for k, (c, w) in enumerate(zip(cells, widths))).rstrip()
+        padded = (c.rjust(w) if k in numeric else c.ljust(w) for k, (c, w) in enumerate(zip(cells, widths)))
+        return "  ".join(padded).rstrip()
 
+    lines, done = {}, iter(rows)
+    for k, r in enumerate(runs):  # table order: ran and not-run rows where the plan put them
+        lines[k] = line(next(done)) if not r.not_run else \
+            f"{r.backend.ljust(widths[0])}  {r.method.ljust(widths[1])}  {r.not_run}"
     out = [title] if title else []
     out += [line(header), line(["-" * w for w in widths])]
-    out += [line(row) for row in rows]
+    out += [lines[k] for k in range(len(runs))]
     return "\n".join(out)
 
 

@@ -138,7 +138,7 @@ class _Records:
             log.info("%s: skipped %d EQUIV lines", source, self.equiv)
         return PoseGraph(
             poses, edges[:, 0], edges[:, 1], values[:, :3], info,
-            fixed=fixed or [0], ids=np.array(self.vertex_ids, dtype=np.int64),
+            fixed=np.array(fixed or [0]), ids=np.array(self.vertex_ids, dtype=np.int64),
             name=name, source=source,
         )
 
@@ -329,7 +329,7 @@ def manhattan(num_poses: int, seed: int = 0, *, grid: int | None = None,
         poses.append(geometry.compose(poses[-1], z[k]))
     info = np.broadcast_to(np.diag(1.0 / sigma**2), (len(ei), 3, 3)).copy()
     return PoseGraph(
-        np.array(poses), ei, ej, z, info, fixed=[0], name=f"manhattan:{num_poses}:{seed}",
+        np.array(poses), ei, ej, z, info, fixed=np.array([0]), name=f"manhattan:{num_poses}:{seed}",
         source=f"course.datasets.manhattan({num_poses}, seed={seed})", ground_truth=truth,
     )
 

@@ -27,7 +27,7 @@ def check_array(value, shape, where: str, what: str):
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ShapeError(f"{where} returned {what} of type {type(value).__name__}: {exc}")
+        raise ShapeError(f"{where} returned {what} of type {type(value).__name__}: {exc}") from None
     if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
         expected = "(" + ", ".join("?" if s is None else str(s) for s in shape) + ")"
         raise ShapeError(f"{where} returned {what} of shape {arr.shape}, expected {expected}")

@@ -52,6 +52,7 @@ def load(name_or_path="solutions") -> Implementation:
         spec = importlib.util.spec_from_file_location(
             package, init, submodule_search_locations=[str(path)]
         )
+        assert spec is not None and spec.loader is not None  # a file location always has both
         module = importlib.util.module_from_spec(spec)
         sys.modules[package] = module
         spec.loader.exec_module(module)

@@ -153,7 +153,7 @@ def pose_graph_before_after(graph, result, path=None, title=None) -> Figure:
         segments = np.stack([poses[graph.edges_i, :2], poses[graph.edges_j, :2]], axis=1)
         from matplotlib.collections import LineCollection
 
-        ax.add_collection(LineCollection(segments, colors=colour, linewidths=0.3, alpha=0.5))
+        ax.add_collection(LineCollection(list(segments), colors=colour, linewidths=0.3, alpha=0.5))
         ax.plot(poses[:, 0], poses[:, 1], ".", color=colour, markersize=1.5)
         ax.set_aspect("equal", adjustable="datalim")
         ax.autoscale()

@@ -7,7 +7,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-BACKENDS = ("ours", "ceres", "g2o", "gtsam", "scipy")
+from course.registry import BACKENDS
 
 
 @dataclass
@@ -36,6 +36,11 @@ class RunResult:
     ``seconds``: the solve alone, no loading or set-up.
     ``iterations``: step attempts, accepted or not.
     ``final_chi2``: evaluated with the framework's own error on ``params``.
+    ``not_run``: empty for a finished solve; otherwise why the pair did not run (e.g.
+    ``"not implemented: TODO damping.GavinType1.damping_diagonal"``), and the numbers
+    are placeholders (NaN chi2, no params, no trace). See ``RunResult.skipped``.
+    ``ate``: the absolute trajectory error against ground truth, where the problem has
+    it (``course.trajectory.absolute_trajectory_error``), else None.
     """
 
     backend: str
@@ -48,10 +53,18 @@ class RunResult:
     trace: list = field(default_factory=list)
     stop_reason: str = ""
     factorizations: int = 0
+    not_run: str = ""
+    ate: dict | None = None
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
+
+    @classmethod
+    def skipped(cls, backend: str, method: str, reason: str) -> "RunResult":
+        """A row for a pair that did not run, saying why."""
+        nan = float("nan")
+        return cls(backend, method, np.empty(0), nan, nan, 0, 0.0, not_run=reason)
 
     @property
     def seconds_per_iteration(self) -> float:
@@ -70,6 +83,10 @@ class RunResult:
             "factorizations": int(self.factorizations),
             "trace": [_finite_or_none(asdict(r)) for r in self.trace],
         }
+        if self.ate is not None:
+            out["ate"] = self.ate
+        if self.not_run:  # JSON has no NaN
+            out.update(not_run=self.not_run, initial_chi2=None, final_chi2=None)
         if with_params:
             out["params"] = np.asarray(self.params).tolist()
         return out

@@ -3,12 +3,9 @@
 import numpy as np
 import pytest
 
+from course.backends import ceres_curve, scipy_curve
 from course.problems.curve import CurveProblem, generate
 from course.solvers import minimize
-
-pytest.importorskip("pyceres")
-
-from course.backends import ceres_curve, scipy_curve  # noqa: E402
 
 RTOL = 1e-6
 PEERS = [(ceres_curve, m) for m in ceres_curve.METHODS] + [(scipy_curve, m) for m in scipy_curve.METHODS]

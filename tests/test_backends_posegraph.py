@@ -3,20 +3,14 @@
 import numpy as np
 import pytest
 
-from solutions.ceres_edge_cost import SE2EdgeCost
-from course import datasets, geometry
+from course import datasets, geometry, registry
+from course.backends import ceres_posegraph, g2o_posegraph, gtsam_posegraph
 from course.graph import PoseGraph
-from course.backends import POSE_GRAPH_BACKENDS, POSE_GRAPH_METHODS
-
-pytest.importorskip("g2opy")
-pytest.importorskip("pyceres")
-pytest.importorskip("gtsam")
-
-from course.backends import ceres_posegraph, g2o_posegraph, gtsam_posegraph  # noqa: E402
+from solutions.ceres_edge_cost import SE2EdgeCost
 
 RTOL = 1e-6
 INTEL_GN_CHI2 = 65.402048  # REFERENCES.md, "Measured here on the peers"
-RUNS = [(backend, method) for backend, methods in POSE_GRAPH_METHODS.items() for method in methods]
+RUNS = [(backend, method) for backend, method in registry.pairs("posegraph") if backend != registry.OURS]
 
 
 @pytest.fixture(scope="module")
@@ -29,9 +23,9 @@ def intel():
 @pytest.fixture(scope="module")
 def intel_runs(intel):
     return {
-        "g2o": POSE_GRAPH_BACKENDS["g2o"](intel, "gauss-newton"),
-        "gtsam": POSE_GRAPH_BACKENDS["gtsam"](intel, "gauss-newton"),
-        "ceres": POSE_GRAPH_BACKENDS["ceres"](intel, "levenberg-marquardt"),
+        "g2o": registry.peer_solver("posegraph", "g2o")(intel, "gauss-newton"),
+        "gtsam": registry.peer_solver("posegraph", "gtsam")(intel, "gauss-newton"),
+        "ceres": registry.peer_solver("posegraph", "ceres")(intel, "levenberg-marquardt"),
     }
 
 
@@ -45,13 +39,12 @@ def w100():
 
 @pytest.fixture(scope="module")
 def w100_runs(w100):
-    return {(b, m): POSE_GRAPH_BACKENDS[b](w100, m) for b, m in RUNS}
+    return {(b, m): registry.peer_solver("posegraph", b)(w100, m) for b, m in RUNS}
 
 
 def test_registry_matches_modules():
-    assert POSE_GRAPH_METHODS["g2o"] == g2o_posegraph.METHODS
-    assert POSE_GRAPH_METHODS["ceres"] == ceres_posegraph.METHODS
-    assert POSE_GRAPH_METHODS["gtsam"] == gtsam_posegraph.METHODS
+    for backend, module in (("g2o", g2o_posegraph), ("ceres", ceres_posegraph), ("gtsam", gtsam_posegraph)):
+        assert registry.peer_solver("posegraph", backend) is module.solve
 
 
 def test_intel_g2o_gauss_newton_reference(intel, intel_runs):
@@ -112,7 +105,7 @@ def test_edges_between_fixed_vertices():
     graph = datasets.load_dataset("w100")
     graph.fixed = np.array([0, 1, 2])
     assert np.any(np.isin(graph.edges_i, graph.fixed) & np.isin(graph.edges_j, graph.fixed))
-    runs = [POSE_GRAPH_BACKENDS[b](graph, m) for b, m in RUNS]
+    runs = [registry.peer_solver("posegraph", b)(graph, m) for b, m in RUNS]
     for run in runs:
         np.testing.assert_array_equal(run.params[graph.fixed], graph.poses[graph.fixed])
         assert run.trace[0].chi2 == pytest.approx(graph.chi2(), rel=1e-12)
@@ -120,11 +113,11 @@ def test_edges_between_fixed_vertices():
         assert run.trace[-1].chi2 == pytest.approx(run.final_chi2, rel=1e-9)
 
 
-@pytest.mark.parametrize("backend", sorted(POSE_GRAPH_BACKENDS))
+@pytest.mark.parametrize("backend", sorted(registry.POSE_GRAPH_PEERS))
 def test_unknown_method_raises(w100, backend):
     with pytest.raises(ValueError, match="choose one of") as info:
-        POSE_GRAPH_BACKENDS[backend](w100, "newton-raphson")
-    for method in POSE_GRAPH_METHODS[backend]:
+        registry.peer_solver("posegraph", backend)(w100, "newton-raphson")
+    for method in registry.peer_methods("posegraph", backend):
         assert method in str(info.value)
 
 

@@ -153,14 +153,6 @@ def test_unimplemented_exercise_names_the_todo(data):
         CurveProblem(data, impl="exercises").linearize(data.start)
 
 
-def test_compare_skips_our_dogleg_while_it_does_not_exist(monkeypatch, data):
-    import sys
-
-    monkeypatch.setitem(sys.modules, "course.solvers.dogleg", None)  # import -> ModuleNotFoundError
-    runs = compare.run_curve(data=data, backends=["ours", "ceres"], methods=["lm-type1", "dogleg"])
-    assert [(r.backend, r.method) for r in runs] == [("ours", "lm-type1"), ("ceres", "dogleg")]
-
-
 def test_compare_table_lists_every_run(ours):
     table = compare.format_table(list(ours.values()), title="t")
     lines = table.splitlines()

@@ -3,8 +3,7 @@
 import numpy as np
 import pytest
 
-from course import datasets
-from course.backends import POSE_GRAPH_BACKENDS
+from course import datasets, registry
 from course.errors import SingularSystemError
 from course.problems.posegraph import PoseGraphProblem
 from course.solvers import minimize
@@ -104,14 +103,14 @@ def test_intel_agrees_with_g2o_ceres_and_gtsam(intel):
     ours = minimize(PoseGraphProblem(intel), "gauss-newton").final_chi2
     for backend, method in [("g2o", "gauss-newton"), ("ceres", "levenberg-marquardt"),
                             ("gtsam", "gauss-newton")]:
-        theirs = POSE_GRAPH_BACKENDS[backend](intel, method).final_chi2
+        theirs = registry.peer_solver("posegraph", backend)(intel, method).final_chi2
         assert theirs == pytest.approx(ours, rel=REL), backend
 
 
 @pytest.mark.parametrize("name", ["test_quadrat", "intel-g2o", "m3500", "mit", "csail", "fr079", "w100"])
 def test_named_datasets_agree_with_g2o(name, data_folder):
     graph = datasets.load_dataset(name)
-    g2o = POSE_GRAPH_BACKENDS["g2o"](graph, "gauss-newton").final_chi2
+    g2o = registry.peer_solver("posegraph", "g2o")(graph, "gauss-newton").final_chi2
     ours = minimize(PoseGraphProblem(graph), "gauss-newton").final_chi2
     assert ours == pytest.approx(g2o, rel=REL)
 

@@ -22,11 +22,12 @@ import time
 import numpy as np
 import pyceres
 
+from course import registry
 from course.errors import NonFiniteError
 from course.problems.curve import curve_chi2
 from course.trace import IterationRecord, RunResult
 
-METHODS = ("levenberg-marquardt", "dogleg")
+METHODS = registry.peer_methods("curve", "ceres")
 
 #: Ceres' defaults are 1e-6 / 1e-10 / 1e-8 (it stops early); these make the minimum
 #: agree with ours to 1e-6 relative.
@@ -109,7 +110,7 @@ class _TraceCallback(pyceres.IterationCallback):
     def __init__(self, inverse_radius: bool):
         pyceres.IterationCallback.__init__(self)  # as for CostFunction
         self.inverse = inverse_radius
-        self.records = []
+        self.records: list = []
         self.start = time.perf_counter()
 
     def __call__(self, summary):

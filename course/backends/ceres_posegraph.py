@@ -28,16 +28,12 @@ import numpy as np
 import pyceres
 
 from course import impl as impl_loader
+from course import registry
 from course.graph import PoseGraph
 from course.trace import IterationRecord, RunResult
 
-METHODS = ("levenberg-marquardt", "dogleg")
+METHODS = registry.peer_methods("posegraph", "ceres")
 _TWO_PI = 2.0 * math.pi
-
-
-def _wrap(angle: float) -> float:
-    """``angle`` wrapped to ``[-pi, pi)`` (as ``course.geometry.wrap_angle``)."""
-    return (angle + math.pi) % _TWO_PI - math.pi
 
 
 def sqrt_information(information) -> np.ndarray:
@@ -89,7 +85,7 @@ class _TraceCallback(pyceres.IterationCallback):
         pyceres.IterationCallback.__init__(self)
         self.inverse = damping_is_inverse_radius
         self.constant_chi2 = constant_chi2
-        self.records = []
+        self.records: list = []
         self.start = time.perf_counter()
 
     def __call__(self, summary):

@@ -22,10 +22,11 @@ import time
 
 import numpy as np
 
+from course import registry
 from course.graph import PoseGraph
 from course.trace import IterationRecord, RunResult
 
-METHODS = ("gauss-newton", "levenberg", "dogleg")
+METHODS = registry.peer_methods("posegraph", "g2o")
 
 
 def solve(
@@ -79,7 +80,7 @@ def solve(
             raise RuntimeError(f"g2o could not load the graph written to {path}")
     finally:
         os.unlink(path)
-    ids = [int(i) for i in graph.ids]
+    ids = [int(i) for i in np.asarray(graph.ids)]
     vertices = [optimizer.vertex(i) for i in ids]
     if len(optimizer.vertices()) != graph.num_poses or len(optimizer.edges()) != graph.num_edges:
         raise RuntimeError(

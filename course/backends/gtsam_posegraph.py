@@ -31,10 +31,11 @@ import time
 
 import numpy as np
 
+from course import registry
 from course.graph import PoseGraph
 from course.trace import IterationRecord, RunResult
 
-METHODS = ("gauss-newton", "levenberg-marquardt", "dogleg")
+METHODS = registry.peer_methods("posegraph", "gtsam")
 FIX_MODES = ("eliminate", "prior")
 
 
@@ -172,9 +173,9 @@ def solve(
         reason = f"failed: {failure}"
     elif iterations >= max_iterations:
         reason = f"max_iterations: {max_iterations} reached"
-    elif method == "levenberg-marquardt" and optimizer.lambda_() >= params.getlambdaUpperBound():
+    elif method == "levenberg-marquardt" and optimizer.lambda_() >= params.getlambdaUpperBound():  # type: ignore[attr-defined]
         reason = (f"lambda_upper_bound: no decreasing step with lambda up to "
-                  f"{params.getlambdaUpperBound():g}")
+                  f"{params.getlambdaUpperBound():g}")  # type: ignore[attr-defined]
     elif errors and errors[-1][1] > errors[-1][0]:
         before, after = errors[-1]
         reason = f"error_increased: GTSAM's 2 * error {2 * before:.17g} -> {2 * after:.17g}"

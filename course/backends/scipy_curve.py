@@ -34,11 +34,12 @@ import time
 
 import numpy as np
 
+from course import registry
 from course.errors import NonFiniteError
 from course.problems.curve import curve_chi2
 from course.trace import IterationRecord, RunResult
 
-METHODS = ("lm", "trf")
+METHODS = registry.peer_methods("curve", "scipy")
 
 #: tolerances passed to least_squares unless overridden: far below scipy's 1e-8 so that
 #: the minimum agrees with ours to 1e-6 relative (MINPACK needs them above machine eps).

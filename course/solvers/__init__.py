@@ -1,6 +1,7 @@
-"""Minimizer loops. Each owns iteration, acceptance, termination and the trace."""
+"""The minimizer (:mod:`course.solvers.trust_region`) and its strategies."""
 
 from course.solvers.options import SolverOptions
-from course.solvers.levenberg_marquardt import METHODS, minimize
+from course.solvers.strategies import METHODS
+from course.solvers.trust_region import Problem, StopReason, minimize
 
-__all__ = ["METHODS", "SolverOptions", "minimize"]
+__all__ = ["METHODS", "Problem", "SolverOptions", "StopReason", "minimize"]

@@ -1,0 +1,46 @@
+"""Every method and back end in one place; compare, the demo, the benchmark, the notebooks
+and the tests read them here.
+
+Our methods are the minimizer's (:data:`course.solvers.METHODS`). A peer is a module of
+``course.backends`` with ``solve(problem_data, method, max_iterations, **options) ->
+RunResult``; its library is imported only when it runs (:func:`peer_solver`). This module
+imports nothing heavy, so that the command line can list names cheaply.
+"""
+
+import importlib
+
+OURS = "ours"
+#: every back end a run may come from, in table order
+BACKENDS = (OURS, "ceres", "g2o", "gtsam", "scipy")
+
+#: the curve's peers: backend -> (module, methods)
+CURVE_PEERS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "ceres": ("course.backends.ceres_curve", ("levenberg-marquardt", "dogleg")),
+    "scipy": ("course.backends.scipy_curve", ("lm", "trf")),
+}
+#: the pose graphs' peers: backend -> (module, methods)
+POSE_GRAPH_PEERS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "g2o": ("course.backends.g2o_posegraph", ("gauss-newton", "levenberg", "dogleg")),
+    "ceres": ("course.backends.ceres_posegraph", ("levenberg-marquardt", "dogleg")),
+    "gtsam": ("course.backends.gtsam_posegraph", ("gauss-newton", "levenberg-marquardt", "dogleg")),
+}
+PEERS: dict[str, dict[str, tuple[str, tuple[str, ...]]]] = {"curve": CURVE_PEERS, "posegraph": POSE_GRAPH_PEERS}
+
+
+def pairs(kind: str) -> list:
+    """Every ``(backend, method)`` of ``kind`` ("curve" or "posegraph"), ours first."""
+    from course.solvers import METHODS
+
+    out = [(OURS, method) for method in METHODS]
+    out += [(backend, method) for backend, (_, methods) in PEERS[kind].items() for method in methods]
+    return out
+
+
+def peer_methods(kind: str, backend: str) -> tuple:
+    return PEERS[kind][backend][1]
+
+
+def peer_solver(kind: str, backend: str):
+    """The ``solve`` function of a peer of ``kind``, importing its module (and library) now."""
+    module, _ = PEERS[kind][backend]
+    return importlib.import_module(module).solve
