@@ -1,4 +1,4 @@
-"""The generated notebooks: current with notebooks/build.py, and they run.
+"""The generated notebooks: current with their py:percent sources (notebooks/chapter*.py), and they run.
 
 Chapters 2 and 3 run in their small setting (``COURSE_NOTEBOOK_SMALL=1``: w100,
 ``manhattan:200`` and the curve; a few seconds each); their full setting is
@@ -14,11 +14,7 @@ import sys
 import nbformat
 import pytest
 
-pytest.importorskip("nbclient")
-pytest.importorskip("ipykernel")
-pytest.importorskip("pyceres")
-
-from notebooks import build  # noqa: E402
+from notebooks import build
 
 
 def _sources(nb):
@@ -30,9 +26,64 @@ def test_committed_notebook_is_current(path):
     assert path.is_file(), f"{path.name} missing: run `python -m notebooks.build`"
     committed = nbformat.read(path, as_version=4)
     nbformat.validate(committed)
-    assert _sources(committed) == _sources(build.NOTEBOOKS[path]()), (
+    assert _sources(committed) == _sources(build.read(build.NOTEBOOKS[path])), (
         f"{path.name} is stale: run `python -m notebooks.build --execute`"
     )
+
+
+@pytest.mark.parametrize("path", list(build.NOTEBOOKS), ids=lambda p: p.name)
+def test_source_round_trips_with_ids_and_tags(path, tmp_path):
+    """Each source is jupytext py:percent, one ``id="..."`` per cell; ``writes`` gives it back."""
+    source = build.NOTEBOOKS[path]
+    assert source == path.with_suffix(".py") and source.is_file()
+    nb = build.read(source)
+    ids = [cell.id for cell in nb.cells]
+    assert len(set(ids)) == len(ids)
+    assert build.writes(nb) == source.read_text()
+    copy = tmp_path / source.name
+    copy.write_text(build.writes(nb))
+    again = build.read(copy)
+    assert [(c.id, c.source, c.metadata) for c in again.cells] == [(c.id, c.source, c.metadata) for c in nb.cells]
+    tagged = {cell.id for cell in nb.cells if build.ANSWER_TAG in cell.metadata.get("tags", [])}
+    assert tagged == ({"answer-1", "answer-2"} if path == build.CHAPTER2 else set())
+    assert all(set(cell.metadata) <= {"tags"} for cell in nb.cells)
+
+
+def test_a_cell_without_an_id_is_refused(tmp_path):
+    source = tmp_path / "nb.py"
+    source.write_text('# %% [markdown] id="title"\n# # Title\n\n# %%\nprint(1)\n')
+    with pytest.raises(ValueError, match="without id"):
+        build.read(source)
+
+
+def test_rebuilding_keeps_an_edited_answer_and_the_committed_answers(tmp_path):
+    """An answer written in the .ipynb survives a rebuild from the source; other cells follow the source."""
+    (path,) = build.build(out_dir=tmp_path, only=["chapter2"])
+    nb = nbformat.read(path, as_version=4)
+    cells = {c.id: c for c in nb.cells}
+    cells["answer-2"].source = "**Your answer to question 2:** trust-region methods."
+    cells["setup"].source = "# edited by hand"
+    nbformat.write(nb, path)
+    build.build(out_dir=tmp_path, only=["chapter2"])
+    rebuilt = {c.id: c for c in nbformat.read(path, as_version=4).cells}
+    assert rebuilt["answer-2"].source.endswith("trust-region methods.")
+    assert build.ANSWER_TAG in rebuilt["answer-2"].metadata["tags"]
+    assert rebuilt["setup"].source == {c.id: c for c in build.read(build.NOTEBOOKS[build.CHAPTER2]).cells}[
+        "setup"].source
+
+
+def test_progress_lines_name_the_notebook_and_cell(capsys):
+    from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
+
+    nb = new_notebook(cells=[new_markdown_cell("# t"), new_code_cell("x = 1"), new_code_cell("y = 2")])
+    nb.cells[2]["id"] = "second"
+    report = build._Progress("demo.ipynb", nb)
+    for index, cell in enumerate(nb.cells):
+        report.on_cell_start(cell=cell, cell_index=index)
+    report.close()
+    lines = capsys.readouterr().err.splitlines()
+    if report.bar is None:
+        assert lines[-1] == "demo.ipynb: cell 2/2 (second)" and len(lines) == 2
 
 
 def _kernel_executable():
@@ -72,7 +123,7 @@ def test_kernel_falls_back_to_a_temporary_kernelspec(monkeypatch):
 
 @pytest.mark.slow
 def test_chapter1_executes(tmp_path):
-    nb = build.chapter1()
+    nb = build.read(build.NOTEBOOKS[build.CHAPTER1])
     build.execute(nb, timeout=300, small=True)
     errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
     assert not errors, errors
@@ -93,9 +144,9 @@ def test_chapter1_executes(tmp_path):
     nbformat.write(nb, tmp_path / "executed.ipynb")
 
 
-def _execute_small(make):
-    """Run notebook ``make()`` in the small setting; returns (text of its outputs, images)."""
-    nb = make()
+def _execute_small(path):
+    """Run notebook ``path`` (built from its source) in the small setting; returns (text of its outputs, images)."""
+    nb = build.read(build.NOTEBOOKS[path])
     build.execute(nb, timeout=300, small=True)
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     errors = [o for o in outputs if o.output_type == "error"]
@@ -108,7 +159,7 @@ def _execute_small(make):
 
 @pytest.mark.slow
 def test_chapter2_executes_small():
-    nb, text, images = _execute_small(build.chapter2)
+    nb, text, images = _execute_small(build.CHAPTER2)
     for words in ("dense/sparse", "growth exponents", "w100: 100 poses, 300 edges",
                   "manhattan:200: 200 poses", "errors and Jacobians", "factorization and solve",
                   "measured in the loop", "Converged (stopped by their own test"):
@@ -131,7 +182,7 @@ def test_chapter2_executes_small():
 def test_chapter3_executes_small():
     import re
 
-    _, text, images = _execute_small(build.chapter3)
+    _, text, images = _execute_small(build.CHAPTER3)
     for words in ("curve (start chi2", "manhattan:200 (start chi2", "at GN minimum", "factorizations / step attempts"):
         assert words in text
     assert len(images) == 4  # per iteration and per second, on the curve and on manhattan:200
