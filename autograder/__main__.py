@@ -1,4 +1,4 @@
-"""``python -m autograder [--impl exercises|solutions|PATH] [--only NAME] [--json FILE]``.
+"""``python -m autograder [--impl exercises|solutions|PATH] [--only NAME] [--set public|hidden|all] [--json FILE]``.
 
 Exit status 0 whenever grading ran, whatever the score; 2 for usage errors.
 """
@@ -26,6 +26,11 @@ def parser():
     p.add_argument("--memory-mb", type=float, default=sandbox.DEFAULT_MEMORY_MB,
                    help="address-space limit of each child in MiB (default %(default)g)")
     p.add_argument("--workers", type=int, default=2, help="checks run in parallel (default 2)")
+    p.add_argument("--set", choices=("public", "hidden", "all"), default=None, dest="which",
+                   help="public checks (shipped inputs), hidden checks (fresh inputs, judged with the "
+                        "reference: instructor only) or all; default: all where the reference is, else public")
+    p.add_argument("--budget", type=float, default=600.0,
+                   help="total seconds for the whole grading run (default %(default)g)")
     p.add_argument("--list", action="store_true", help="list the checks and their points, then exit")
     return p
 
@@ -44,8 +49,14 @@ def main(argv=None) -> int:
             print(f"{check.points:>4g}  {check.name}")
         print(f"{sum(c.points for c in checks):>4g}  total")
         return 0
-    if args.timeout <= 0 or args.workers < 1 or args.memory_mb <= 0:
-        p.error("--timeout, --memory-mb and --workers must be positive")
+    if args.timeout <= 0 or args.workers < 1 or args.memory_mb <= 0 or args.budget <= 0:
+        p.error("--timeout, --memory-mb, --workers and --budget must be positive")
+    from autograder.grade import default_set, reference_available
+
+    which = args.which or default_set()
+    if which != "public" and not reference_available():
+        p.error(f"--set {which}: the hidden checks are judged with the reference, which this tree does not "
+                "have; they run on the course's side (e.g. Gradescope). Use --set public")
     impl = args.impl
     if impl not in BUILTIN:
         path = Path(impl).resolve()
@@ -55,13 +66,22 @@ def main(argv=None) -> int:
         impl = str(path)
 
     from autograder import report
+    from autograder.expected import ExpectedDataError
     from autograder.grade import run
+    from autograder.isolation import IsolationError
 
-    results, seconds = run(impl, args.only, timeout=args.timeout, memory_mb=args.memory_mb,
-                           workers=args.workers)
+    notices: list = []
+    try:
+        results, seconds = run(impl, args.only, timeout=args.timeout, memory_mb=args.memory_mb,
+                               workers=args.workers, which=which, budget=args.budget, notices=notices)
+    except (ExpectedDataError, IsolationError) as exc:
+        print(f"autograder: {exc}", file=sys.stderr)
+        return 2
+    for line in notices:
+        print(f"autograder: {line}", file=sys.stderr)
     if args.json:
         report.write_json(args.json, report.gradescope(results, seconds))
-    print(report.table(results, impl, seconds, args.workers))
+    print(report.table(results, impl, seconds, args.workers, which))
     return 0
 
 

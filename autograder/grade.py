@@ -1,7 +1,14 @@
-"""Run the checks: one child process per check, two at a time, judged in the parent.
+"""Run the checks: one child process per check, ``workers`` at a time, judged here.
 
-The parent loads only ``solutions`` (for the reference outputs) and the framework;
-the implementation being graded is named by a string and loaded in the children.
+Every check comes in two sets. The **public** set runs on the inputs shipped in
+``autograder/expected/`` and is judged against the reference outputs recorded there (a
+student grades it locally, without the reference). The **hidden** set is the same checks
+on fresh inputs from the hidden seed, judged against the reference computed here from
+``solutions`` (:mod:`autograder.oracle`, instructor side only), and reported to Gradescope
+with ``visibility: after_published``.
+
+Every expected output exists before the first child starts; results are written by the
+caller after :func:`grade` returns, when every child is gone.
 """
 
 import sys
@@ -12,11 +19,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from autograder import expected as expected_data
 from autograder import sandbox
-from autograder.checks import Context, Outcome, Verdict, all_checks, select
-from autograder.child import run_calls
+from autograder.checks import all_checks, module_of, select
+from autograder.records import Check, Context, Verdict
 
 PRINTED_LINES = 5
+SETS = ("public", "hidden", "all")
+HIDDEN_SUFFIX = " (hidden inputs)"
 
 
 @dataclass
@@ -29,6 +39,7 @@ class CheckResult:
     not_implemented: tuple = ()
     printed: str = ""
     seconds: float = 0.0
+    hidden: bool = False
 
     @property
     def title(self) -> str:
@@ -40,33 +51,64 @@ class CheckResult:
         return self.score >= self.max_score - 1e-9
 
 
-def reference_outcomes(calls) -> list:
-    """The reference implementation's outputs, computed here (trusted code)."""
-    from course import impl as impl_loader
+@dataclass
+class Task:
+    """One check on one set of inputs, with what its judge compares against."""
 
-    solutions = impl_loader.load("solutions")
-    with np.errstate(all="ignore"):
-        results = run_calls(solutions, [c.payload() for c in calls])
-    outcomes = []
-    for call, result in zip(calls, results):
-        if not isinstance(result, tuple):
-            raise RuntimeError(f"the reference failed on {call.function} {call.where}: {result}")
-        kind, fields = result
-        outcomes.append(Outcome(fields=fields, kind=kind))
-    return outcomes
+    check: Check
+    hidden: bool
+    expected: expected_data.Expected
+
+    @property
+    def name(self) -> str:
+        return self.check.name + (HIDDEN_SUFFIX if self.hidden else "")
 
 
-def grade_check(check, impl: str, timeout: float, memory_mb: float) -> CheckResult:
-    calls = check.calls()
-    reference = reference_outcomes(calls)
-    limit = check.timeout or timeout
-    child = sandbox.run(impl, calls, timeout=limit, memory_mb=memory_mb)
-    context = Context(check, calls, child.outcomes, reference, child.printed)
+def reference_available() -> bool:
+    """True in the instructor's tree (the reference and the oracle are importable)."""
+    import importlib.util
+
+    return all(importlib.util.find_spec(name) is not None for name in ("solutions", "autograder.oracle"))
+
+
+def default_set() -> str:
+    return "all" if reference_available() else "public"
+
+
+def plan(checks, which: str) -> list:
+    """The tasks of ``which`` ("public", "hidden" or "all"), each with its expected outputs."""
+    if which not in SETS:
+        raise ValueError(f"unknown set {which!r}; one of {', '.join(SETS)}")
+    modules = module_of()
+    tasks = []
+    if which in ("public", "all"):
+        shipped = {}
+        for check in checks:
+            module = modules[check.name]
+            if module not in shipped:
+                shipped[module] = expected_data.load(module)
+            if check.name not in shipped[module]:
+                raise expected_data.ExpectedDataError(
+                    f"autograder/expected/{module}.json has no data for {check.name!r}: "
+                    "run `python -m course release` (instructor)")
+            tasks.append(Task(check, False, shipped[module][check.name]))
+    if which in ("hidden", "all"):
+        from autograder import oracle
+
+        seed = oracle.hidden_seed()
+        for check in checks:
+            tasks.append(Task(check, True, oracle.compute(check, modules[check.name], seed)))
+    return tasks
+
+
+def judge_task(task: Task, child) -> CheckResult:
+    check, want = task.check, task.expected
+    context = Context(check, want.calls, child.outcomes, want.reference, child.printed, want.mistakes)
     try:
         with np.errstate(all="ignore"):
             verdict = check.judge(context)
     except Exception as exc:  # noqa: BLE001 - odd output the judge did not foresee
-        print(f"autograder: the judge of {check.name!r} failed:\n{traceback.format_exc()}", file=sys.stderr)
+        print(f"autograder: the judge of {task.name!r} failed:\n{traceback.format_exc()}", file=sys.stderr)
         verdict = Verdict(0.0, f"the grader could not judge this output ({type(exc).__name__}: {exc})")
     fraction = min(max(float(verdict.fraction), 0.0), 1.0)
     message = verdict.message
@@ -75,17 +117,29 @@ def grade_check(check, impl: str, timeout: float, memory_mb: float) -> CheckResu
         shown = "\n".join(f"  | {line[:160]}" for line in lines[:PRINTED_LINES])
         more = f"\n  | ... ({len(lines) - PRINTED_LINES} more lines)" if len(lines) > PRINTED_LINES else ""
         message += f"\nYour code printed (shown for information, never graded):\n{shown}{more}"
-    return CheckResult(check.name, check.exercise, round(check.points * fraction, 4), float(check.points),
-                       message, tuple(verdict.not_implemented), child.printed, child.seconds)
+    return CheckResult(task.name, check.exercise, round(check.points * fraction, 4), float(check.points),
+                       message, tuple(verdict.not_implemented), child.printed, child.seconds, task.hidden)
 
 
 def grade(impl: str, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sandbox.DEFAULT_MEMORY_MB,
-          workers=2, checks=None) -> list:
-    """Grade ``impl`` ("solutions", "exercises" or a path) on the selected checks, in order."""
+          workers=2, checks=None, which=None, budget=None, notices=None) -> list:
+    """Grade ``impl`` ("solutions", "exercises" or a path) on the selected checks, in order.
+
+    ``which``: "public", "hidden" or "all" (default: all where the reference is, else
+    public). ``notices``: a list that receives the sandbox's one-line notice, if any.
+    """
     checks = select(checks if checks is not None else all_checks(), only)
-    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        futures = [pool.submit(grade_check, check, str(impl), timeout, memory_mb) for check in checks]
-        return [future.result() for future in futures]
+    tasks = plan(checks, which or default_set())
+    with sandbox.Session(str(impl), timeout=timeout, memory_mb=memory_mb, workers=workers,
+                         budget=budget) as session:
+        if notices is not None and session.notice:
+            notices.append(session.notice)
+
+        def one(task):
+            return judge_task(task, session.run(task.expected.calls, timeout=task.check.timeout or timeout))
+
+        with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+            return list(pool.map(one, tasks))
 
 
 def run(impl, only=None, **kwargs):

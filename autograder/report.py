@@ -39,10 +39,17 @@ def summary(results) -> str:
     return "\n".join(lines)
 
 
-def table(results, impl: str, seconds: float, workers: int) -> str:
+SET_TEXT = {
+    "public": "public checks (the inputs shipped with the course)",
+    "hidden": "hidden checks (fresh inputs, judged with the reference)",
+    "all": "public and hidden checks",
+}
+
+
+def table(results, impl: str, seconds: float, workers: int, which: str = "public") -> str:
     width = shutil.get_terminal_size((120, 24)).columns
     message_width = max(30, width - NAME_WIDTH - 16)
-    out = [f"Autograder: implementation {impl}", ""]
+    out = [f"Autograder: implementation {impl}, {SET_TEXT.get(which, which)}", ""]
     out.append(f"{'check':<{NAME_WIDTH}} {'points':>6} {'max':>5}  message")
     out.append("-" * min(width, NAME_WIDTH + 16 + message_width))
     exercises = []
@@ -78,7 +85,7 @@ def gradescope(results, seconds: float) -> dict:
             "score": round(r.score, 4),
             "max_score": r.max_score,
             "output": r.message,
-            "visibility": "visible",
+            "visibility": "after_published" if r.hidden else "visible",
         })
     return {
         "score": round(sum(r.score for r in results), 4),

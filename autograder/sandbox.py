@@ -1,27 +1,41 @@
 """Run calls in a child process under a wall-clock time limit and a memory limit.
 
-The child (:mod:`autograder.child`) is untrusted once the student's code is loaded:
-its output file is read with ``numpy.load(..., allow_pickle=False)`` after checking
-the declared sizes, only float arrays and strings are accepted, and what it prints is
-kept as text to quote in feedback, never parsed. On timeout the whole process group
-is killed.
+The child (:mod:`autograder.child`) is untrusted once the student's code is loaded.
+A grading run opens one :class:`Session`; as root, each of its worker slots has a uid of
+its own and the child cannot read the reference nor write anything the parent reads or
+imports (:mod:`autograder.isolation`); not as root, the children run as the current user
+under the same limits and the session's ``notice`` says so.
+
+The parent reads the child's files only as regular files of bounded size (opened with
+``O_NOFOLLOW | O_NONBLOCK``, checked with ``fstat``): its output file with
+``numpy.load(..., allow_pickle=False)`` after checking the declared sizes, accepting
+only float arrays and strings, and only when it carries the token the parent gave the
+child on stdin. What the child prints goes to files the child cannot reach by name; it
+is kept as text (control characters escaped) to quote in feedback, never parsed. After
+each check every process of the child's uid is killed (as root), or its process group.
 """
 
+import io
 import os
 import pickle
+import queue
 import re
+import secrets
 import signal
+import stat
 import subprocess
 import sys
 import tempfile
 import time
+import unicodedata
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from autograder.checks import ErrorInfo, Outcome
+from autograder import isolation
+from autograder.records import ErrorInfo, Outcome
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_TIMEOUT = 10.0
@@ -33,14 +47,19 @@ MAX_OUTPUT_BYTES = 64 * 2**20
 PRINTED_BYTES = 4096
 
 BOOTSTRAP = (
-    "import os, sys; sys.path.insert(0, {root!r}); from autograder.child import main; "
+    "import os, sys; sys.path.insert(0, {root!r}); import site; "
+    "[site.addsitedir(p) for p in {sites!r}]; from autograder.child import main; "
     "code = main(sys.argv[1:]); sys.stdout.flush(); sys.stderr.flush(); os._exit(code)"
 )
 THREAD_VARIABLES = (
     "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
     "NUMEXPR_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "BLIS_NUM_THREADS",
 )
-_KEY = re.compile(r"^c(\d+)\.(kind|error|f\.([A-Za-z0-9_]+))$")
+#: environment variables an isolated child keeps (nothing else of the grader's)
+KEPT_VARIABLES = ("PATH", "LANG", "LANGUAGE", "LC_ALL", "LC_CTYPE", "TZ", "COURSE_DATA")
+_KEY = re.compile(r"^c(\d+)\.(kind|error|modified|f\.([A-Za-z0-9_]+))$")
+NOT_ROOT_NOTICE = ("the children run as the current user (no isolation beyond the time, memory and "
+                   "file-size limits) because the grader is not root")
 
 
 @dataclass
@@ -52,7 +71,7 @@ class ChildRun:
     seconds: float = 0.0
     status: str = "ok"  # ok | timeout | crashed
     running: int = -1  # index of the call in progress when it hung or died
-    returncode: int = None
+    returncode: int | None = None
 
 
 def child_env() -> dict:
@@ -62,44 +81,268 @@ def child_env() -> dict:
     return env
 
 
+def isolated_env(work, extra=None) -> dict:
+    """The environment of an isolated child: a few variables, none of the grader's secrets."""
+    env = {k: os.environ[k] for k in KEPT_VARIABLES if k in os.environ}
+    env.setdefault("PATH", "/usr/local/bin:/usr/bin:/bin")
+    for name in THREAD_VARIABLES:
+        env[name] = "1"
+    env.update({"HOME": str(work), "TMPDIR": str(work), "MPLCONFIGDIR": str(work)})
+    env.update(extra or {})
+    return env
+
+
+_BIDI = {0x202A, 0x202B, 0x202C, 0x202D, 0x202E, 0x2066, 0x2067, 0x2068, 0x2069}
+
+
+def escape(text: str) -> str:
+    """``text`` with control characters (but newline and tab) and bidi overrides escaped."""
+    if text.isprintable():
+        return text
+    out = []
+    for char in text:
+        code = ord(char)
+        if char in "\n\t" or (unicodedata.category(char) != "Cc" and code not in _BIDI):
+            out.append(char)
+        elif code < 0x100:
+            out.append(f"\\x{code:02x}")
+        else:
+            out.append(f"\\u{code:04x}")
+    return "".join(out)
+
+
 def run(impl: str, calls: list, timeout=DEFAULT_TIMEOUT, memory_mb=DEFAULT_MEMORY_MB) -> ChildRun:
-    """Run ``calls`` (``autograder.checks.Call``) with the implementation ``impl`` in a child."""
-    start = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="autograder-", ignore_cleanup_errors=True) as tmp:
-        tmp = Path(tmp)
-        work = tmp / "work"
-        work.mkdir()
-        calls_path, out_path, progress_path = tmp / "calls.pkl", tmp / "out.npz", tmp / "progress"
+    """Run ``calls`` (``autograder.checks.Call``) with the implementation ``impl`` in a child
+    (a one-check :class:`Session`)."""
+    with Session(impl, timeout=timeout, memory_mb=memory_mb, workers=1) as session:
+        return session.run(calls)
+
+
+class Session:
+    """One grading run's children: ``with Session(impl, ...) as s: s.run(calls)``.
+
+    ``run`` may be called from ``workers`` threads at once. ``notice`` is a line for the
+    user, printed once (e.g. why the children run as the grader's own user), or ''.
+    ``budget``: total seconds for the run; once spent, ``run`` starts no child and
+    reports a timeout. ``isolate``: None (as root: yes), True or False.
+
+    As root, entering the session makes the reference unreadable by other users, stages
+    what the child imports into a fresh directory, takes one uid per worker and starts
+    the memory watch; it raises :class:`autograder.isolation.IsolationError` with what to
+    do when the children could not run safely (it never falls back to root).
+    """
+
+    def __init__(self, impl: str, *, timeout=DEFAULT_TIMEOUT, memory_mb=DEFAULT_MEMORY_MB, workers=2,
+                 budget=None, isolate=None):
+        self.impl, self.timeout, self.memory_mb, self.workers = str(impl), timeout, memory_mb, max(1, workers)
+        self.budget = budget
+        self.isolate = isolation.is_root() if isolate is None else bool(isolate)
+        self.notice = ""
+        self._start = None
+        self._base = None
+        self._slots: list = []
+        self._free: queue.Queue = queue.Queue()
+        self._watch = None
+        self._was_subreaper = None
+        self._python = sys.executable
+        self._sites: list = []
+        self._env: dict = {}
+        self._child_impl = self.impl
+
+    # ------------------------------------------------------------ set-up and tear-down
+
+    def __enter__(self):
+        self._start = time.monotonic()
+        if not self.isolate:
+            self.notice = NOT_ROOT_NOTICE
+            return self
+        try:
+            self._set_up()
+        except BaseException:
+            self._tear_down()
+            raise
+        return self
+
+    def __exit__(self, *exc):
+        self._tear_down()
+        return False
+
+    def _set_up(self):
+        if not isolation.is_root():
+            raise isolation.IsolationError("isolating the children needs root")
+        interpreter, packages = isolation.python_problems()
+        said = []
+        changed = isolation.protect_reference()
+        if changed:
+            names = ", ".join(_relative(path) for path in changed)
+            said.append(f"made the reference unreadable by other users (chmod go-rwx): {names}")
+        self._base = Path(tempfile.mkdtemp(prefix="autograder-", dir=isolation.temp_root()))
+        os.chmod(self._base, 0o711)
+        self._stage = self._base / "stage"
+        self._child_impl = isolation.stage(self.impl, self._stage)
+        if interpreter or packages:
+            runtime = isolation.stage_runtime(self._base / "python")
+            self._python, self._env = runtime["executable"], runtime["env"]
+            self._sites = isolation.site_packages()
+            problem = isolation.unreachable(self._python, execute=True)
+            if problem:
+                raise isolation.IsolationError(
+                    f"this Python cannot be run by other users ({'; '.join(interpreter)}) and copying it "
+                    f"did not help ({problem}). " + isolation.install_hint())
+        if packages:  # e.g. a venv in a 0700 folder: its packages, linked where the children can read them
+            self._sites = isolation.stage_site_packages(self._sites, self._base / "packages")
+            unreadable = [why for why in map(isolation.unreachable, self._sites) if why]
+            if unreadable:
+                raise isolation.IsolationError(
+                    "the children would run as an unprivileged user who cannot import this Python's packages ("
+                    + "; ".join((packages + unreadable)[:3]) + "). " + isolation.install_hint())
+        self._slots = isolation.acquire_slots(self.workers)
+        for slot in self._slots:
+            home = self._base / f"slot-{slot.uid}"
+            home.mkdir(mode=0o711)
+            os.chmod(home, 0o711)
+            (home / "out").mkdir(mode=0o700)
+            slot.home = home
+            self._free.put(slot)
+        self._was_subreaper = isolation.set_subreaper(True)
+        self._watch = isolation.MemoryWatch(self._slots)
+        self._watch.start()
+        self.notice = "; ".join(said)
+
+    def _tear_down(self):
+        if self._watch is not None:
+            self._watch.stop()
+            self._watch = None
+        for slot in self._slots:
+            isolation.kill_uid(slot.uid, slot.gid)
+            isolation.sweep_temp(slot.uid)
+            slot.release()
+        self._slots = []
+        if self._was_subreaper is False:
+            isolation.set_subreaper(False)
+        self._was_subreaper = None
+        if self._base is not None:
+            isolation.remove_tree(self._base)
+            self._base = None
+
+    # ------------------------------------------------------------ one check
+
+    def run(self, calls: list, timeout=None) -> ChildRun:
+        """Run ``calls`` in a fresh child; blocks while all worker slots are busy."""
+        timeout = timeout or self.timeout
+        by_budget = False
+        if self.budget is not None and self._start is not None:
+            remaining = self.budget - (time.monotonic() - self._start)
+            if remaining <= 0.05:
+                error = ErrorInfo("Timeout", f"the grading time budget of {self.budget:g} s ran out "
+                                             "before this check could run")
+                return _all_failed(calls, -1, error, "", 0.0, "timeout", None)
+            if remaining < timeout:
+                timeout, by_budget = remaining, True
+        if not self.isolate:
+            with tempfile.TemporaryDirectory(prefix="autograder-", ignore_cleanup_errors=True) as name:
+                tmp = Path(name)
+                work = tmp / "work"
+                work.mkdir()
+                return self._execute(calls, timeout, by_budget, tmp, work, None)
+        slot = self._free.get()
+        try:
+            work = slot.home / "work"
+            isolation.remove_tree(work)
+            work.mkdir(mode=0o700)
+            os.chown(work, slot.uid, slot.gid)
+            os.chmod(work, 0o700)
+            try:
+                return self._execute(calls, timeout, by_budget, slot.home, work, slot)
+            finally:
+                isolation.kill_uid(slot.uid, slot.gid)
+                isolation.remove_tree(work)
+                isolation.sweep_temp(slot.uid)
+        finally:
+            self._free.put(slot)
+
+    def _execute(self, calls, timeout, by_budget, home: Path, work: Path, slot) -> ChildRun:
+        start = time.perf_counter()
+        token = secrets.token_hex(16)
+        calls_path, out_path, progress_path = home / "calls.pkl", work / "out.npz", work / "progress"
         spec = {
-            "impl": impl,
+            "impl": self._child_impl,
             "calls": [call.payload() for call in calls],
-            "memory_bytes": int(memory_mb * 2**20) if memory_mb else None,
+            "memory_bytes": int(self.memory_mb * 2**20) if self.memory_mb else None,
             "cpu_seconds": timeout + 1,
             "file_bytes": FILE_BYTES,
+            "token_stdin": True,
+            "processes": isolation.PROCESSES if slot is not None else None,
+            "kill_others": slot is not None,
         }
-        with open(calls_path, "wb") as f:
+        fd = os.open(calls_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o600)
+        with os.fdopen(fd, "wb") as f:
             pickle.dump(spec, f)
-        command = [sys.executable, "-I", "-B", "-c", BOOTSTRAP.format(root=str(REPO_ROOT)),
+        streams = home / "out" if slot is not None else home
+        root = str(self._stage) if slot is not None else str(REPO_ROOT)
+        command = [self._python, "-I", "-B", "-c", BOOTSTRAP.format(root=root, sites=list(self._sites)),
                    str(calls_path), str(out_path), str(progress_path)]
-        with open(tmp / "stdout", "wb") as out, open(tmp / "stderr", "wb") as err:
-            proc = subprocess.Popen(command, cwd=work, env=child_env(), stdin=subprocess.DEVNULL,
-                                    stdout=out, stderr=err, start_new_session=True)
-            status = "ok"
-            try:
-                proc.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                status = "timeout"
-            finally:
-                _kill_group(proc)
-                proc.wait()
+        options = {}
+        if slot is not None:
+            os.chown(calls_path, 0, slot.gid)
+            os.chmod(calls_path, 0o640)
+            options = {"user": slot.uid, "group": slot.gid, "extra_groups": [],
+                       "env": isolated_env(work, self._env)}
+            slot.memory_exceeded = False
+            slot.memory_limit = int(self.memory_mb * 2**20) if self.memory_mb else None
+        else:
+            options = {"env": child_env()}
+        status, proc = "ok", None
+        try:
+            with open(streams / "stdout", "wb") as out, open(streams / "stderr", "wb") as err:
+                try:
+                    proc = subprocess.Popen(command, cwd=work, stdin=subprocess.PIPE, stdout=out, stderr=err,
+                                            start_new_session=True, **options)
+                except OSError as exc:
+                    error = ErrorInfo("Crash", f"the grader could not start the child process ({exc}): "
+                                               "tell your instructor")
+                    return _all_failed(calls, -1, error, "", time.perf_counter() - start, "crashed", None)
+                isolation.TRACKED.add(proc.pid)
+                try:
+                    try:
+                        assert proc.stdin is not None  # started with stdin=PIPE
+                        proc.stdin.write(token.encode())
+                        proc.stdin.close()
+                    except OSError:
+                        pass
+                    try:
+                        proc.wait(timeout=timeout)
+                    except subprocess.TimeoutExpired:
+                        status = "timeout"
+                finally:
+                    if slot is not None:
+                        slot.memory_limit = None
+                    _kill_group(proc)
+                    if slot is not None:
+                        isolation.kill_uid(slot.uid, slot.gid)
+                    proc.wait()
+                    isolation.TRACKED.discard(proc.pid)
+        finally:
+            if slot is not None:
+                slot.memory_limit = None
         seconds = time.perf_counter() - start
-        printed = _printed(tmp / "stdout", tmp / "stderr")
-        running = _progress(progress_path)
+        printed = _printed(streams / "stdout", streams / "stderr")
+        owner = slot.uid if slot is not None else None
+        running = _progress(progress_path, owner)
+        if slot is not None and slot.memory_exceeded:
+            error = ErrorInfo("MemoryError", f"its processes together used more than the memory limit of "
+                                             f"{self.memory_mb:g} MiB and were stopped")
+            return _all_failed(calls, running, error, printed, seconds, "crashed", proc.returncode)
         if status == "timeout":
-            error = ErrorInfo("Timeout", f"did not finish within the time limit of {timeout:g} s: "
-                                         "an infinite loop, or a very slow computation?")
-            return _all_failed(calls, running, error, printed, seconds, status, proc.returncode)
-        outcomes, problem = _read(out_path, len(calls))
+            if by_budget:
+                message = (f"the grading time budget of {self.budget:g} s ran out while this check ran "
+                           f"(after {timeout:.3g} s)")
+            else:
+                message = (f"did not finish within the time limit of {timeout:g} s: "
+                           "an infinite loop, or a very slow computation?")
+            return _all_failed(calls, running, ErrorInfo("Timeout", message), printed, seconds, status,
+                               proc.returncode)
+        outcomes, problem = _read(out_path, len(calls), token=token, owner=owner)
         if outcomes is None:
             code = proc.returncode
             if code is not None and code < 0:
@@ -127,6 +370,14 @@ def run(impl: str, calls: list, timeout=DEFAULT_TIMEOUT, memory_mb=DEFAULT_MEMOR
         return ChildRun(outcomes, printed, seconds, "ok", returncode=proc.returncode)
 
 
+def _relative(path) -> str:
+    try:
+        text = str(Path(path).relative_to(REPO_ROOT))
+    except ValueError:
+        text = str(path)
+    return text + ("/" if Path(path).is_dir() else "")
+
+
 def _kill_group(proc) -> None:
     try:
         os.killpg(proc.pid, signal.SIGKILL)
@@ -144,50 +395,99 @@ def _all_failed(calls, running, error, printed, seconds, status, returncode) -> 
     return ChildRun(outcomes, printed, seconds, status, running=running, returncode=returncode)
 
 
-def _progress(path) -> int:
+def read_regular(path, limit, cap=None, owner=None):
+    """``(bytes, problem)``: up to ``limit`` bytes of ``path`` when it is a regular file
+    (not a symlink, FIFO or device) of at most ``cap`` bytes, owned by ``owner`` when
+    given; ``(None, why)`` otherwise. Never blocks on a FIFO."""
     try:
-        text = Path(path).read_text()[:20]
-        return int(text) if text.isdigit() else -1
-    except (OSError, ValueError):
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        return None, ""
+    except OSError as exc:
+        return None, f"its output could not be opened ({errno_name(exc)})"
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            return None, "its output is not a regular file"
+        if owner is not None and st.st_uid != owner:
+            return None, "its output file belongs to another user"
+        if cap is not None and st.st_size > cap:
+            return None, f"its output file has {st.st_size} bytes"
+        chunks, total = [], 0
+        while total < limit:
+            chunk = os.read(fd, min(1 << 20, limit - total))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            total += len(chunk)
+        return b"".join(chunks), ""
+    except OSError as exc:
+        return None, f"its output could not be read ({errno_name(exc)})"
+    finally:
+        os.close(fd)
+
+
+def errno_name(exc) -> str:
+    import errno
+
+    return errno.errorcode.get(exc.errno, type(exc).__name__) if exc.errno else type(exc).__name__
+
+
+def _progress(path, owner=None) -> int:
+    data, _ = read_regular(path, 20, cap=64, owner=owner)
+    if not data:
         return -1
+    text = data.decode("ascii", "replace")
+    return int(text) if text.isdigit() else -1
 
 
 def _printed(*paths) -> str:
     parts = []
     for path in paths:
-        try:
-            with open(path, "rb") as f:
-                data = f.read(PRINTED_BYTES)
-        except OSError:
-            continue
+        data, _ = read_regular(path, PRINTED_BYTES)
         if data:
-            parts.append(data.decode("utf-8", "replace"))
+            parts.append(escape(data.decode("utf-8", "replace")))
     return "\n".join(part.rstrip("\n") for part in parts)
 
 
-def _read(path, count):
-    """Outcomes from the child's npz, or ``(None, reason)``; untrusted input."""
-    if not Path(path).is_file():
-        return None, ""
+def _read(path, count, token=None, owner=None):
+    """Outcomes from the child's npz, or ``(None, reason)``; untrusted input.
+
+    With ``token``, the file must carry it (key ``token``); with ``owner``, belong to
+    that uid.
+    """
+    raw, problem = read_regular(path, MAX_OUTPUT_BYTES + 1, cap=MAX_OUTPUT_BYTES, owner=owner)
+    if raw is None:
+        return None, problem
     try:
-        with zipfile.ZipFile(path) as archive:
+        with zipfile.ZipFile(io.BytesIO(raw)) as archive:
             total = sum(info.file_size for info in archive.infolist())
         if total > MAX_OUTPUT_BYTES:
             return None, f"its output file declares {total} bytes"
         outcomes = [Outcome() for _ in range(count)]
         seen = set()
-        with np.load(path, allow_pickle=False) as data:
+        with np.load(io.BytesIO(raw), allow_pickle=False) as data:
+            if token is not None:
+                if "token" not in data.files:
+                    return None, "its output file was not written by the grader's child"
+                mark = data["token"]
+                if mark.dtype.kind != "U" or mark.ndim != 0 or str(mark) != token:
+                    return None, "its output file was not written by the grader's child"
             for key in data.files:
                 match = _KEY.match(key)
                 if not match or int(match.group(1)) >= count:
                     continue
                 index = int(match.group(1))
                 value = data[key]
+                if match.group(2) == "modified":
+                    if value.dtype.kind == "U" and value.ndim == 1 and value.size <= 64:
+                        outcomes[index].modified = tuple(escape(str(part)[:200]) for part in value)
+                    continue
                 seen.add(index)
                 if match.group(2) == "kind" and value.dtype.kind == "U" and value.ndim == 0:
-                    outcomes[index].kind = str(value)[:100]
+                    outcomes[index].kind = escape(str(value)[:100])
                 elif match.group(2) == "error" and value.dtype.kind == "U" and value.shape == (3,):
-                    outcomes[index].error = ErrorInfo(*(str(part)[:2000] for part in value))
+                    outcomes[index].error = ErrorInfo(*(escape(str(part)[:2000]) for part in value))
                 elif match.group(3) and value.dtype == np.float64:
                     outcomes[index].fields[match.group(3)] = value
         for index in range(count):

@@ -6,21 +6,18 @@ for the reference; the child calls it with the student's implementation (a call
 target ``"@autograder.tasks:minimize_curve"``).
 """
 
+import threading
+from contextlib import contextmanager
+
 import numpy as np
 
 
-def minimize_curve(method, impl, problem_impl=None, num_points=100, seed=0):
-    """``course.solvers.minimize`` on the default curve problem.
-
-    The strategy comes from ``impl``; the model and normal equations from
-    ``problem_impl`` (default ``impl``), so that a damping strategy can be run on the
-    reference model.
-    """
+def minimize_curve(method, impl, num_points=100, seed=0):
+    """``course.solvers.minimize`` on the curve problem (noise ``seed``), every piece from ``impl``."""
     from course.problems.curve import CurveProblem, generate
     from course.solvers import minimize
 
-    data = generate(num_points=num_points, seed=seed)
-    problem = CurveProblem(data, impl=impl if problem_impl is None else problem_impl)
+    problem = CurveProblem(generate(num_points=num_points, seed=seed), impl=impl)
     result = minimize(problem, method, impl=impl)
     return {
         "params": np.asarray(result.params, float),
@@ -37,8 +34,6 @@ def minimize_curve(method, impl, problem_impl=None, num_points=100, seed=0):
 # instruments the implementation (a stand-in for a function, a counter around a
 # library class) does so only when it is the only Python thread, i.e. in the child:
 # the parent computes the reference outputs in worker threads that share modules.
-
-import threading
 
 #: why a minimizer stopped, as the code returned in ``stop``
 STOP_REASONS = ("max_iterations", "gradient_tolerance", "cost_tolerance", "step_tolerance")
@@ -187,6 +182,67 @@ def upper_triangle(H, as_sparse, impl):
     }
 
 
+_COUNTING: dict = {}  # qdldl.Solver -> its counting subclass (one per process, so captures keep counting)
+
+
+def _counting_solver(original):
+    """A subclass of ``qdldl.Solver`` counting the objects made (``made``)."""
+    if original not in _COUNTING:
+        class Solver(original):
+            made = 0
+
+            def __init__(self, *args, **kwargs):
+                Solver.made += 1
+                super().__init__(*args, **kwargs)
+
+        Solver.__module__, Solver.__qualname__ = original.__module__, original.__qualname__
+        _COUNTING[original] = Solver
+    return _COUNTING[original]
+
+
+@contextmanager
+def _sparse_solve_counted(impl):
+    """``(module, counter)``: the implementation's ``sparse_solve`` with ``qdldl.Solver``
+    counted (``counter.made``), or ``counter`` None where it cannot be (another thread runs).
+
+    The counting class is installed in ``qdldl`` before the student's module is imported,
+    so that ``from qdldl import Solver`` at import time takes it too, and over every name
+    of the module bound to the original; both are restored afterwards.
+    """
+    import qdldl
+
+    if not _exclusive():
+        yield impl.module("sparse_solve"), None
+        return
+    original = qdldl.Solver
+    counter = _counting_solver(original)
+    counter.made = 0
+    qdldl.Solver = counter
+    module = None
+    try:
+        module = impl.module("sparse_solve")
+        for name, value in list(vars(module).items()):
+            if value is original:
+                setattr(module, name, counter)
+        yield module, counter
+    finally:
+        qdldl.Solver = original
+        if module is not None:
+            for name, value in list(vars(module).items()):
+                if value is counter:
+                    setattr(module, name, original)
+
+
+def _solve_once(solver, shape, indices, indptr, data, b, what):
+    import scipy.sparse as sp
+
+    H = sp.csc_matrix((np.array(data, dtype=float), np.array(indices), np.array(indptr)), shape=tuple(shape))
+    dx = solver.solve(H, np.array(b, dtype=float))
+    if sp.issparse(dx):
+        raise OutputError(f"returned a scipy sparse matrix on {what}, expected a (n,) array")
+    return dx
+
+
 def sparse_solves(shape, indices, indptr, values, rhs, impl):
     """One ``SparseCholeskySolver`` solving ``H_k dx = -b_k`` for k = 0, 1, ...
 
@@ -195,36 +251,32 @@ def sparse_solves(shape, indices, indptr, values, rhs, impl):
     ``solvers_created``, the number of ``qdldl.Solver`` objects made (NaN when they
     could not be counted).
     """
-    import qdldl
-    import scipy.sparse as sp
-
-    module = impl.module("sparse_solve")
-    solver = module.SparseCholeskySolver()
-    original, created, patched = qdldl.Solver, [0], []
-
-    def counting_solver(*args, **kwargs):
-        created[0] += 1
-        return original(*args, **kwargs)
-
-    if _exclusive():
-        for owner in (qdldl, module):
-            for name, value in list(vars(owner).items()):
-                if value is original:
-                    patched.append((owner, name))
-                    setattr(owner, name, counting_solver)
     out = {}
-    try:
+    with _sparse_solve_counted(impl) as (module, counter):
+        solver = module.SparseCholeskySolver()
         for k, (data, b) in enumerate(zip(values, rhs)):
-            H = sp.csc_matrix((np.array(data, dtype=float), np.array(indices), np.array(indptr)),
-                              shape=tuple(shape))
-            dx = solver.solve(H, np.array(b, dtype=float))
-            if sp.issparse(dx):
-                raise OutputError(f"returned a scipy sparse matrix on call {k + 1}, expected a (n,) array")
-            out[f"dx{k}"] = dx
-    finally:
-        for owner, name in patched:
-            setattr(owner, name, original)
-    out["solvers_created"] = float(created[0]) if patched else float("nan")
+            out[f"dx{k}"] = _solve_once(solver, shape, indices, indptr, data, b, f"call {k + 1}")
+        out["solvers_created"] = float(counter.made) if counter is not None else float("nan")
+    return out
+
+
+def alternating_solves(first, second, impl):
+    """Two ``SparseCholeskySolver`` objects, one per pattern, called alternately.
+
+    ``first`` and ``second`` are ``(shape, indices, indptr, values, rhs)`` as for
+    :func:`sparse_solves`; the calls go first solver, second solver, first, second, ...
+    Returns ``a0, a1, ...`` (the first solver's steps), ``b0, b1, ...`` (the second's)
+    and ``solvers_created``.
+    """
+    out = {}
+    with _sparse_solve_counted(impl) as (module, counter):
+        solvers = (module.SparseCholeskySolver(), module.SparseCholeskySolver())
+        for k in range(len(first[3])):
+            for prefix, solver, (shape, indices, indptr, values, rhs), which in (
+                    ("a", solvers[0], first, "first"), ("b", solvers[1], second, "second")):
+                out[f"{prefix}{k}"] = _solve_once(solver, shape, indices, indptr, values[k], rhs[k],
+                                                  f"the {which} solver's call {k + 1}")
+        out["solvers_created"] = float(counter.made) if counter is not None else float("nan")
     return out
 
 
@@ -378,13 +430,12 @@ def minimize_pose_graph(graph, method, impl, problem_impl=None, vectorized=False
     return _summary(minimize(problem, method, impl=impl))
 
 
-def minimize_curve_run(method, impl, problem_impl=None, num_points=100, seed=0):
+def minimize_curve_run(method, impl, num_points=100, seed=0):
     """Like :func:`minimize_curve`, with the trace summary (rejections, factorizations)."""
     from course.problems.curve import CurveProblem, generate
     from course.solvers import minimize
 
-    problem = CurveProblem(generate(num_points=num_points, seed=seed),
-                           impl=impl if problem_impl is None else problem_impl)
+    problem = CurveProblem(generate(num_points=num_points, seed=seed), impl=impl)
     return _summary(minimize(problem, method, impl=impl))
 
 

@@ -11,7 +11,6 @@ import numpy as np
 import pyceres
 
 
-
 def _wrap(angle):
     """``angle`` (a float) wrapped to ``[-pi, pi)``; math, not numpy: Ceres calls this often."""
     return (angle + math.pi) % (2.0 * math.pi) - math.pi

@@ -3,14 +3,15 @@
 Every comparison is ``|actual - expected| <= atol + rtol |expected|`` elementwise
 (``numpy.testing.assert_allclose``'s rule) with an explicit rtol and atol. A failed
 comparison names the entry, the expected and the actual value and, when the output
-matches a known mistake (computed in the parent from the inputs), its likely cause.
+matches a known mistake (its output on the same inputs, from the instructor's catalogue,
+shipped as data for the public checks), its likely cause.
 """
 
 import re
 
 import numpy as np
 
-from autograder.checks import Verdict
+from autograder.records import Verdict
 
 _TODO = re.compile(r"TODO ([A-Za-z_][\w.]*)")
 
@@ -80,6 +81,25 @@ def first_error(ctx, hints=None):
     return Verdict(0.0, message, (todo,) if todo and todo != "?" else ())
 
 
+def modified_in_place(ctx):
+    """A zero Verdict for the first call that changed one of its arguments, or None.
+
+    Every call gets its own copy of the inputs, so the values it returns can be right;
+    but the loop reuses its arrays after the call (H after a rejected step, b, the poses),
+    so writing into them breaks the solver later, far from the cause.
+    """
+    for call, outcome in zip(ctx.calls, ctx.student):
+        if outcome.error is None and outcome.modified:
+            names = ", ".join(outcome.modified)
+            plural = "s" if len(outcome.modified) > 1 else ""
+            at = f" {call.where}" if call.where else ""
+            return Verdict(0.0, (
+                f"{call.function} modified its argument{plural} {names} in place{at}: work on a copy "
+                "(H = H + np.diag(d), not H += ...; x = x.copy() before writing into it); the "
+                "framework reuses its arrays after the call"))
+    return None
+
+
 def _kind_text(kind: str) -> str:
     if kind.startswith("tuple:"):
         return f"a tuple of {kind.split(':')[1]} values"
@@ -123,7 +143,7 @@ def call_fields(ctx, hints=None, failed=first_error):
     ends with ``return failure or Verdict(1.0, "ok")``; one that needs every call returns
     ``failure`` before looking at them.
     """
-    failure = failed(ctx, hints)
+    failure = failed(ctx, hints) or modified_in_place(ctx)
     if failure:
         return [], failure
     triples = []
@@ -185,7 +205,10 @@ def compare(actual, expected, name, rtol, atol, where="", mistakes=(), cause="",
     if not bad.any():
         return None
     index = tuple(int(k) for k in np.unravel_index(int(np.argmax(excess)), excess.shape)) if excess.ndim else ()
-    text = f"{entry(index)} = {fmt(actual[index])}, expected {fmt(expected[index])}{at}"
+    got_text, want_text = fmt(actual[index]), fmt(expected[index])
+    if got_text == want_text:  # print enough digits to see the difference, and how large it is
+        got_text, want_text = f"{float(actual[index]):.17g}", f"{float(expected[index]):.17g}"
+    text = f"{entry(index)} = {got_text}, expected {want_text}{at}"
     if expected.ndim:
         text += f" ({int(bad.sum())} of {bad.size} entries differ; rtol={rtol:g}, atol={atol:g})"
     else:
@@ -193,18 +216,29 @@ def compare(actual, expected, name, rtol, atol, where="", mistakes=(), cause="",
     for value, why in mistakes:
         if close(actual, value, rtol, atol):
             return f"{text}: {why}"
+    relative = _relative_error(actual, expected)
+    if 1e-8 < relative < 1e-5:
+        text += (f"; relative error {relative:.1e}, about float32's precision: compute in float64 "
+                 "(np.float32 or dtype=np.float32 somewhere?)")
     return f"{text}: {cause}" if cause else text
+
+
+def _relative_error(actual, expected) -> float:
+    scale = float(np.max(np.abs(expected))) if expected.size else 0.0
+    if scale == 0.0:
+        return float("inf")
+    return float(np.max(np.abs(actual - expected))) / scale
 
 
 def _index(index) -> str:
     return "[" + ", ".join(str(k) for k in index) + "]" if index else ""
 
 
-def values(names, rtol, atol, mistakes=None, cause="", labels=None, scalar=False, errors=None):
+def values(names, rtol, atol, cause="", labels=None, scalar=False, errors=None):
     """A judge comparing the outputs ``names`` of every call with the reference.
 
-    ``mistakes(call, reference_fields)`` returns ``{name: [(value, text), ...]}``;
-    ``cause`` is the fallback hint (a string, or ``{name: text}``); ``labels`` maps an
+    The known mistakes of each call (``ctx.known(k)``, ``{name: [(value, text), ...]}``)
+    give the likely cause; ``cause`` is the fallback hint (a string, or ``{name: text}``); ``labels`` maps an
     output to its name in feedback (``{"value": "h"}``); ``errors`` maps an exception
     type name to a likely cause (``{"LinAlgError": "..."}``).
     """
@@ -212,8 +246,8 @@ def values(names, rtol, atol, mistakes=None, cause="", labels=None, scalar=False
 
     def judge(ctx):
         triples, failure = call_fields(ctx, errors)
-        for call, got, want in triples:
-            known = mistakes(call, want) if mistakes else {}
+        for index, (call, got, want) in enumerate(triples):
+            known = ctx.known(index)
             for name in names:
                 hint = cause.get(name, "") if isinstance(cause, dict) else cause
                 text = compare(got[name], want[name], labels.get(name, name), rtol, atol,

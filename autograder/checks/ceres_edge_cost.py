@@ -1,0 +1,108 @@
+"""Checks of ``ceres_edge_cost.SE2EdgeCost``: the whitened residuals and Jacobians as Ceres
+computes them, and ``Evaluate`` with no Jacobian or one block constant.
+
+Public inputs: four of the edges of the edge checks (generic, angle error beyond pi, the
+measured angle near pi, just above pi), each with a full square-root information matrix;
+hidden inputs: the same kinds of edges from the hidden seed, and other matrices.
+"""
+
+from functools import cache
+
+import numpy as np
+
+from autograder.checks import Call, Verdict
+from autograder.checks.pose_graph_edge import check, edges, failed
+from autograder.feedback import call_fields, compare
+
+MODULES = ("ceres_edge_cost",)
+CERES = "ceres_edge_cost.SE2EdgeCost"
+
+# ---------------------------------------------------------------- inputs
+
+
+@cache
+def _ceres_inputs(seed=None):
+    """(measurement, U, x_i, x_j, where): full square-root information matrices U (upper, U^T U = Omega)."""
+    rng = np.random.default_rng(13 if seed is None else [seed, 231])
+    out = []
+    for k in (0, 1, 3, 5):
+        x_i, x_j, z, where = edges(seed)[k]
+        L = rng.normal(size=(3, 3)) * (4.0, 4.0, 8.0)
+        omega = L @ L.T + np.diag((3.0, 3.0, 6.0))
+        U = np.linalg.cholesky(omega).T
+        out.append((z, U, x_i, x_j, where + ", full U"))
+    return out
+
+
+def _ceres_calls(task):
+    def build(seed=None):
+        return [Call(f"@autograder.tasks:{task}", (z, U, x_i, x_j), returns="dict",
+                     label="ceres_edge_cost.SE2EdgeCost" + (".evaluate" if task == "ceres_cost" else ".Evaluate"),
+                     where=where) for z, U, x_i, x_j, where in _ceres_inputs(seed)]
+
+    return build
+
+
+# ---------------------------------------------------------------- judges
+
+
+def _judge_ceres(names):
+    causes = {"r": "r = U e", "J_i": "jacobians[0] = U A, row-major", "J_j": "jacobians[1] = U B, row-major"}
+    labels = {"r": "residuals[{}]", "J_i": "jacobians[0] as 3x3 [{}]", "J_j": "jacobians[1] as 3x3 [{}]"}
+
+    def judge(ctx):
+        triples, failure = call_fields(ctx, failed=failed)
+        if failure:
+            return failure
+        for index, (call, got, want) in enumerate(triples):
+            known = ctx.known(index)
+            for name in names:
+                scale = max(1.0, float(np.max(np.abs(want[name]))))
+                text = compare(got[name], want[name], labels[name], 1e-9, 1e-12 * scale, call.where,
+                               known.get(name, ()), causes[name])
+                if text:
+                    return Verdict(0.0, text)
+        return Verdict(1.0, "ok")
+
+    return judge
+
+
+def _judge_partial_jacobians(ctx):
+    """With jacobians None, [None, J_j] or [J_i, None], Evaluate fills what it is asked for,
+    the same as when both Jacobians are requested (the values are graded by the other checks)."""
+    triples, failure = call_fields(ctx, failed=failed)
+    if failure:
+        return failure
+    for call, got, _ in triples:
+        both = f"{call.where}, with both jacobians requested"
+        if not got["both_ok"]:
+            return Verdict(0.0, f"Evaluate did not return True {both}: return True after filling the buffers")
+        if np.any(np.isnan(got["both_r"])) or np.any(np.isnan(got["both_J"])) or np.any(np.isnan(got["both_J2"])):
+            return Verdict(0.0, f"Evaluate left a buffer unfilled {both}: write into the buffers Ceres gives, "
+                                "residuals[:] = ..., jacobians[k][:] = ... (assigning residuals = ... only rebinds "
+                                "the name)")
+        r = got["both_r"]
+        for request, jac, what in (("none", None, "jacobians=None (residuals only)"),
+                                   ("first", got["both_J2"], "jacobians=[None, J_j] (x_i constant, e.g. a fixed pose)"),
+                                   ("second", got["both_J"], "jacobians=[J_i, None] (x_j constant)")):
+            where = f"{call.where}, with {what}"
+            if not got[f"{request}_ok"]:
+                return Verdict(0.0, f"Evaluate did not return True {where}: return True after filling the buffers")
+            text = compare(got[f"{request}_r"], r, "residuals[{}]", 1e-12, 1e-14, where, (),
+                           "the residuals must not depend on which Jacobians are requested")
+            if text:
+                return Verdict(0.0, text)
+            if jac is not None:
+                text = compare(got[f"{request}_J"], jac, "jacobian[{}]", 1e-12, 1e-14, where, (),
+                               "fill each jacobians[k] that is not None, the same as when both are requested")
+                if text:
+                    return Verdict(0.0, text)
+    return Verdict(1.0, "ok")
+
+
+CHECKS = [
+    check(CERES, "residuals r = U e", 2, _ceres_calls("ceres_cost"), _judge_ceres(("r",))),
+    check(CERES, "jacobians U A, U B", 3, _ceres_calls("ceres_cost"), _judge_ceres(("J_i", "J_j"))),
+    check(CERES, "jacobians None or one block constant", 1, _ceres_calls("ceres_partial_jacobians"),
+          _judge_partial_jacobians),
+]

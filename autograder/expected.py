@@ -1,0 +1,155 @@
+"""The public checks' inputs and answers, shipped as data (``autograder/expected/*.json``).
+
+For every public check the release step (:mod:`autograder.oracle`, on the instructor's
+side) records the calls the child makes, the reference's outputs of those calls, and the
+outputs of each known mistake that feedback names. Grading a public check reads this
+file; it never imports the reference. One JSON file per exercise module::
+
+    {"format": 1, "checks": {"<check name>": {"calls": [...], "reference": [...],
+                                              "mistakes": [...]}}}
+
+Values are plain JSON with tagged objects for what JSON lacks, decoded without running
+any code from the file: ``{"__array__": dtype, "shape": [...], "data": [...]}`` (floats
+written by ``repr``, so they round-trip exactly; NaN and infinities as Python's json
+writes them), ``{"__tuple__": [...]}`` and ``{"__state__": {"lam": ..., "nu": ...}}``
+(a ``course.damping.DampingState``).
+"""
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from autograder.records import Call, Outcome
+
+FORMAT = 1
+DIRECTORY = Path(__file__).resolve().parent / "expected"
+_DTYPES = ("float64", "int64", "bool")
+
+
+class ExpectedDataError(RuntimeError):
+    """The shipped data is missing, stale or malformed."""
+
+
+@dataclass
+class Expected:
+    """What the judge of one check compares with: calls, reference outputs, mistakes."""
+
+    calls: list  # Call
+    reference: list  # Outcome per call
+    mistakes: list  # per call: {key: [(value, why), ...]}
+
+
+# ---------------------------------------------------------------- values
+
+
+def encode(value):
+    """A JSON-ready form of the inputs and outputs a check uses."""
+    from course.damping import DampingState
+
+    if isinstance(value, np.ndarray) or isinstance(value, np.generic):
+        arr = np.asarray(value)
+        dtype = {"f": "float64", "i": "int64", "u": "int64", "b": "bool"}.get(arr.dtype.kind)
+        if dtype is None:
+            raise TypeError(f"cannot store an array of dtype {arr.dtype}")
+        data = arr.astype(dtype).ravel().tolist()
+        return {"__array__": dtype, "shape": list(arr.shape), "data": data}
+    if isinstance(value, DampingState):
+        return {"__state__": {"lam": float(value.lam), "nu": float(value.nu)}}
+    if isinstance(value, tuple):
+        return {"__tuple__": [encode(v) for v in value]}
+    if isinstance(value, list):
+        return [encode(v) for v in value]
+    if isinstance(value, dict):
+        if not all(isinstance(k, str) for k in value):
+            raise TypeError(f"dict keys must be strings: {list(value)[:5]}")
+        return {k: encode(v) for k, v in value.items()}
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    raise TypeError(f"cannot store {type(value).__name__}")
+
+
+def decode(value):
+    if isinstance(value, list):
+        return [decode(v) for v in value]
+    if not isinstance(value, dict):
+        return value
+    if "__array__" in value:
+        dtype = value["__array__"]
+        if dtype not in _DTYPES:
+            raise ExpectedDataError(f"unknown dtype {dtype!r}")
+        return np.array(value["data"], dtype=dtype).reshape(value["shape"])
+    if "__tuple__" in value:
+        return tuple(decode(v) for v in value["__tuple__"])
+    if "__state__" in value:
+        from course.damping import DampingState
+
+        return DampingState(lam=float(value["__state__"]["lam"]), nu=float(value["__state__"]["nu"]))
+    return {k: decode(v) for k, v in value.items()}
+
+
+# ---------------------------------------------------------------- records
+
+
+def _encode_call(call: Call) -> dict:
+    returns = {"__tuple__": list(call.returns)} if isinstance(call.returns, tuple) else call.returns
+    return {"target": call.target, "args": encode(tuple(call.args)), "kwargs": encode(dict(call.kwargs)),
+            "init": encode(dict(call.init)), "returns": returns, "where": call.where, "label": call.label}
+
+
+def _decode_call(data: dict) -> Call:
+    returns = data["returns"]
+    if isinstance(returns, dict):
+        returns = tuple(returns["__tuple__"])
+    return Call(data["target"], decode(data["args"]), decode(data["kwargs"]), decode(data["init"]),
+                returns, data["where"], data["label"])
+
+
+def encode_expected(expected: Expected) -> dict:
+    return {
+        "calls": [_encode_call(c) for c in expected.calls],
+        "reference": [{"kind": o.kind, "fields": encode(dict(o.fields))} for o in expected.reference],
+        "mistakes": [{key: [[encode(np.asarray(v, dtype=float)), why] for v, why in known]
+                      for key, known in per_call.items()} for per_call in expected.mistakes],
+    }
+
+
+def decode_expected(data: dict) -> Expected:
+    calls = [_decode_call(c) for c in data["calls"]]
+    reference = [Outcome(fields=decode(o["fields"]), kind=o["kind"]) for o in data["reference"]]
+    mistakes = [{key: [(decode(v), why) for v, why in known] for key, known in per_call.items()}
+                for per_call in data["mistakes"]]
+    if not len(calls) == len(reference) == len(mistakes):
+        raise ExpectedDataError("calls, reference outputs and mistakes differ in number")
+    return Expected(calls, reference, mistakes)
+
+
+# ---------------------------------------------------------------- files
+
+
+def path_for(module: str, directory: Path = DIRECTORY) -> Path:
+    return Path(directory) / f"{module}.json"
+
+
+def dumps(checks: dict) -> str:
+    """The file text for ``{check name: Expected}`` (stable, so that staleness is a text diff)."""
+    body = {"format": FORMAT, "checks": {name: encode_expected(e) for name, e in checks.items()}}
+    return json.dumps(body, sort_keys=True, separators=(",", ":")) + "\n"
+
+
+def load(module: str, directory: Path = DIRECTORY) -> dict:
+    """``{check name: Expected}`` of one check module's public checks."""
+    path = path_for(module, directory)
+    try:
+        body = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ExpectedDataError(f"{path} is missing: run `python -m course release` (instructor)") from None
+    except (OSError, ValueError) as exc:
+        raise ExpectedDataError(f"{path}: unreadable ({exc})") from None
+    if body.get("format") != FORMAT:
+        raise ExpectedDataError(f"{path}: format {body.get('format')!r}, expected {FORMAT}")
+    try:
+        return {name: decode_expected(data) for name, data in body["checks"].items()}
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ExpectedDataError(f"{path}: malformed ({type(exc).__name__}: {exc})") from None

@@ -1,0 +1,116 @@
+# RELEASE: omit
+"""The reference side of grading: instructor only, never in the student tree.
+
+For a check and a seed (``None``: the public inputs; an integer: fresh hidden inputs)
+this module builds the calls, runs them with ``solutions`` in this process (trusted
+code) and evaluates the check's known mistakes (``autograder/mistakes/<module>.py``) on
+the same inputs, giving an :class:`autograder.expected.Expected`. The release step writes
+the public ones to ``autograder/expected/`` (:func:`render`); grading computes the hidden
+ones before the first child starts.
+
+The hidden seed comes from the environment variable ``AUTOGRADER_HIDDEN_SEED`` when set
+(an instructor's own, e.g. baked into a Gradescope bundle), else :data:`DEFAULT_HIDDEN_SEED`.
+"""
+
+import importlib
+import os
+
+import numpy as np
+
+from autograder.expected import Expected, dumps
+from autograder.records import Outcome
+
+DEFAULT_HIDDEN_SEED = 7211
+
+
+def hidden_seed() -> int:
+    text = os.environ.get("AUTOGRADER_HIDDEN_SEED", "").strip()
+    if not text:
+        return DEFAULT_HIDDEN_SEED
+    try:
+        return int(text)
+    except ValueError:
+        raise ValueError(f"AUTOGRADER_HIDDEN_SEED must be an integer, got {text!r}") from None
+
+
+def reference_implementation():
+    from course import impl as impl_loader
+
+    return impl_loader.load("solutions")
+
+
+def solutions_module(name: str):
+    """A module of the reference implementation (for inputs that need a reference output)."""
+    return reference_implementation().module(name)
+
+
+def _mistake_catalogue(module: str) -> dict:
+    try:
+        catalogue = importlib.import_module(f"autograder.mistakes.{module}")
+    except ModuleNotFoundError as exc:
+        if exc.name != f"autograder.mistakes.{module}":
+            raise
+        return {}
+    return getattr(catalogue, "MISTAKES", {})
+
+
+def compute(check, module: str, seed=None) -> Expected:
+    """Calls, reference outputs and known mistakes of ``check`` (from ``checks/<module>.py``)."""
+    from autograder.child import run_calls
+    from autograder.feedback import fields_of
+
+    calls = check.calls(seed)
+    solutions = reference_implementation()
+    with np.errstate(all="ignore"):
+        results = run_calls(solutions, [c.payload() for c in calls])
+    reference = []
+    for call, result in zip(calls, results):
+        if not isinstance(result, tuple):
+            raise RuntimeError(f"the reference failed on {call.function} {call.where}: {result}")
+        kind, fields = result
+        reference.append(Outcome(fields=fields, kind=kind))
+    known = _mistake_catalogue(module).get(check.name)
+    mistakes: list = []
+    for call, outcome in zip(calls, reference):
+        if known is None:
+            mistakes.append({})
+            continue
+        want, problem = fields_of(outcome, call)
+        if problem:
+            raise RuntimeError(f"the reference's output of {call.function} is malformed: {problem}")
+        with np.errstate(all="ignore"):
+            mistakes.append({key: [(np.asarray(v, dtype=float), why) for v, why in pairs]
+                             for key, pairs in known(call, want).items()})
+    return Expected(calls, reference, mistakes)
+
+
+def render() -> dict:
+    """``{path relative to autograder/: text}`` of the public data of every check module."""
+    from autograder.checks import modules
+
+    files = {}
+    for name, module in modules():
+        public = {check.name: compute(check, name) for check in module.CHECKS}
+        files[f"expected/{name}.json"] = dumps(public)
+    return files
+
+
+def release_expected(check=False, directory=None) -> list:
+    """Rewrite the public data under ``autograder/expected/`` (or, with ``check``, only
+    compare); returns the stale paths, relative to ``autograder/``."""
+    from pathlib import Path
+
+    base = Path(directory) if directory else Path(__file__).resolve().parent
+    files = render()
+    present = {f"expected/{p.name}" for p in (base / "expected").glob("*.json")}
+    stale = sorted(rel for rel, text in files.items()
+                   if not (base / rel).is_file() or (base / rel).read_text() != text)
+    stale += sorted(present - set(files))
+    if not check and stale:
+        (base / "expected").mkdir(exist_ok=True)
+        for rel in present - set(files):
+            (base / rel).unlink()
+        for rel, text in files.items():
+            if rel in stale:
+                (base / rel).write_text(text)
+    return stale

@@ -1,0 +1,110 @@
+"""The public checks' shipped data and the hidden checks: the data round-trips exactly,
+stays current with the reference, carries no reference code, and a lookup table of the
+public answers loses every hidden point it cannot look up."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from autograder import expected, oracle
+from autograder.checks import all_checks, module_of
+from autograder.grade import HIDDEN_SUFFIX
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_values_round_trip_exactly():
+    from course.damping import DampingState
+
+    value = {"a": (np.array([0.1, np.nan, -np.inf, 1e-300]), np.arange(6, dtype=np.int64).reshape(2, 3)),
+             "s": DampingState(lam=1e-7 / 3, nu=4.0), "x": [1, 2.5, "text", None, True]}
+    back = expected.decode(json.loads(json.dumps(expected.encode(value))))
+    np.testing.assert_array_equal(back["a"][0], value["a"][0])
+    assert back["a"][1].dtype == np.int64 and back["a"][1].shape == (2, 3)
+    assert back["s"] == value["s"] and back["x"] == value["x"] and isinstance(back["a"], tuple)
+
+
+def test_decoding_runs_no_code_from_the_file():
+    with pytest.raises(expected.ExpectedDataError):
+        expected.decode({"__array__": "object", "shape": [1], "data": ["os.system"]})
+
+
+def test_the_shipped_data_is_current():
+    assert oracle.release_expected(check=True) == [], "run `python -m course release`"
+
+
+def test_stale_or_extra_data_is_reported(tmp_path):
+    shutil.copytree(ROOT / "autograder" / "expected", tmp_path / "expected")
+    path = tmp_path / "expected" / "damping.json"
+    path.write_text(path.read_text().replace("0.07", "0.08", 1))
+    (tmp_path / "expected" / "old.json").write_text("{}")
+    assert oracle.release_expected(check=True, directory=tmp_path) == ["expected/damping.json", "expected/old.json"]
+    oracle.release_expected(directory=tmp_path)
+    assert oracle.release_expected(check=True, directory=tmp_path) == []
+
+
+def test_public_data_matches_every_check_and_hidden_inputs_differ():
+    modules = module_of()
+    for check in all_checks():
+        shipped = expected.load(modules[check.name])[check.name]
+        assert shipped.calls and len(shipped.reference) == len(shipped.calls)
+        hidden = oracle.compute(check, modules[check.name], seed=oracle.hidden_seed())
+        assert len(hidden.calls) == len(shipped.calls)
+        public_args = json.dumps(expected.encode([(c.args, c.kwargs) for c in shipped.calls]))
+        assert json.dumps(expected.encode([(c.args, c.kwargs) for c in hidden.calls])) != public_args, check.name
+
+
+def test_no_shipped_check_module_knows_a_mistake_formula():
+    """The catalogue of mistakes and the oracle are instructor-only files."""
+    for path in (ROOT / "autograder" / "mistakes").glob("*.py"):
+        assert path.read_text().splitlines()[0] == "# RELEASE: omit", path
+    assert (ROOT / "autograder" / "oracle.py").read_text().splitlines()[0] == "# RELEASE: omit"
+    for path in (ROOT / "autograder" / "checks").glob("*.py"):
+        text = path.read_text()
+        assert "import solutions" not in text and "mistakes" not in text.split('"""', 2)[-1].split("def ")[0]
+
+
+LOOKUP = """
+import numpy as np
+
+# the public answers, copied from autograder/expected/gauss_newton.json
+_TABLE = {table!r}
+
+
+def normal_equations(J, r, w):
+    for (j, rr, ww), (h, b) in _TABLE:
+        if all(np.shape(x) == y.shape and np.array_equal(x, y) for x, y in zip((j, rr, ww), (J, r, w))):
+            return np.array(h), np.array(b)
+    return np.zeros((J.shape[1], J.shape[1])), np.zeros(J.shape[1])
+"""
+
+
+def _lookup_table() -> list:
+    table = []
+    for shipped in expected.load("gauss_newton").values():
+        for call, reference in zip(shipped.calls, shipped.reference):
+            if call.target == "gauss_newton:normal_equations":
+                inputs = tuple(np.asarray(x).tolist() for x in call.args)
+                table.append((inputs, (reference.fields["0"].tolist(), reference.fields["1"].tolist())))
+    return table
+
+
+def test_a_lookup_table_of_public_answers_loses_the_hidden_points(tmp_path):
+    impl = tmp_path / "lookup"
+    shutil.copytree(ROOT / "exercises", impl)
+    (impl / "gauss_newton.py").write_text(LOOKUP.format(table=_lookup_table()))
+    out = tmp_path / "results.json"
+    subprocess.run([sys.executable, "-m", "autograder", "--impl", str(impl), "--only", "gauss_newton.normal_equations",
+                    "--json", str(out)], cwd=ROOT, check=True, capture_output=True, timeout=120)
+    tests = {t["name"]: t for t in json.loads(out.read_text())["tests"]}
+    public = [name for name in tests if not name.endswith(HIDDEN_SUFFIX)]
+    assert len(public) == 2 and len(tests) == 4
+    for name in public:
+        assert tests[name]["score"] == tests[name]["max_score"] and tests[name]["visibility"] == "visible"
+        hidden = tests[name + HIDDEN_SUFFIX]
+        assert hidden["score"] == 0 and hidden["visibility"] == "after_published"
