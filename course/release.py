@@ -3,7 +3,13 @@
 Code between ``# BEGIN SOLUTION`` and ``# END SOLUTION`` is replaced by a
 ``raise NotImplementedError`` naming the TODO (``module.Class.method``); signatures,
 docstrings and hints stay. A file whose first lines hold ``# RELEASE: omit`` is kept
-out of the student tree (e.g. reference answers to written questions).
+out of the student tree (e.g. reference answers to written questions, the reference side
+of the autograder), wherever it is.
+
+``write_student_tree`` writes the tree a student receives: the repository without
+``solutions/``, ``tests/``, ``.ci/``, ``autograder/mistakes/``, omitted files and
+local clutter (``.git``, ``.venv``, ``out``, caches), with the student's ``README.md``
+and ``Makefile`` from ``course/student_tree/`` in place of the instructor's.
 """
 
 import ast
@@ -13,6 +19,14 @@ from pathlib import Path
 from course.impl import REPO_ROOT
 
 BEGIN, END, OMIT = "# BEGIN SOLUTION", "# END SOLUTION", "# RELEASE: omit"
+
+#: the student's README.md and Makefile, copied over the instructor's
+STUDENT_TEMPLATES = Path(__file__).resolve().parent / "student_tree"
+#: paths (relative to the repository) that are the instructor's alone
+INSTRUCTOR_ONLY = ("solutions", "tests", ".ci", "autograder/mistakes")
+#: names skipped at any depth: version control, environments, outputs, caches
+LOCAL_CLUTTER = (".git", ".venv", "out", "build", "__pycache__", ".pytest_cache", ".mypy_cache",
+                 ".ruff_cache", ".ipynb_checkpoints", "*.egg-info", "*.pyc")
 
 
 class ReleaseError(ValueError):
@@ -124,13 +138,50 @@ def release(check=False, student_dir=None, root: Path = REPO_ROOT) -> list:
     return stale
 
 
+def _file_omitted(path: Path) -> bool:
+    """True when one of the file's first five lines is ``# RELEASE: omit``."""
+    with open(path, "rb") as handle:
+        head = handle.read(4096).decode("utf-8", errors="replace")
+    return _omitted(head)
+
+
+def _student_ignore(root: Path):
+    """A ``shutil.copytree`` ignore function for the student tree of ``root``."""
+    clutter = shutil.ignore_patterns(*LOCAL_CLUTTER)
+
+    def ignore(directory, names):
+        where = Path(directory)
+        rel = where.relative_to(root)
+        skipped = set(clutter(directory, names))
+        for name in names:
+            if name in skipped:
+                continue
+            if (rel / name).as_posix() in INSTRUCTOR_ONLY:
+                skipped.add(name)
+            elif (where / name).is_file() and _file_omitted(where / name):
+                skipped.add(name)
+        return skipped
+
+    return ignore
+
+
 def write_student_tree(target: Path, exercise_files: dict, root: Path) -> None:
-    """A copy of the repository for students: no ``solutions/`` (so no reference answers)
-    and no ``tests/`` or ``.ci/`` (they test the reference). The autograder needs the
-    reference, so it runs on the course's side (e.g. Gradescope), not in this tree."""
+    """A copy of the repository for students (see the module docstring).
+
+    No ``solutions/`` (no reference answers, no reference code), no ``tests/`` or
+    ``.ci/`` (they test the reference), no ``autograder/mistakes/`` and no file marked
+    ``# RELEASE: omit`` (e.g. ``autograder/oracle.py``, the reference side of grading).
+    ``exercises/`` is ``exercise_files``; ``README.md`` and ``Makefile`` are the student's.
+    Students grade the public checks themselves (``python -m autograder``, from the data
+    in ``autograder/expected/``); the hidden checks run on the course's side."""
+    target = Path(target)
+    root = Path(root).resolve()
     if target.exists():
         raise ReleaseError(f"{target} already exists; choose a new directory")
-    ignore = shutil.ignore_patterns(".git", ".venv", "__pycache__", "out", "solutions", "tests", ".ci",
-                                    "*.egg-info", ".pytest_cache")
-    shutil.copytree(root, target, ignore=ignore)
+    if target.resolve().is_relative_to(root):
+        raise ReleaseError(f"{target} is inside the repository {root}; choose a directory outside it")
+    shutil.copytree(root, target, ignore=_student_ignore(root))
     write(target / "exercises", exercise_files)
+    for template in sorted(STUDENT_TEMPLATES.iterdir()):
+        if template.is_file() and template.name != "__init__.py":
+            shutil.copyfile(template, target / template.name)

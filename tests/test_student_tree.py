@@ -1,0 +1,281 @@
+"""The student tree (``python -m course release --student DIR``): what it holds, and that it
+runs on its own, without the instructor's repository.
+
+The tree's commands run in subprocesses with ``cwd`` = the tree and
+``PYTHONPATH`` = the tree, on an interpreter that sees this venv's installed packages
+(numpy, pyceres, ...) but not its editable install of this repository: the editable
+finder would map ``course``/``solutions``/``exercises``/``autograder`` back to the
+instructor's checkout (``import solutions`` would succeed). So a throw-away venv (no pip)
+gets a ``.pth`` file naming this venv's site-packages folder; ``.pth`` files inside that
+folder (the editable finder's) are not run, so only the tree is importable, and every
+child process the tree starts (the autograder's) gets the same view.
+"""
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import venv
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from course import release as rel
+from course.cli import main
+from course.impl import REPO_ROOT
+from course.trace import RunResult
+
+TEMPLATES = REPO_ROOT / "course" / "student_tree"
+
+
+def _write_tree(target: Path) -> Path:
+    """A student tree of this repository at ``target`` (``check=True``: the repository's own
+    ``exercises/`` stays untouched; the tree gets the freshly rendered one)."""
+    rel.release(check=True, student_dir=target)
+    return target
+
+
+@pytest.fixture(scope="module")
+def tree(tmp_path_factory) -> Path:
+    return _write_tree(tmp_path_factory.mktemp("student") / "tree")
+
+
+@pytest.fixture(scope="module")
+def python():
+    """An interpreter with this venv's packages but without the editable install (see the docstring).
+
+    It lives in a folder every user can search: as root, the autograder runs students'
+    code as an unprivileged user, who must be able to start this interpreter."""
+    folder = Path(tempfile.mkdtemp(prefix="course-student-venv-"))
+    folder.chmod(0o755)
+    env_dir = folder / "venv"
+    venv.create(env_dir, with_pip=False)
+    exe = env_dir / "bin" / "python"
+    purelib = subprocess.run([str(exe), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+                             capture_output=True, text=True, check=True).stdout.strip()
+    folders = dict.fromkeys([sysconfig.get_path("purelib"), sysconfig.get_path("platlib")])
+    (Path(purelib) / "course_packages.pth").write_text("\n".join(folders) + "\n")
+    yield str(exe)
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def _run(python, tree, *args, timeout=300):
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "COURSE_IMPL"))}
+    env["PYTHONPATH"] = str(tree)
+    return subprocess.run([python, *args], cwd=tree, env=env, capture_output=True, text=True, timeout=timeout)
+
+
+def _files(tree):
+    return [p for p in tree.rglob("*") if p.is_file()]
+
+
+# ---------------------------------------------------------------- what the tree holds
+
+
+def test_tree_leaves_out_the_instructors_files(tree):
+    for rel_path in ("solutions", "tests", ".ci", ".git", ".venv", "out", "autograder/mistakes",
+                     "autograder/oracle.py"):
+        assert not (tree / rel_path).exists(), rel_path
+    assert not list(tree.rglob("__pycache__")) and not list(tree.rglob("*.egg-info"))
+    for path in _files(tree):
+        head = path.read_bytes()[:4096].decode("utf-8", errors="replace").splitlines()[:5]
+        assert "# RELEASE: omit" not in [line.strip() for line in head], path
+        if path.suffix in (".py", ".md", ".ipynb", ".txt", ".json", ".toml", ""):
+            lines = [line.strip() for line in path.read_text(errors="replace").splitlines()]
+            assert rel.BEGIN not in lines, f"{path} holds a solution block"
+    assert (tree / "autograder" / "expected").is_dir()  # the public checks' data ships
+
+
+def test_tree_has_the_students_readme_makefile_and_exercises(tree):
+    assert (tree / "README.md").read_text() == (TEMPLATES / "README.md").read_text()
+    assert (tree / "Makefile").read_text() == (TEMPLATES / "Makefile").read_text()
+    readme = (tree / "README.md").read_text()
+    for words in ("make demo", "make check", "python -m autograder", "--only", "hidden", "make notebooks",
+                  "../shared/data", "COURSE_DATA", "curve_model", "pose_graph_fast", "dogleg"):
+        assert words in readme, words
+    assert "solutions" not in readme and "make test" not in readme
+    makefile = (tree / "Makefile").read_text()
+    targets = set(re.findall(r"^([a-z]+):", makefile, flags=re.M))
+    assert {"demo", "check", "notebooks", "clean"} <= targets
+    assert "pytest" not in makefile
+    assert "$(PY) -m autograder" in makefile
+    expected = rel.render(REPO_ROOT / "solutions")
+    assert {str(p.relative_to(tree / "exercises")) for p in _files(tree / "exercises")} == set(expected)
+
+
+def test_makefile_targets_parse(tree):
+    make = shutil.which("make")
+    if make is None:
+        pytest.skip("no make on this machine")
+    out = subprocess.run([make, "-n", "demo", "check", "test", "notebooks", "clean"], cwd=tree,
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    for words in ("-m venv .venv", "pip install --quiet -e .", ".venv/bin/python -m course demo",
+                  ".venv/bin/python -m autograder", "-m notebooks.build --execute", "rm -rf .venv"):
+        assert words in out.stdout, words
+
+
+def test_cli_release_student_writes_the_templates(tmp_path):
+    repo = tmp_path / "repo"
+    for name in ("solutions", "exercises"):
+        shutil.copytree(REPO_ROOT / name, repo / name, ignore=shutil.ignore_patterns("__pycache__"))
+    (repo / "README.md").write_text("instructor\n")
+    (repo / "autograder" / "mistakes").mkdir(parents=True)
+    (repo / "autograder" / "mistakes" / "damping.py").write_text("WRONG = 1\n")
+    (repo / "autograder" / "judge.py").write_text('"""Doc."""\n# RELEASE: omit\n')
+    (repo / "autograder" / "report.py").write_text("# RELEASE: omit is said on line 2 of the oracle\n")
+    assert main(["release", "--root", str(repo), "--student", str(tmp_path / "student")]) == 0
+    student = tmp_path / "student"
+    assert (student / "README.md").read_text() == (TEMPLATES / "README.md").read_text()
+    assert not (student / "autograder" / "mistakes").exists()
+    assert not (student / "autograder" / "judge.py").exists()
+    assert (student / "autograder" / "report.py").is_file()  # the marker must be the whole line
+    with pytest.raises(rel.ReleaseError, match="inside the repository"):
+        rel.release(check=True, root=repo, student_dir=repo / "student")
+
+
+# ---------------------------------------------------------------- it runs on its own
+
+
+def test_tree_imports_its_own_course_and_no_solutions(tree, python):
+    code = ("import course, exercises, autograder; print(course.__file__); print(exercises.__file__)\n"
+            "try:\n    import solutions\nexcept ModuleNotFoundError:\n    print('no solutions')\n"
+            "else:\n    print('solutions at', solutions.__file__)\n"
+            "from course.cli import _default_impl; print(_default_impl())\n"
+            "from notebooks import build; print(build.default_impl())")
+    out = _run(python, tree, "-c", code)
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0] == str(tree / "course" / "__init__.py")
+    assert lines[1] == str(tree / "exercises" / "__init__.py")
+    assert lines[2:] == ["no solutions", "exercises", "exercises"]
+
+
+@pytest.mark.slow
+def test_demo_with_the_stubs_runs_the_peers_and_names_the_todos(tree, python, tmp_path):
+    out = _run(python, tree, "-m", "course", "demo", "--curve-only", "--repeat", "1", "--out", str(tmp_path / "out"))
+    assert out.returncode == 0, out.stderr
+    assert "Traceback" not in out.stdout + out.stderr
+    assert "impl exercises" in out.stdout
+    for method in ("gauss-newton", "lm-type1", "lm-type2", "lm-type3", "dogleg"):
+        assert re.search(rf"^ours +{method} +not implemented: TODO curve_model\.residuals_and_jacobian$",
+                         out.stdout, flags=re.M), method
+    for peer in ("levenberg-marquardt", "trf"):
+        assert re.search(rf"^\w+ +{peer} +\d+ ", out.stdout, flags=re.M), peer
+    doc = json.loads((tmp_path / "out" / "curve.json").read_text())
+    skipped = [r for r in doc["runs"] if r.get("not_run")]
+    assert len(skipped) == 5 and all(r["backend"] == "ours" and r["final_chi2"] is None for r in skipped)
+    for name in ("curve_chi2.png", "curve_lambda.png", "curve_fit.png"):
+        assert (tmp_path / "out" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def solved_tree(tmp_path_factory):
+    """A student tree whose exercises/ holds the reference (solutions/*.py copied in)."""
+    tree = _write_tree(tmp_path_factory.mktemp("solved") / "tree")
+    for path in (REPO_ROOT / "solutions").glob("*.py"):
+        shutil.copyfile(path, tree / "exercises" / path.name)
+    return tree
+
+
+@pytest.mark.slow
+def test_demo_with_the_reference_copied_in_converges(solved_tree, python, tmp_path):
+    out = _run(python, solved_tree, "-m", "course", "demo", "--curve-only", "--repeat", "1",
+               "--out", str(tmp_path / "out"))
+    assert out.returncode == 0, out.stderr
+    assert "not implemented" not in out.stdout
+    doc = json.loads((tmp_path / "out" / "curve.json").read_text())
+    best = min(r["final_chi2"] for r in doc["runs"] if r["backend"] != "ours")
+    ours = {r["method"]: r["final_chi2"] for r in doc["runs"] if r["backend"] == "ours"}
+    assert set(ours) == {"gauss-newton", "lm-type1", "lm-type2", "lm-type3", "dogleg"}
+    for method, chi2 in ours.items():
+        assert chi2 == pytest.approx(best, rel=1e-6), method
+
+
+def _not_implemented_section(text):
+    match = re.search(r"^Not implemented \((\d+)\):\n((?:  .*\n?)*)", text, flags=re.M)
+    assert match, text
+    lines = [line.strip() for line in match.group(2).splitlines()]
+    assert len(lines) == int(match.group(1))
+    return lines
+
+
+@pytest.mark.slow
+def test_autograder_in_the_tree(tree, solved_tree, python):
+    """Stubs: 0 points and one line per TODO; the reference copied in: full public marks."""
+    out = _run(python, tree, "-m", "autograder")
+    assert "Traceback" not in out.stdout + out.stderr, out.stderr
+    assert re.search(r"^Total: 0 / \d+", out.stdout, flags=re.M), out.stdout + out.stderr
+    todos = _not_implemented_section(out.stdout)
+    assert todos and len(todos) == len(set(todos)) and all(t.startswith("TODO ") for t in todos)
+    assert "TODO curve_model.residuals_and_jacobian: not implemented" in todos
+    named = set(re.findall(r"(TODO [\w.]+): not implemented", out.stdout))
+    assert named == {t.split(":")[0] for t in todos}
+    full = _run(python, solved_tree, "-m", "autograder")
+    assert full.returncode == 0, full.stdout + full.stderr
+    total = re.search(r"^Total: (\d+(?:\.\d+)?) / (\d+(?:\.\d+)?)", full.stdout, flags=re.M)
+    assert total and float(total.group(1)) == float(total.group(2)) > 0, full.stdout
+
+
+# ---------------------------------------------------------------- rows, tables and notebooks
+
+
+def test_a_run_that_did_not_run_is_a_row():
+    from course import compare
+
+    row = RunResult.skipped("ours", "lm-type1", "not implemented: TODO damping.GavinType1.damping_diagonal")
+    table = compare.format_table([row], title="t")
+    assert table.splitlines()[-1].split(maxsplit=2) == [
+        "ours", "lm-type1", "not implemented: TODO damping.GavinType1.damping_diagonal"]
+    doc = json.dumps(compare.to_json("curve", [row]), allow_nan=False)
+    assert json.loads(doc)["runs"][0]["not_run"].endswith("damping_diagonal")
+    assert compare.not_implemented_reason(NotImplementedError("TODO a.b: not implemented yet")) == \
+        "not implemented: TODO a.b"
+
+
+def test_rebuilding_a_notebook_keeps_the_answer_cells(tmp_path):
+    from notebooks import build
+
+    (path,) = build.build(out_dir=tmp_path, only=["chapter2"])
+    nb = nbformat.read(path, as_version=4)
+    cells = {c["id"]: c for c in nb.cells}
+    assert build.ANSWER_TAG in cells["answer-1"].metadata["tags"]
+    cells["answer-1"].source = "**Your answer to question 1:** the factorization, mostly."
+    cells["title"].source = "edited by hand"  # not an answer cell: regenerated
+    nbformat.write(nb, path)
+    build.build(out_dir=tmp_path, only=["chapter2"])
+    rebuilt = {c["id"]: c for c in nbformat.read(path, as_version=4).cells}
+    assert rebuilt["answer-1"].source.endswith("the factorization, mostly.")
+    assert rebuilt["answer-2"].source == cells["answer-2"].source
+    assert rebuilt["title"].source != "edited by hand"
+
+
+def test_notebook_sources_ship_and_build_in_the_tree(tree):
+    from notebooks import build
+
+    for path, source in build.NOTEBOOKS.items():
+        shipped = tree / "notebooks" / source.name
+        assert shipped.read_text() == source.read_text()
+        assert (tree / "notebooks" / path.name).is_file()
+    assert (tree / "course" / "notebook_helpers.py").is_file()
+
+
+def test_notebooks_default_to_the_trees_implementation(tree, python):
+    """The set-up cell's IMPL, run in the student tree's notebooks/ folder, is ``exercises``."""
+    from notebooks import build
+
+    # the set-up cell, as the kernel runs it
+    code = next(c.source for c in build.read(build.NOTEBOOKS[build.CHAPTER1]).cells if c.id == "setup")
+    out = subprocess.run([python, "-c", code + "\nprint(IMPL)"], cwd=tree / "notebooks", capture_output=True,
+                         text=True, env={k: v for k, v in os.environ.items() if k != "COURSE_IMPL"})
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "exercises"
+    out = subprocess.run([sys.executable, "-c", code + "\nprint(IMPL)"], cwd=REPO_ROOT / "notebooks",
+                         capture_output=True, text=True,
+                         env={k: v for k, v in os.environ.items() if k != "COURSE_IMPL"})
+    assert out.stdout.strip() == "solutions", out.stderr
