@@ -267,8 +267,9 @@ def test_a_fifo_at_the_progress_path_does_not_hang_the_parent(tmp_path):
             os.mkfifo(path)
     """)
     start = time.perf_counter()
-    result = run(impl, timeout=5)
-    assert time.perf_counter() - start < 4
+    result = run(impl, timeout=20)
+    # a parent that opened the FIFO would block for good; the bound is loose for a loaded machine
+    assert time.perf_counter() - start < 15
     assert outcome(result).fields["value"].tolist() == RIGHT, outcome(result).error
 
 
@@ -281,7 +282,7 @@ def test_a_fork_bomb_is_contained_and_fails_cleanly(tmp_path):
     """)
     start = time.perf_counter()
     result = run(impl, timeout=5)
-    assert time.perf_counter() - start < 5
+    assert time.perf_counter() - start < 10  # the timeout plus the kill, on a loaded machine
     error = outcome(result).error
     assert error is not None and error.kind in ("BlockingIOError", "Crash", "MemoryError"), error
     grade_solutions(tmp_path)
@@ -300,9 +301,9 @@ def test_a_memory_bomb_across_forked_children_is_contained(tmp_path):
         time.sleep(4)
     """)
     start = time.perf_counter()
-    result = run(impl, timeout=6, memory_mb=768)
+    result = run(impl, timeout=10, memory_mb=768)
     # before the timeout (the session's set-up included); the MemoryError below says the watchdog did it
-    assert time.perf_counter() - start < 6
+    assert time.perf_counter() - start < 10
     error = outcome(result).error
     assert error is not None and error.kind == "MemoryError" and "768 MiB" in error.message, error
 
