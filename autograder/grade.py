@@ -8,7 +8,9 @@ on fresh inputs from the hidden seed, judged against the reference computed here
 with ``visibility: after_published``.
 
 Every expected output exists before the first child starts; results are written by the
-caller after :func:`grade` returns, when every child is gone.
+caller after :func:`grade` returns, when every child is gone. A check that needs a library
+not installed here (``Check.needs``, e.g. pyceres) is not run: it scores 0 and says why,
+and the library's absence is said once (``course.peers``).
 """
 
 import sys
@@ -23,6 +25,7 @@ from autograder import expected as expected_data
 from autograder import sandbox
 from autograder.checks import all_checks, module_of, select
 from autograder.records import Check, Context, Verdict
+from course import peers
 
 PRINTED_LINES = 5
 SETS = ("public", "hidden", "all")
@@ -57,7 +60,8 @@ class Task:
 
     check: Check
     hidden: bool
-    expected: expected_data.Expected
+    expected: expected_data.Expected | None  # None when not run (``missing``)
+    missing: str = ""  # a library the check needs that is not installed here
 
     @property
     def name(self) -> str:
@@ -75,8 +79,14 @@ def default_set() -> str:
     return "all" if reference_available() else "public"
 
 
+def missing_library(check: Check) -> str:
+    """The first library of ``check.needs`` not installed here ("" when all are)."""
+    return next((name for name in check.needs if not peers.installed(name)), "")
+
+
 def plan(checks, which: str) -> list:
-    """The tasks of ``which`` ("public", "hidden" or "all"), each with its expected outputs."""
+    """The tasks of ``which`` ("public", "hidden" or "all"), each with its expected outputs
+    (none for a check whose library is missing here: it is not run)."""
     if which not in SETS:
         raise ValueError(f"unknown set {which!r}; one of {', '.join(SETS)}")
     modules = module_of()
@@ -91,18 +101,28 @@ def plan(checks, which: str) -> list:
                 raise expected_data.ExpectedDataError(
                     f"autograder/expected/{module}.json has no data for {check.name!r}: "
                     "run `python -m course release` (instructor)")
-            tasks.append(Task(check, False, shipped[module][check.name]))
+            tasks.append(Task(check, False, shipped[module][check.name], missing_library(check)))
     if which in ("hidden", "all"):
         from autograder import oracle
 
         seed = oracle.hidden_seed()
         for check in checks:
-            tasks.append(Task(check, True, oracle.compute(check, modules[check.name], seed)))
+            missing = missing_library(check)
+            expected = None if missing else oracle.compute(check, modules[check.name], seed)
+            tasks.append(Task(check, True, expected, missing))
     return tasks
+
+
+def not_run(task: Task) -> CheckResult:
+    """The result of a check whose library is not installed here: 0 points, and why."""
+    message = (f"not run: {task.missing} is not installed here, and this check needs it; it runs where "
+               f"{task.missing} is (Gradescope has it): `{peers.INSTALL[task.missing]}` where it has a wheel")
+    return CheckResult(task.name, task.check.exercise, 0.0, float(task.check.points), message, hidden=task.hidden)
 
 
 def judge_task(task: Task, child) -> CheckResult:
     check, want = task.check, task.expected
+    assert want is not None  # a task that runs has its expected outputs
     context = Context(check, want.calls, child.outcomes, want.reference, child.printed, want.mistakes)
     try:
         with np.errstate(all="ignore"):
@@ -130,12 +150,17 @@ def grade(impl: str, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sandb
     """
     checks = select(checks if checks is not None else all_checks(), only)
     tasks = plan(checks, which or default_set())
+    for library in sorted({task.missing for task in tasks if task.missing}):
+        peers.announce(library)
     with sandbox.Session(str(impl), timeout=timeout, memory_mb=memory_mb, workers=workers,
                          budget=budget) as session:
         if notices is not None and session.notice:
             notices.append(session.notice)
 
         def one(task):
+            if task.missing:
+                return not_run(task)
+            assert task.expected is not None
             return judge_task(task, session.run(task.expected.calls, timeout=task.check.timeout or timeout))
 
         with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:

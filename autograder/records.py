@@ -100,3 +100,4 @@ class Check:
     calls: Callable[..., list]
     judge: Callable[[Context], Verdict]
     timeout: float | None = None  # seconds; None = the command line's --timeout
+    needs: tuple = ()  # libraries outside the core it imports (e.g. "pyceres"); absent: not run, 0 points

@@ -15,7 +15,8 @@ our own error, whatever the back end.
 exists, else ``exercises`` (a student tree). ``unimplemented="row"`` (the demo's choice)
 turns a pair that stops at an unwritten TODO (``NotImplementedError``) into a row saying
 so (``RunResult.not_run``) instead of stopping the whole comparison; the default
-``"raise"`` lets the error through.
+``"raise"`` lets the error through. A peer whose library is not installed here is always
+a row (``not run: gtsam is not installed here``), said once on stderr (``course.peers``).
 """
 
 from collections.abc import Callable
@@ -27,6 +28,7 @@ import numpy as np
 
 from course import registry
 from course.errors import CourseError
+from course.peers import PeerMissing
 from course.progress import quiet
 from course.trace import RunResult
 
@@ -120,15 +122,22 @@ def not_implemented_reason(exc: NotImplementedError) -> str:
 
 def _solve_or_row(solve, repeat, backend, method, unimplemented) -> RunResult:
     """``_median_run(solve, repeat)``; with ``unimplemented="row"`` a ``NotImplementedError``
-    becomes a ``RunResult.skipped`` row naming the TODO."""
+    becomes a ``RunResult.skipped`` row naming the TODO; a missing peer library always does."""
     if unimplemented not in ("raise", "row"):
         raise ValueError(f"unimplemented must be 'raise' or 'row', got {unimplemented!r}")
     try:
         return _median_run(solve, repeat)
+    except PeerMissing as exc:
+        return RunResult.skipped(backend, method, f"not run: {exc.library} is not installed here")
     except NotImplementedError as exc:
         if unimplemented == "raise":
             raise
         return RunResult.skipped(backend, method, not_implemented_reason(exc))
+
+
+def _run_peer(kind, backend, *args, **kwargs) -> RunResult:
+    """One solve by a peer; ``PeerMissing`` when its library is not installed here."""
+    return registry.peer_solver(kind, backend)(*args, **kwargs)
 
 
 def _median_run(solve, repeat: int) -> RunResult:
@@ -173,7 +182,7 @@ def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_i
                 solve = partial(lambda m, c: minimize(CurveProblem(data, impl=impl), m, impl=impl, options=options,
                                                       callback=c), method, callback)
             else:
-                solve = partial(registry.peer_solver("curve", backend), data, method, max_iterations=max_iterations)
+                solve = partial(_run_peer, "curve", backend, data, method, max_iterations=max_iterations)
             results.append(_solve_or_row(solve, repeat, backend, method, unimplemented))
     return results
 
@@ -230,7 +239,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
                 solve = partial(ours, method, callback)
             else:
                 kwargs = {"impl": impl} if backend == "ceres" else {}
-                solve = partial(registry.peer_solver("posegraph", backend), graph, method, max_iterations, **kwargs)
+                solve = partial(_run_peer, "posegraph", backend, graph, method, max_iterations, **kwargs)
             result = _solve_or_row(solve, repeat, backend, method, unimplemented)
         if graph.ground_truth is not None and not result.not_run:
             result.ate = absolute_trajectory_error(result.params, graph.ground_truth)

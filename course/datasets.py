@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from course import geometry
+from course import geometry, peers
 from course.errors import CourseError
 from course.graph import PoseGraph
 
@@ -391,7 +391,8 @@ def _locate(name: str) -> Path:
     if where == "gtsam":
         folder = gtsam_data_dir()
         if folder is None:
-            raise DatasetError(f"dataset {name!r} ships with gtsam, which is not installed")
+            raise DatasetError(f"dataset {name!r} ships with gtsam, which is not installed here "
+                               f"(`{peers.EXTRA_HINT}` where it has a wheel)")
     else:
         folder = data_dir()
         if not folder.is_dir():

@@ -22,6 +22,20 @@ from course.trace import RunResult
 
 T = TypeVar("T")
 
+# ---------------------------------------------------------------- every chapter
+
+
+def ran(runs: Sequence[RunResult]) -> list[RunResult]:
+    """The runs that ran: a peer not installed here is a row of the table, not a curve."""
+    return [r for r in runs if not r.not_run]
+
+
+def not_run_note(runs: Sequence[RunResult]) -> str:
+    """``"; not run here: ceres dogleg (pyceres is not installed here), ..."`` or ``""``."""
+    skipped = [f"{r.backend} {r.method} ({r.not_run.removeprefix('not run: ')})" for r in runs if r.not_run]
+    return "; not run here: " + ", ".join(skipped) if skipped else ""
+
+
 # ---------------------------------------------------------------- chapter 2: pose graphs
 
 
@@ -77,7 +91,7 @@ def time_split(g: Any, repeat: int, impl: str) -> tuple[dict, dict, float]:
 
     Raises ``NotImplementedError`` when ``impl`` lacks ``pose_graph_fast`` or ``sparse_solve``."""
     from course import impl as impl_loader
-    from course.problems.posegraph import PoseGraphProblem
+    from course.problems.posegraph import PoseGraphProblem, sparse_solver
 
     pieces = impl_loader.load(impl)
     fast, sparse = pieces.module("pose_graph_fast"), pieces.module("sparse_solve")
@@ -89,8 +103,8 @@ def time_split(g: Any, repeat: int, impl: str) -> tuple[dict, dict, float]:
         lambda: fast.SparseAssembler(g.num_poses, g.edges_i, g.edges_j, g.fixed), repeat)
     parts["assembly of H and b (and chi2)"], (H, b, _) = median_time(
         lambda: assembler.assemble(e, A, B, g.information), repeat)
-    first, _ = median_time(lambda: sparse.SparseCholeskySolver().solve(H, b), repeat)
-    solver = sparse.SparseCholeskySolver()
+    first, _ = median_time(lambda: sparse_solver(sparse).solve(H, b), repeat)
+    solver = sparse_solver(sparse)  # SuperLU where qdldl is not installed
     solver.solve(H, b)
     parts["factorization and solve"], h = median_time(lambda: solver.solve(H, b), repeat)
     once["ordering and symbolic factorization"] = max(first - parts["factorization and solve"], 0.0)

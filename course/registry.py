@@ -3,7 +3,8 @@ and the tests read them here.
 
 Our methods are the minimizer's (:data:`course.solvers.METHODS`). A peer is a module of
 ``course.backends`` with ``solve(problem_data, method, max_iterations, **options) ->
-RunResult``; its library is imported only when it runs (:func:`peer_solver`). This module
+RunResult``; its library is imported only when it runs (:func:`peer_solver`), and where
+that library is not installed the peer steps aside (``course.peers``). This module
 imports nothing heavy, so that the command line can list names cheaply.
 """
 
@@ -24,6 +25,8 @@ POSE_GRAPH_PEERS: dict[str, tuple[str, tuple[str, ...]]] = {
     "ceres": ("course.backends.ceres_posegraph", ("levenberg-marquardt", "dogleg")),
     "gtsam": ("course.backends.gtsam_posegraph", ("gauss-newton", "levenberg-marquardt", "dogleg")),
 }
+#: the library each peer back end needs (scipy is a core requirement)
+LIBRARY = {"ceres": "pyceres", "g2o": "g2opy", "gtsam": "gtsam", "scipy": "scipy"}
 PEERS: dict[str, dict[str, tuple[str, tuple[str, ...]]]] = {"curve": CURVE_PEERS, "posegraph": POSE_GRAPH_PEERS}
 
 
@@ -41,6 +44,12 @@ def peer_methods(kind: str, backend: str) -> tuple:
 
 
 def peer_solver(kind: str, backend: str):
-    """The ``solve`` function of a peer of ``kind``, importing its module (and library) now."""
+    """The ``solve`` function of a peer of ``kind``, importing its module (and library) now.
+
+    Raises ``course.peers.PeerMissing`` (said once on stderr) when its library is not installed.
+    """
+    from course import peers
+
+    peers.require(LIBRARY[backend])
     module, _ = PEERS[kind][backend]
     return importlib.import_module(module).solve

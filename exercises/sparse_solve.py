@@ -1,7 +1,6 @@
 """Chapter 2 exercise: solve ``H dx = -b`` densely and sparsely."""
 
 import numpy as np
-import qdldl
 import scipy.linalg
 import scipy.sparse as sp
 
@@ -37,4 +36,6 @@ class SparseCholeskySolver:
 
     def solve(self, H_upper, b):
         """``dx`` (n,) with ``H dx = -b``; ``H_upper`` the upper triangle of H (CSC, (n, n))."""
+        import qdldl  # here, not at the top: dense_solve works where qdldl has no wheel (Python 3.15)
+
         raise NotImplementedError("TODO sparse_solve.SparseCholeskySolver.solve: not implemented yet")

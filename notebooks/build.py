@@ -45,8 +45,9 @@ import tempfile
 import time
 from pathlib import Path
 
-import jupytext
 import nbformat
+
+from course import peers
 
 HERE = Path(__file__).resolve().parent
 CHAPTER1 = HERE / "chapter1_curve_fitting.ipynb"
@@ -66,6 +67,8 @@ FORMAT = "py:percent"
 def read(source) -> nbformat.NotebookNode:
     """The notebook of the py:percent file ``source``, without outputs: each cell's
     ``id="..."`` metadata becomes its cell id; the kernelspec is ``python3``."""
+    import jupytext  # not at the top: without it (no wheel for every Python) ``shipped`` stands in
+
     nb = jupytext.read(source, fmt=FORMAT)
     for cell in nb.cells:
         cell_id = cell.metadata.pop("id", None)
@@ -91,7 +94,19 @@ def writes(nb) -> str:
         cell.pop("outputs", None)
     nb.metadata = nbformat.from_dict({
         "jupytext": {"notebook_metadata_filter": "-all", "cell_metadata_filter": "id,tags,-all"}})
+    import jupytext
+
     return jupytext.writes(nb, fmt=FORMAT)
+
+
+def shipped(path) -> nbformat.NotebookNode:
+    """The ``.ipynb`` at ``path`` as shipped, without outputs: the notebook where jupytext
+    is not installed to read its source (the two are kept in sync by the release)."""
+    nb = nbformat.read(path, as_version=4)
+    for cell in nb.cells:
+        if cell.cell_type == "code":
+            cell.outputs, cell.execution_count = [], None
+    return nb
 
 
 def default_impl() -> str:
@@ -241,8 +256,11 @@ def build(execute_notebooks=False, small=False, impl=None, out_dir=HERE, only=No
     source (``keep_answers``). ``log``, when given, is called with one line per notebook
     started and written (and its run time); executed cells are reported on stderr."""
     written = []
+    from_source = peers.installed("jupytext")
+    if not from_source:
+        peers.announce("jupytext")
     for path, source in select(only).items():
-        nb = read(source)
+        nb = read(source) if from_source else shipped(path)
         target = Path(out_dir) / path.name
         keep_answers(nb, target)
         start = time.perf_counter()

@@ -39,7 +39,7 @@ from IPython.display import Image, Markdown, display
 from matplotlib.figure import Figure
 
 from course import benchmark, compare, datasets, plot
-from course.notebook_helpers import load, median_time, one_thread, outcome, time_split, where
+from course.notebook_helpers import load, median_time, one_thread, outcome, ran, time_split, where
 from course.problems.posegraph import PoseGraphProblem
 from course.solvers import minimize
 
@@ -158,7 +158,7 @@ for name in names:
         print(f"{name}: Ceres skipped (its Python cost function takes about 0.5 s per iteration here); "
               "one run per pair")
     runs = compare.run_posegraph(g, impl=IMPL, backends=backends, repeat=repeat)
-    tables[name] = runs
+    tables[name] = ran(runs)  # a peer not installed here is a row of the table only
     print(compare.format_table(runs, title=f"{name}: {g.num_poses} poses, {g.num_edges} edges"))
     if compare.format_ate(runs):
         print(compare.format_ate(runs))

@@ -58,6 +58,8 @@ SMALL = os.environ.get("COURSE_NOTEBOOK_SMALL", "0") == "1"
 from course.notebook_helpers import (
     chi2_against_time,
     method_table,
+    not_run_note,
+    ran,
     reached,
     rejected,
     show_rejections,
@@ -80,15 +82,16 @@ names = ["curve", "manhattan:200"] if SMALL else ["curve", "intel", "m3500", "mi
 results = {}
 for name in names:
     if name == "curve":
-        results[name] = compare.run_curve(impl=IMPL, repeat=REPEAT)
+        runs = compare.run_curve(impl=IMPL, repeat=REPEAT)
     else:
         g = load(name)
         if g is None:
             continue
-        results[name] = (compare.run_posegraph(g, impl=IMPL, backends=["ours"], repeat=REPEAT)
-                         + compare.run_posegraph(g, impl=IMPL, methods=PEER_METHODS,
-                                                 backends=["ceres", "g2o", "gtsam"], repeat=REPEAT))
-    print(f"{name}: {len(results[name])} runs")
+        runs = (compare.run_posegraph(g, impl=IMPL, backends=["ours"], repeat=REPEAT)
+                + compare.run_posegraph(g, impl=IMPL, methods=PEER_METHODS,
+                                        backends=["ceres", "g2o", "gtsam"], repeat=REPEAT))
+    results[name] = ran(runs)
+    print(f"{name}: {len(results[name])} runs{not_run_note(runs)}")
 
 # %% [markdown] id="compare-md"
 # ## chi2 against iteration and against time, per dataset

@@ -1,7 +1,6 @@
 """Chapter 2 exercise: solve ``H dx = -b`` densely and sparsely."""
 
 import numpy as np
-import qdldl
 import scipy.linalg
 import scipy.sparse as sp
 
@@ -41,6 +40,8 @@ class SparseCholeskySolver:
 
     def solve(self, H_upper, b):
         """``dx`` (n,) with ``H dx = -b``; ``H_upper`` the upper triangle of H (CSC, (n, n))."""
+        import qdldl  # here, not at the top: dense_solve works where qdldl has no wheel (Python 3.15)
+
         # BEGIN SOLUTION
         if self._solver is None:
             self._solver = qdldl.Solver(H_upper, upper=True)

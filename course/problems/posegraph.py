@@ -3,19 +3,30 @@
 The unknown is the flat vector ``x = poses.ravel()`` (3N,). Linearization uses the
 implementation's vectorized ``pose_graph_fast`` when it is written and falls back to
 its per-edge loop ``pose_graph_assembly`` (dense H) otherwise; the step comes from its
-``sparse_solve.SparseCholeskySolver`` on the upper triangle of H.
+``sparse_solve.SparseCholeskySolver`` on the upper triangle of H, or, where qdldl is not
+installed, from scipy's SuperLU (``course.solvers.superlu``), said once.
 """
 
 import numpy as np
 
 from course import impl as impl_loader
+from course import peers
 from course.errors import SingularSystemError, check_array
 from course.geometry import wrap_angle
 from course.graph import PoseGraph
 from course.solvers.linearization import Linearization
+from course.solvers.superlu import SuperLUSolver
 
 #: the per-edge loop assembles a dense (3N, 3N) H: refuse beyond this many poses
 MAX_DENSE_POSES = 4000
+
+
+def sparse_solver(sparse_module):
+    """The implementation's ``SparseCholeskySolver()``, or ``SuperLUSolver()`` without qdldl."""
+    if peers.installed("qdldl"):
+        return sparse_module.SparseCholeskySolver()
+    peers.announce("qdldl")
+    return SuperLUSolver()
 
 
 class PoseGraphProblem:
@@ -26,8 +37,8 @@ class PoseGraphProblem:
         self.impl = impl_loader.load(impl)
         self.x0 = graph.poses.ravel().copy()
         self.num_poses = graph.num_poses
-        self._solver = self.impl.module("sparse_solve").SparseCholeskySolver()
         self._sparse = self.impl.module("sparse_solve")
+        self._solver = sparse_solver(self._sparse)
         self._fixed_dof = (3 * graph.fixed[:, None] + np.arange(3)).ravel()
         self._assembler = None
         if vectorized is not False:
