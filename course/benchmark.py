@@ -42,6 +42,28 @@ def gauss_newton_vs_g2o(name, repeats=5, impl="solutions", progress=None):
     return ours, theirs, ours_result, g2o_result
 
 
+def superlu_vs_qdldl(name="w10000", repeats=5, impl="solutions", progress=None):
+    """``(superlu, qdldl, superlu_result, qdldl_result)``: median seconds of a whole
+    Gauss-Newton solve of ``name`` with scipy's SuperLU (the stand-in where qdldl has no
+    wheel) and with the implementation's qdldl solver. ``PeerMissing`` without qdldl."""
+    from course import peers
+    from course.solvers.superlu import SuperLUSolver
+
+    peers.require("qdldl")
+    progress = progress or quiet()
+    graph = datasets.load_dataset(name)
+    out = []
+    for label, solver in (("superlu", SuperLUSolver), ("qdldl", None)):
+        runs = []
+        for _ in range(repeats):
+            with progress.run(label, "gauss-newton") as callback:
+                problem = PoseGraphProblem(graph, impl, solver=solver() if solver else None)
+                runs.append(minimize(problem, "gauss-newton", impl=impl, callback=callback))
+        out.append((statistics.median(r.seconds for r in runs), runs[-1]))
+    (superlu, superlu_run), (qdldl, qdldl_run) = out
+    return superlu, qdldl, superlu_run, qdldl_run
+
+
 def dense_vs_sparse(name="intel", repeats=5, impl="solutions"):
     """``(dense, sparse)`` median seconds to solve one Gauss-Newton system of ``name``."""
     from course import impl as impl_loader
@@ -79,6 +101,17 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print):
             progress.close()
         out(f"{name:10} {ours * 1e3:11.2f} {theirs * 1e3:10.2f} {ours / theirs:6.2f} "
             f"{r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")
+    progress = Progress(2 * repeats, label="w10000 sparse solvers")
+    try:
+        superlu, qdldl, r_superlu, r_qdldl = superlu_vs_qdldl("w10000", repeats, impl=impl, progress=progress)
+    except (PeerMissing, datasets.DatasetError) as exc:
+        out(f"w10000 SuperLU vs qdldl skipped: {exc}")
+    else:
+        out(f"w10000 Gauss-Newton solve: SuperLU {superlu:.2f} s ({r_superlu.iterations} it, chi2 "
+            f"{r_superlu.final_chi2:.6f}), qdldl {qdldl:.2f} s ({r_qdldl.iterations} it, chi2 "
+            f"{r_qdldl.final_chi2:.6f}), SuperLU/qdldl = {superlu / qdldl:.2f} (median of {repeats})")
+    finally:
+        progress.close()
     try:
         dense, sparse = dense_vs_sparse("intel", repeats, impl=impl)
     except datasets.DatasetError as exc:

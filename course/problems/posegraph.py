@@ -32,13 +32,14 @@ def sparse_solver(sparse_module):
 class PoseGraphProblem:
     """``linearize`` / ``chi2`` / ``solve`` / ``retract`` for one pose graph and implementation."""
 
-    def __init__(self, graph: PoseGraph, impl="solutions", vectorized=None):
+    def __init__(self, graph: PoseGraph, impl="solutions", vectorized=None, solver=None):
+        """``solver``: an object with ``solve(H_upper, b) -> dx`` (default: :func:`sparse_solver`)."""
         self.graph = graph
         self.impl = impl_loader.load(impl)
         self.x0 = graph.poses.ravel().copy()
         self.num_poses = graph.num_poses
         self._sparse = self.impl.module("sparse_solve")
-        self._solver = sparse_solver(self._sparse)
+        self._solver = sparse_solver(self._sparse) if solver is None else solver
         self._fixed_dof = (3 * graph.fixed[:, None] + np.arange(3)).ravel()
         self._assembler = None
         if vectorized is not False:
