@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import needs
 
 pytestmark = pytest.mark.slow  # real grading runs, a child process per check
 
@@ -53,6 +54,7 @@ def todos_in_exercises() -> list:
 # ---------------------------------------------------------------- reference and stubs
 
 
+@needs("pyceres", "qdldl")
 def test_solutions_get_full_marks(tmp_path):
     proc, results = grade_cli(tmp_path, "solutions")
     maximum = sum(t["max_score"] for t in results["tests"])
@@ -65,6 +67,7 @@ def test_solutions_get_full_marks(tmp_path):
     assert elapsed < 30 and results["execution_time"] == pytest.approx(elapsed, abs=0.1)
 
 
+@needs("pyceres", "qdldl")
 def test_exercises_score_zero_with_one_line_per_todo(tmp_path):
     proc, results = grade_cli(tmp_path, "exercises")
     assert results["score"] == 0
@@ -112,6 +115,7 @@ def test_at_least_eight_distinct_mistakes():
 # ---------------------------------------------------------------- hostile code
 
 
+@needs("pyceres", "qdldl")
 @pytest.mark.parametrize("name", sorted(HOSTILE))
 def test_hostile_code_scores_zero_on_its_checks_and_nothing_else(tmp_path, name):
     variant = HOSTILE[name]

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import needs
 
 pytestmark = pytest.mark.slow  # real grading runs, a child process per check
 
@@ -67,6 +68,7 @@ def public(results) -> list:
 # ---------------------------------------------------------------- reference and stubs
 
 
+@needs("pyceres", "qdldl")
 def test_solutions_get_full_marks_on_chapters_2_and_3(tmp_path):
     proc, results = grade_cli(tmp_path, "solutions", *CHAPTERS_2_3)
     assert [t["name"] for t in public(results)] == [c.name for c in chapter_checks()]
@@ -78,6 +80,7 @@ def test_solutions_get_full_marks_on_chapters_2_and_3(tmp_path):
     assert 0 < optional <= 0.05 * maximum
 
 
+@needs("pyceres", "qdldl")
 def test_exercises_score_zero_with_one_line_per_todo(tmp_path):
     proc, results = grade_cli(tmp_path, "exercises", *CHAPTERS_2_3)
     assert results["score"] == 0 and all(t["score"] == 0 for t in results["tests"])
@@ -120,6 +123,7 @@ def test_an_unwritten_optional_exercise_says_the_loop_is_used(tmp_path):
 # ---------------------------------------------------------------- student mistakes
 
 
+@needs("pyceres", "qdldl")
 @pytest.mark.parametrize("name", sorted(BUGS_CHAPTERS_2_3))
 def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
     variant = BUGS_CHAPTERS_2_3[name]

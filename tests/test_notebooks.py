@@ -13,6 +13,7 @@ import sys
 
 import nbformat
 import pytest
+from conftest import needs
 
 from notebooks import build
 
@@ -157,6 +158,7 @@ def _execute_small(path):
     return nb, text, images
 
 
+@needs("gtsam")
 @pytest.mark.slow
 def test_chapter2_executes_small():
     nb, text, images = _execute_small(build.CHAPTER2)

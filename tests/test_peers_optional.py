@@ -11,6 +11,7 @@ import textwrap
 
 import numpy as np
 import pytest
+from conftest import needs
 
 from course import compare, datasets, peers, registry
 from course.cli import main as course_main
@@ -44,6 +45,7 @@ def announced(stderr: str, library: str) -> int:
     return stderr.count(peers.missing_message(library))
 
 
+@needs(*PEER_LIBRARIES)
 @pytest.mark.parametrize("library", PEER_LIBRARIES)
 def test_a_missing_peer_is_a_row_and_one_line(monkeypatch, capsys, library):
     hide(monkeypatch, library)
@@ -107,6 +109,7 @@ def test_the_autograder_does_not_run_a_check_whose_library_is_missing(monkeypatc
     assert announced(capsys.readouterr().err, "pyceres") == 1
 
 
+@needs("qdldl")
 @pytest.mark.parametrize("method", ["gauss-newton", "lm-type1", "lm-type3", "dogleg"])
 def test_superlu_stands_in_for_qdldl_to_the_same_chi2_and_iterations(monkeypatch, method):
     if not datasets.data_dir().is_dir():
@@ -121,6 +124,7 @@ def test_superlu_stands_in_for_qdldl_to_the_same_chi2_and_iterations(monkeypatch
     assert with_superlu.final_chi2 == pytest.approx(with_qdldl.final_chi2, rel=1e-9)
 
 
+@needs("qdldl")
 @pytest.mark.slow
 def test_superlu_on_w10000(monkeypatch):
     try:

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import needs
 
 from course import datasets, registry
 from course.errors import SingularSystemError
@@ -54,6 +55,7 @@ def test_vectorized_edges_equal_the_per_edge_function():
         np.testing.assert_allclose(B[k], B1, atol=1e-12)
 
 
+@needs("gtsam")
 @pytest.mark.parametrize("fixed", [[0], [0, 7], [3, 4]])
 def test_sparse_assembly_equals_the_loop(fixed):
     g = datasets.load_dataset("w100")
@@ -70,6 +72,7 @@ def test_sparse_assembly_equals_the_loop(fixed):
     np.testing.assert_allclose(H_up.data[assembler.diagonal_positions], np.diag(H), rtol=1e-12)
 
 
+@needs("qdldl")
 def test_dense_and_sparse_solves_agree():
     problem = PoseGraphProblem(datasets.manhattan(300, seed=2))
     lin = problem.linearize(problem.x0)
@@ -99,6 +102,7 @@ def test_intel_gauss_newton_reaches_the_source_figure(intel):
     assert all(r.factorizations == k for k, r in enumerate(result.trace))
 
 
+@needs("pyceres", "g2opy", "gtsam")
 def test_intel_agrees_with_g2o_ceres_and_gtsam(intel):
     ours = minimize(PoseGraphProblem(intel), "gauss-newton").final_chi2
     for backend, method in [("g2o", "gauss-newton"), ("ceres", "levenberg-marquardt"),
@@ -107,6 +111,7 @@ def test_intel_agrees_with_g2o_ceres_and_gtsam(intel):
         assert theirs == pytest.approx(ours, rel=REL), backend
 
 
+@needs("g2opy", "gtsam")
 @pytest.mark.parametrize("name", ["test_quadrat", "intel-g2o", "m3500", "mit", "csail", "fr079", "w100"])
 def test_named_datasets_agree_with_g2o(name, data_folder):
     graph = datasets.load_dataset(name)

@@ -3,6 +3,8 @@ terminal only."""
 
 import io
 
+from conftest import needs
+
 from course import compare, datasets
 from course.progress import Progress
 
@@ -12,6 +14,7 @@ class _Terminal(io.StringIO):
         return True
 
 
+@needs("pyceres", "g2opy", "gtsam")
 def test_a_comparison_reports_each_run_and_our_iterations_on_a_terminal():
     screen = _Terminal()
     progress = Progress(2, label="w100", file=screen)
@@ -32,6 +35,7 @@ def test_quiet_when_not_a_terminal():
     assert pipe.getvalue() == ""
 
 
+@needs("g2opy", "gtsam")
 def test_the_benchmark_reports_each_repeat():
     from course import benchmark
 
