@@ -10,6 +10,7 @@ import json
 import sys
 from pathlib import Path
 
+from course.initialisation import INITIALISERS
 from course.registry import BACKENDS
 
 
@@ -33,6 +34,10 @@ def _add_run_arguments(parser):
                         help=f"comma-separated back ends among {', '.join(BACKENDS)} (default: all)")
     parser.add_argument("--repeat", type=int, default=1,
                         help="solve each pair this many times and keep the median-time run")
+    parser.add_argument("--init", default="file", choices=INITIALISERS,
+                        help="pose graphs: where every solver starts: the file's poses, a breadth-first "
+                             "spanning tree, or the chordal relaxation, computed by the implementation "
+                             "(default: file)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -147,7 +152,7 @@ def cmd_demo(args) -> int:
     written.append(json_path)
     todo = _todo(runs)
     if not args.curve_only:
-        pose_written, pose_todo = _demo_pose_graphs(impl, out)
+        pose_written, pose_todo = _demo_pose_graphs(impl, out, args.init)
         written += pose_written
         todo += pose_todo
     print("\nwrote " + ", ".join(str(p) for p in written))
@@ -163,8 +168,8 @@ def cmd_demo(args) -> int:
 DEMO_W10000 = {"methods": ["gauss-newton", "dogleg"], "backends": ["ours", "g2o", "gtsam"]}
 
 
-def _demo_pose_graphs(impl, out) -> tuple:
-    """w10000 (ships with gtsam) and, when the data folder is there, intel.
+def _demo_pose_graphs(impl, out, init="file") -> tuple:
+    """w10000 (ships with gtsam) and, when the data folder is there, intel, from ``init``.
 
     Returns (paths written, the runs that stopped at a TODO)."""
     from course import compare, datasets, plot
@@ -178,22 +183,29 @@ def _demo_pose_graphs(impl, out) -> tuple:
             print(f"\n{name} skipped: {exc}")
     for name, graph, plan in plans:
         progress = _progress("posegraph", plan.get("methods"), plan.get("backends"), name)
-        runs = compare.run_posegraph(graph, impl=impl, unimplemented="row", progress=progress, **plan)
+        runs = compare.run_posegraph(graph, impl=impl, unimplemented="row", progress=progress, init=init, **plan)
         progress.close()
         todo += _todo(runs)
         note = "" if not plan else (f"; methods {', '.join(plan['methods'])}, back ends "
                                     f"{', '.join(plan['backends'])} (Ceres' Python cost is slow here: "
                                     f"`python -m course compare {name}` runs everything)")
         print("\n" + compare.format_table(
-            runs, title=f"{name}: {graph.num_poses} poses, {graph.num_edges} edges; impl {impl}{note}"))
+            runs, title=f"{name}: {graph.num_poses} poses, {graph.num_edges} edges; impl {impl}; init {init}{note}"))
         (out / f"{name}.json").write_text(json.dumps(compare.to_json(name, runs)))
         ran = _ran(runs)
         if ran:  # the first run that ran: ours when written, else a peer
             path = out / f"{name}.png"
-            plot.pose_graph_before_after(graph, ran[0], path)
+            plot.pose_graph_before_after(_start(graph, init, impl), ran[0], path)
             written.append(path)
         written.append(out / f"{name}.json")
     return written, todo
+
+
+def _start(graph, init, impl):
+    """``graph`` with the poses the solvers started from (``init``), for the plots."""
+    from course.initialisation import initialise
+
+    return initialise(graph, init, impl)[0]
 
 
 def _progress(kind, methods, backends, label):
@@ -211,11 +223,18 @@ def cmd_compare(args) -> int:
     runner = compare.find_runner(args.dataset)  # fails early and clearly on unknown names
     impl = args.impl or _default_impl()
     methods, backends = _names(args.methods), _names(args.backends)
+    init = {}
+    if runner.kind == "posegraph":
+        init = {"init": args.init}
+    elif args.init != "file":
+        raise ValueError(f"--init {args.init}: only pose graphs have an initialisation; "
+                         f"{args.dataset} starts from its own given start (use --init file)")
     progress = _progress(runner.kind, methods, backends, args.dataset)
     runs = runner.run(args.dataset, impl=impl, methods=methods, backends=backends, repeat=args.repeat,
-                      max_iterations=args.max_iterations, progress=progress)
+                      max_iterations=args.max_iterations, progress=progress, **init)
     progress.close()
-    print(compare.format_table(runs, title=f"{args.dataset} (impl {impl})"))
+    where = f"impl {impl}; init {args.init}" if init else f"impl {impl}"
+    print(compare.format_table(runs, title=f"{args.dataset} ({where})"))
     if runner.kind == "posegraph":
         ate = compare.format_ate(runs)
         if ate:
@@ -232,7 +251,7 @@ def cmd_compare(args) -> int:
             from course import datasets
 
             best = min(_ran(runs), key=lambda r: (r.backend != "ours", r.final_chi2))
-            plot.pose_graph_before_after(datasets.load_dataset(args.dataset), best, args.plot)
+            plot.pose_graph_before_after(_start(datasets.load_dataset(args.dataset), args.init, impl), best, args.plot)
         else:
             plot.chi2_per_iteration(_ran(runs), args.plot, title=f"{args.dataset}: chi2 per iteration")
         print(f"wrote {args.plot}")

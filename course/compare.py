@@ -7,8 +7,8 @@ named datasets such as ``intel`` or ``m3500``, ``manhattan:N`` and file paths).
 
 A runner is called as ``runner(dataset, impl=..., methods=..., backends=..., repeat=...,
 max_iterations=...)``
-(``python -m course compare`` passes exactly these; ``repeat`` = solves per pair, the
-median-time run kept) and returns ``list[RunResult]`` with ``final_chi2`` evaluated by
+(``python -m course compare`` passes exactly these, and ``init`` to pose graphs; ``repeat`` =
+solves per pair, the median-time run kept) and returns ``list[RunResult]`` with ``final_chi2`` evaluated by
 our own error, whatever the back end.
 
 ``impl=None`` means this tree's own implementation: ``solutions`` where ``solutions/``
@@ -202,20 +202,35 @@ def posegraph_plan(methods=None, backends=None) -> list:
 
 
 def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
-                  unimplemented="raise", progress=None) -> list:
+                  unimplemented="raise", progress=None, init="file") -> list:
     """Every method and peer on one ``PoseGraph``, same start, same fixed poses.
 
     Returns ``list[RunResult]`` (``params`` (N, 3) poses); where the graph has ground
     truth each result carries ``ate`` (see ``course.trajectory``). ``impl`` and
     ``unimplemented`` and ``progress`` as in ``run_curve`` (Ceres' cost is the
-    implementation's too).
+    implementation's too). ``init`` (``course.initialisation.INITIALISERS``): the start,
+    computed once by the implementation's initialiser and shared by every back end; each
+    result records it in ``init`` and its time in ``init_seconds``. With
+    ``unimplemented="row"`` an unwritten initialiser makes every pair a row naming its TODO.
     """
+    from course.initialisation import check_method, initialise
     from course.problems.posegraph import MAX_DENSE_POSES, PoseGraphProblem
     from course.solvers import SolverOptions, minimize
     from course.trajectory import absolute_trajectory_error
 
     impl = _tree_impl(impl)
     options = SolverOptions(max_iterations=max_iterations)
+    plan = posegraph_plan(methods, backends)
+    check_method(init)
+    try:
+        graph, init_seconds = initialise(graph, init, impl)
+    except NotImplementedError as exc:
+        if unimplemented != "row":
+            raise
+        rows = [RunResult.skipped(backend, method, not_implemented_reason(exc)) for backend, method in plan]
+        for row in rows:
+            row.init = init
+        return rows
 
     def problem():
         try:
@@ -233,7 +248,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
 
     progress = progress or quiet()
     results = []
-    for backend, method in posegraph_plan(methods, backends):
+    for backend, method in plan:
         with progress.run(backend, method) as callback:
             if backend == "ours":
                 solve = partial(ours, method, callback)
@@ -243,6 +258,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
             result = _solve_or_row(solve, repeat, backend, method, unimplemented)
         if graph.ground_truth is not None and not result.not_run:
             result.ate = absolute_trajectory_error(result.params, graph.ground_truth)
+        result.init, result.init_seconds = init, init_seconds
         results.append(result)
     return results
 
@@ -294,7 +310,9 @@ def _params_text(params) -> str | None:
 def format_table(runs, title: str = "") -> str:
     """A plain-text table: backend, method, iterations, initial and final chi2, total
     and per-iteration time (milliseconds), and the parameters when they are few (the curve).
-    A run that did not run (``not_run``) is a row with its backend, method and the reason."""
+    A run that did not run (``not_run``) is a row with its backend, method and the reason.
+    Runs started from an initialisation (``RunResult.init`` other than ``file``) get a note
+    line under the table naming it and its time."""
     header = ["backend", "method", "iters", "initial chi2", "final chi2", "total ms", "ms/iter"]
     ran = [r for r in runs if not r.not_run]
     params = [_params_text(r.params) for r in ran]
@@ -332,7 +350,19 @@ def format_table(runs, title: str = "") -> str:
     out = [title] if title else []
     out += [line(header), line(["-" * w for w in widths])]
     out += [lines[k] for k in range(len(runs))]
+    out += _init_notes(runs)
     return "\n".join(out)
+
+
+def _init_notes(runs) -> list:
+    """One line per initialisation other than the file's poses: its name and time."""
+    notes = []
+    for init in dict.fromkeys(r.init for r in runs if r.init != "file"):
+        ran = [r for r in runs if r.init == init and not r.not_run]
+        took = f"took {1e3 * ran[0].init_seconds:.3f} ms" if ran else "did not run"
+        notes.append(f"start: {init} initialisation (shared by every row), {took}; not in total ms "
+                     "(time to solution = initialisation + total ms)")
+    return notes
 
 
 def to_json(dataset: str, runs) -> dict:

@@ -41,6 +41,9 @@ class RunResult:
     are placeholders (NaN chi2, no params, no trace). See ``RunResult.skipped``.
     ``ate``: the absolute trajectory error against ground truth, where the problem has
     it (``course.trajectory.absolute_trajectory_error``), else None.
+    ``init``: where the solve started (``course.initialisation.INITIALISERS``: ``file``,
+    ``tree``, ``chordal``); ``init_seconds``: the initialisation's own time, not in
+    ``seconds`` (0.0 for the file's poses); ``total_seconds`` is the time to solution.
     """
 
     backend: str
@@ -55,6 +58,8 @@ class RunResult:
     factorizations: int = 0
     not_run: str = ""
     ate: dict | None = None
+    init: str = "file"
+    init_seconds: float = 0.0
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
@@ -70,6 +75,11 @@ class RunResult:
     def seconds_per_iteration(self) -> float:
         return self.seconds / max(self.iterations, 1)
 
+    @property
+    def total_seconds(self) -> float:
+        """Time to solution: the initialisation and the solve."""
+        return self.init_seconds + self.seconds
+
     def to_json(self, with_params: bool = True) -> dict:
         """A JSON-ready dict: the ``runs[]`` entry of ``compare --json``."""
         out = {
@@ -79,6 +89,8 @@ class RunResult:
             "initial_chi2": float(self.initial_chi2),
             "final_chi2": float(self.final_chi2),
             "seconds": float(self.seconds),
+            "init": self.init,
+            "init_seconds": float(self.init_seconds),
             "stop_reason": self.stop_reason,
             "factorizations": int(self.factorizations),
             "trace": [_finite_or_none(asdict(r)) for r in self.trace],

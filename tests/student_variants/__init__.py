@@ -53,6 +53,7 @@ LOADED_BY = {
     "ceres_edge_cost.py": ("ceres_edge_cost",),
     "pose_graph_fast.py": ("pose_graph_fast", "dogleg.end_to_end"),
     "dogleg.py": ("dogleg",),
+    "initialisation.py": ("initialisation",),
 }
 
 
@@ -282,7 +283,138 @@ BUGS_CHAPTERS_2_3 = {
         {DL_RADIUS + "good step (rho > 0.75)"}, "a short good step must not shrink the trust region"),
 }
 
-VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3}
+TREE = "initialisation.spanning_tree_poses: poses along the breadth-first tree"
+ROTATIONS = "initialisation.chordal_rotations: theta by the chordal relaxation"
+TRANSLATIONS = "initialisation.chordal_translations: positions given the rotations"
+_CHORDAL = ["def chordal_rotations", "# BEGIN SOLUTION"]
+_TRANSLATE = ["def chordal_translations", "# BEGIN SOLUTION"]
+
+# chapter 3b: initialisation
+BUGS_INITIALISATION = {
+    "tree_backward_edge_uses_z": V(
+        "initialisation.py", [], "step = np.where(fwd[:, None], z, inverse)", "step = z",
+        {TREE}, "composes inverse(z_ij), not z_ij"),
+    "tree_inverse_is_minus_z": V(
+        "initialisation.py", [], "inverse = np.column_stack([-c * z[:, 0] - s * z[:, 1], s * z[:, 0] - c * z[:, 1], "
+                                 "-z[:, 2]])", "inverse = -z",
+        {TREE}, "inverse(z) is not -z"),
+    "tree_translation_in_world_frame": V(
+        "initialisation.py", [], "poses[level, 0] = x[:, 0] + ca * dz[:, 0] - sa * dz[:, 1]\n"
+                                 "        poses[level, 1] = x[:, 1] + sa * dz[:, 0] + ca * dz[:, 1]",
+        "poses[level, 0] = x[:, 0] + dz[:, 0]\n        poses[level, 1] = x[:, 1] + dz[:, 1]",
+        {TREE}, "rotates it by R(theta_i)"),
+    "tree_inverse_rotated_the_wrong_way": V(
+        "initialisation.py", [], "inverse = np.column_stack([-c * z[:, 0] - s * z[:, 1], s * z[:, 0] - c * z[:, 1], "
+                                 "-z[:, 2]])",
+        "inverse = np.column_stack([-c * z[:, 0] + s * z[:, 1], -s * z[:, 0] - c * z[:, 1], -z[:, 2]])",
+        {TREE}, "rotates by R(da)^T"),
+    "tree_from_the_origin": V(
+        "initialisation.py", ["# BEGIN SOLUTION"], "poses[anchor] = anchor_pose", "poses[anchor] = 0.0",
+        {TREE}, "the tree starts from the origin"),
+    "rotations_unweighted": V(
+        "initialisation.py", _CHORDAL, "w = information[:, 2, 2]", "w = np.ones(len(edges_i))",
+        {ROTATIONS}, "the edges are not weighted"),
+    "rotations_translation_weight": V(
+        "initialisation.py", _CHORDAL, "w = information[:, 2, 2]", "w = information[:, 0, 0]",
+        {ROTATIONS}, "not information[k, 0, 0]"),
+    "rotations_transposed": V(
+        "initialisation.py", _CHORDAL, "a = np.exp(1j * measurements[:, 2])", "a = np.exp(-1j * measurements[:, 2])",
+        {ROTATIONS}, "the relative rotation is transposed"),
+    "rotations_anchor_at_angle_0": V(
+        "initialisation.py", _CHORDAL, "z_anchor = np.exp(1j * anchor_theta)", "z_anchor = 1.0",
+        {ROTATIONS}, "here the anchor is at angle 0"),
+    "rotations_arctan_loses_the_quadrant": V(
+        "initialisation.py", _CHORDAL, "theta[others] = (np.angle(z) + np.pi) % (2.0 * np.pi) - np.pi",
+        "theta[others] = np.arctan(z.imag / z.real)",
+        {ROTATIONS}, "loses the quadrant"),
+    "translations_weight_not_rotated": V(
+        "initialisation.py", _TRANSLATE,
+        "c, s = np.cos(theta[edges_i] + measurements[:, 2]), np.sin(theta[edges_i] + measurements[:, 2])",
+        "c, s = np.ones(len(edges_i)), np.zeros(len(edges_i))",
+        {TRANSLATIONS}, "in the world frame it is"),
+    "translations_weight_rotated_by_R_i_only": V(
+        "initialisation.py", _TRANSLATE,
+        "c, s = np.cos(theta[edges_i] + measurements[:, 2]), np.sin(theta[edges_i] + measurements[:, 2])",
+        "c, s = np.cos(theta[edges_i]), np.sin(theta[edges_i])",
+        {TRANSLATIONS}, "not by R(theta_i) alone"),
+    "translations_lever_not_rotated": V(
+        "initialisation.py", _TRANSLATE, "c_k = np.column_stack([ci * dx - si * dy, si * dx + ci * dy])",
+        "c_k = np.column_stack([dx, dy])",
+        {TRANSLATIONS}, "t_ij is in pose i's frame"),
+    "translations_residual_sign": V(
+        "initialisation.py", _TRANSLATE, "g = scatter(edges_j, Wc) - scatter(edges_i, Wc)",
+        "g = scatter(edges_i, Wc) - scatter(edges_j, Wc)",
+        {TRANSLATIONS}, "the residual's sign"),
+    "translations_unweighted": V(
+        "initialisation.py", _TRANSLATE,
+        "o00, o01, o11 = omega[:, 0, 0], 0.5 * (omega[:, 0, 1] + omega[:, 1, 0]), omega[:, 1, 1]",
+        "o00, o01, o11 = np.ones(len(edges_i)), np.zeros(len(edges_i)), np.ones(len(edges_i))",
+        {TRANSLATIONS}, "the edges are not weighted"),
+    "translations_anchor_at_the_origin": V(
+        "initialisation.py", _TRANSLATE, "    n = num_poses\n", "    n = num_poses\n    anchor_xy = np.zeros(2)\n",
+        {TRANSLATIONS}, "not at the origin"),
+}
+
+# correct but not the reference's way: they keep full marks
+_PLAIN_TREE = """    from collections import deque
+
+    neighbours = [[] for _ in range(num_poses)]
+    for k, (i, j) in enumerate(zip(edges_i, edges_j)):
+        neighbours[i].append((k, j, True))
+        neighbours[j].append((k, i, False))
+    poses = np.zeros((num_poses, 3))
+    poses[anchor] = anchor_pose
+    seen, queue = {anchor}, deque([anchor])
+    while queue:  # breadth first; a vertex takes the first edge (in edge order) that reaches it
+        u = queue.popleft()
+        for k, v, forward in sorted(neighbours[u]):
+            if v in seen:
+                continue
+            seen.add(v)
+            queue.append(v)
+            dx, dy, da = measurements[k]
+            if not forward:
+                c, s = np.cos(da), np.sin(da)
+                dx, dy, da = -c * dx - s * dy, s * dx - c * dy, -da
+            x, y, a = poses[u]
+            poses[v] = (x + np.cos(a) * dx - np.sin(a) * dy, y + np.sin(a) * dx + np.cos(a) * dy,
+                        (a + da + np.pi) % (2 * np.pi) - np.pi)
+    return poses
+"""
+_PLAIN_ROTATIONS = """    n = num_poses
+    A = np.zeros((2 * len(edges_i), 2 * n))
+    for k, (i, j) in enumerate(zip(edges_i, edges_j)):  # sqrt(w) (v_j - R(theta_ij) v_i)
+        c, s = np.cos(measurements[k, 2]), np.sin(measurements[k, 2])
+        r = np.sqrt(information[k, 2, 2])
+        A[2 * k:2 * k + 2, 2 * j:2 * j + 2] = r * np.eye(2)
+        A[2 * k:2 * k + 2, 2 * i:2 * i + 2] = -r * np.array([[c, -s], [s, c]])
+    free = np.ones(2 * n, dtype=bool)
+    free[2 * anchor:2 * anchor + 2] = False
+    held = np.array([np.cos(anchor_theta), np.sin(anchor_theta)])
+    v = np.zeros(2 * n)
+    v[~free] = held
+    v[free] = np.linalg.lstsq(A[:, free], -A[:, ~free] @ held, rcond=None)[0]
+    theta = np.arctan2(v[1::2], v[0::2])
+    theta[anchor] = anchor_theta
+    return theta
+"""
+
+
+def _solution_block(function: str) -> str:
+    """The reference's solution lines of ``function`` in initialisation.py (to replace whole)."""
+    text = (SOLUTIONS / "initialisation.py").read_text()
+    start = text.index("# BEGIN SOLUTION\n", text.index(f"def {function}(")) + len("# BEGIN SOLUTION\n")
+    return text[start:text.index("    # END SOLUTION", start)]
+
+
+ALTERNATIVES_INITIALISATION = {
+    "tree_as_a_loop_over_a_queue": V("initialisation.py", ["def spanning_tree_poses"],
+                                     _solution_block("spanning_tree_poses"), _PLAIN_TREE, set()),
+    "rotations_as_dense_real_least_squares": V("initialisation.py", ["def chordal_rotations"],
+                                               _solution_block("chordal_rotations"), _PLAIN_ROTATIONS, set()),
+}
+
+VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION}
 
 
 def apply(text: str, variant: Variant) -> str:

@@ -1,0 +1,59 @@
+"""Where a pose-graph solve starts: the file's poses, a spanning tree, or the chordal relaxation.
+
+``initialise(graph, method, impl) -> (graph with new poses, seconds)`` runs the
+implementation's ``initialisation`` module (chapter 3b: ``solutions/initialisation.py``, or a
+student's), so a student's initialiser goes through every comparison. The first fixed pose
+``graph.fixed[0]`` anchors the gauge at its file pose; every fixed pose keeps its file pose
+(the solvers hold them there). ``seconds`` is the initialisation alone, for time-to-solution
+(``RunResult.init_seconds``). Cheap to import (the command line reads ``INITIALISERS``).
+"""
+
+import time
+from typing import TYPE_CHECKING
+
+from course import impl as impl_loader
+from course.errors import check_array
+
+if TYPE_CHECKING:
+    from course.graph import PoseGraph
+
+#: the starts a pose-graph solve can take, ``file`` (the file's poses) first
+INITIALISERS = ("file", "tree", "chordal")
+
+#: the implementation function behind each method but ``file``
+FUNCTIONS = {"tree": "spanning_tree_poses", "chordal": "chordal_poses"}
+
+
+def check_method(method: str) -> str:
+    """``method`` if it is one of ``INITIALISERS``, else ``ValueError`` listing them."""
+    if method not in INITIALISERS:
+        raise ValueError(f"unknown initialisation {method!r}; choose one of {', '.join(INITIALISERS)}")
+    return method
+
+
+def initialise(graph: "PoseGraph", method: str = "file", impl="solutions") -> tuple["PoseGraph", float]:
+    """``(graph with its poses replaced, seconds)`` for ``method`` (one of ``INITIALISERS``).
+
+    ``file`` returns ``graph`` itself and 0.0. ``tree`` and ``chordal`` call
+    ``spanning_tree_poses`` and ``chordal_poses`` of ``impl``'s ``initialisation`` module
+    (``solutions``, ``exercises`` or a path), anchored at ``graph.fixed[0]`` at its file
+    pose; the returned poses are checked ((N, 3), finite). A stub raises
+    ``NotImplementedError`` naming its TODO; a disconnected graph ``ValueError``.
+    """
+    import numpy as np
+
+    check_method(method)
+    if method == "file":
+        return graph, 0.0
+    module = impl_loader.load(impl).module("initialisation")
+    function = getattr(module, FUNCTIONS[method])
+    anchor = int(graph.fixed[0])
+    args = [graph.num_poses, graph.edges_i, graph.edges_j, graph.measurements]
+    if method == "chordal":
+        args.append(graph.information)
+    start = time.perf_counter()
+    poses = function(*args, graph.poses[anchor].copy(), anchor=anchor)
+    seconds = time.perf_counter() - start
+    poses = np.array(check_array(poses, (graph.num_poses, 3), f"initialisation.{FUNCTIONS[method]}", "poses"))
+    poses[graph.fixed] = graph.poses[graph.fixed]
+    return graph.with_poses(poses), seconds

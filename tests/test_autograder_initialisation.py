@@ -1,0 +1,53 @@
+"""The initialisation checks (chapter 3b): the reference keeps full marks, the stubs score
+zero, each known mistake costs its own check only and names its cause, and correct code
+written another way keeps full marks."""
+
+import pytest
+from test_autograder_chapters23 import grade_cli
+
+from autograder.checks import all_checks
+from student_variants import (
+    ALTERNATIVES_INITIALISATION,
+    BUGS_INITIALISATION,
+    SOLUTIONS,
+    apply,
+    assert_loses_exactly,
+    build,
+)
+
+
+def initialisation_checks():
+    return [c for c in all_checks() if c.exercise.startswith("initialisation.")]
+
+
+def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(tmp_path):
+    _, results = grade_cli(tmp_path, "solutions", "initialisation", name="ref.json")
+    assert results["tests"] and all(t["score"] == t["max_score"] for t in results["tests"])
+    _, results = grade_cli(tmp_path, "exercises", "initialisation", name="stub.json")
+    assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO initialisation.")
+                                    for t in results["tests"])
+
+
+@pytest.mark.parametrize("name", sorted(BUGS_INITIALISATION))
+def test_a_known_mistake_costs_its_own_check_only(tmp_path, name):
+    variant = BUGS_INITIALISATION[name]
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
+    assert_loses_exactly(results, variant.fails, proc.stdout)
+    feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
+    assert variant.says in feedback, feedback
+
+
+@pytest.mark.parametrize("name", sorted(ALTERNATIVES_INITIALISATION))
+def test_correct_code_written_another_way_keeps_full_marks(tmp_path, name):
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), "initialisation")
+    assert_loses_exactly(results, set(), proc.stdout)
+
+
+def test_every_initialiser_has_five_known_mistakes_and_they_name_real_checks():
+    names = {c.name for c in initialisation_checks()}
+    for check in names:
+        assert sum(check in v.fails for v in BUGS_INITIALISATION.values()) >= 5, check
+    for name, variant in {**BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION}.items():
+        assert variant.fails <= names, name
+        text = (SOLUTIONS / variant.file).read_text()
+        assert apply(text, variant) != text, name
