@@ -1,9 +1,11 @@
 """Benchmarks: ratios against a peer measured in the same run, medians of several runs.
 
 ``python -m course benchmark`` prints, on w10000 and m3500, our Gauss-Newton time per
-iteration over g2o's (g2opy) and, on intel, the dense over the sparse solve of one
-Gauss-Newton system. Nothing here is a test: the machine is shared and noisy. A graph
-or peer missing here is one line saying so, and the rest runs.
+iteration over g2o's (g2opy), the time to solution of our chordal start plus Gauss-Newton
+over g2o's Gauss-Newton from the file's poses, SuperLU over qdldl on w10000 and, on intel,
+the dense over the sparse solve of one Gauss-Newton system. Nothing here is a test: the
+machine is shared and noisy. A graph or peer missing here is one line saying so, and the
+rest runs.
 """
 
 import statistics
@@ -40,6 +42,29 @@ def gauss_newton_vs_g2o(name, repeats=5, impl="solutions", progress=None):
     theirs, g2o_result = _median_seconds_per_iteration(
         lambda callback: g2o(graph, "gauss-newton"), repeats, progress, "g2o")
     return ours, theirs, ours_result, g2o_result
+
+
+def time_to_solution(name, repeats=5, impl="solutions", progress=None):
+    """``(ours, g2o, ours_result, g2o_result)``: median seconds to solution of our chordal start
+    plus Gauss-Newton (the initialisation included) and of g2o's Gauss-Newton from the file's
+    poses, in the same run. ``PeerMissing`` without g2opy, ``DatasetError`` without the graph."""
+    from course.initialisation import initialise
+
+    progress = progress or quiet()
+    g2o = registry.peer_solver("posegraph", "g2o")
+    graph = datasets.load_dataset(name)
+    ours, theirs = [], []
+    for _ in range(repeats):
+        with progress.run("ours", "chordal + gauss-newton") as callback:
+            start, init_seconds = initialise(graph, "chordal", impl)
+            run = minimize(PoseGraphProblem(start, impl), "gauss-newton", impl=impl, callback=callback)
+            run.init, run.init_seconds = "chordal", init_seconds
+        ours.append(run)
+        with progress.run("g2o", "gauss-newton"):
+            theirs.append(g2o(graph, "gauss-newton"))
+    ours_median = statistics.median(r.total_seconds for r in ours)
+    g2o_median = statistics.median(r.seconds for r in theirs)
+    return ours_median, g2o_median, ours[-1], theirs[-1]
 
 
 def superlu_vs_qdldl(name="w10000", repeats=5, impl="solutions", progress=None):
@@ -101,6 +126,21 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print):
             progress.close()
         out(f"{name:10} {ours * 1e3:11.2f} {theirs * 1e3:10.2f} {ours / theirs:6.2f} "
             f"{r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")
+    out(f"Time to solution, ours (chordal start + Gauss-Newton, the start included) over g2o's Gauss-Newton "
+        f"from the file's poses, median of {repeats}:")
+    out(f"{'graph':10} {'ours ms':>9} {'g2o ms':>9} {'ratio':>6} {'ours it':>8} {'g2o it':>7} {'ours chi2':>14} "
+        f"{'g2o chi2':>14}")
+    for name in graphs:
+        progress = Progress(2 * repeats, label=f"{name} time to solution")
+        try:
+            ours, theirs, r_ours, r_g2o = time_to_solution(name, repeats, impl=impl, progress=progress)
+        except (PeerMissing, datasets.DatasetError) as exc:
+            out(f"{name:10} skipped: {exc}")
+            continue
+        finally:
+            progress.close()
+        out(f"{name:10} {ours * 1e3:9.1f} {theirs * 1e3:9.1f} {ours / theirs:6.2f} {r_ours.iterations:8d} "
+            f"{r_g2o.iterations:7d} {r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")
     progress = Progress(2 * repeats, label="w10000 sparse solvers")
     try:
         superlu, qdldl, r_superlu, r_qdldl = superlu_vs_qdldl("w10000", repeats, impl=impl, progress=progress)

@@ -10,7 +10,7 @@ import json
 import sys
 from pathlib import Path
 
-from course.initialisation import INITIALISERS
+from course.initialisation import INITIALISERS, PEER_INITIALISERS
 from course.registry import BACKENDS
 
 
@@ -34,10 +34,10 @@ def _add_run_arguments(parser):
                         help=f"comma-separated back ends among {', '.join(BACKENDS)} (default: all)")
     parser.add_argument("--repeat", type=int, default=1,
                         help="solve each pair this many times and keep the median-time run")
-    parser.add_argument("--init", default="file", choices=INITIALISERS,
+    parser.add_argument("--init", default="file", choices=INITIALISERS + PEER_INITIALISERS,
                         help="pose graphs: where every solver starts: the file's poses, a breadth-first "
-                             "spanning tree, or the chordal relaxation, computed by the implementation "
-                             "(default: file)")
+                             "spanning tree or the chordal relaxation (computed by the implementation), "
+                             "or GTSAM's LAGO (diagonal information only) (default: file)")
 
 
 def build_parser() -> argparse.ArgumentParser:

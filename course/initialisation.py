@@ -1,4 +1,6 @@
-"""Where a pose-graph solve starts: the file's poses, a spanning tree, or the chordal relaxation.
+"""Where a pose-graph solve starts: the file's poses, a spanning tree, the chordal relaxation,
+or GTSAM's LAGO (a peer: ``course.backends.gtsam_lago``, where gtsam is installed and the
+information matrices are diagonal).
 
 ``initialise(graph, method, impl) -> (graph with new poses, seconds)`` runs the
 implementation's ``initialisation`` module (chapter 3b: ``solutions/initialisation.py``, or a
@@ -17,24 +19,28 @@ from course.errors import check_array
 if TYPE_CHECKING:
     from course.graph import PoseGraph
 
-#: the starts a pose-graph solve can take, ``file`` (the file's poses) first
+#: our starts for a pose-graph solve, ``file`` (the file's poses) first
 INITIALISERS = ("file", "tree", "chordal")
+#: a peer's start: GTSAM's LAGO
+PEER_INITIALISERS = ("lago",)
 
 #: the implementation function behind each method but ``file``
 FUNCTIONS = {"tree": "spanning_tree_poses", "chordal": "chordal_poses"}
 
 
 def check_method(method: str) -> str:
-    """``method`` if it is one of ``INITIALISERS``, else ``ValueError`` listing them."""
-    if method not in INITIALISERS:
-        raise ValueError(f"unknown initialisation {method!r}; choose one of {', '.join(INITIALISERS)}")
+    """``method`` if it is one of ``INITIALISERS`` or ``PEER_INITIALISERS``, else ``ValueError``."""
+    if method not in INITIALISERS + PEER_INITIALISERS:
+        raise ValueError(f"unknown initialisation {method!r}; choose one of "
+                         f"{', '.join(INITIALISERS + PEER_INITIALISERS)}")
     return method
 
 
 def initialise(graph: "PoseGraph", method: str = "file", impl="solutions") -> tuple["PoseGraph", float]:
     """``(graph with its poses replaced, seconds)`` for ``method`` (one of ``INITIALISERS``).
 
-    ``file`` returns ``graph`` itself and 0.0. ``tree`` and ``chordal`` call
+    ``file`` returns ``graph`` itself and 0.0; ``lago`` is GTSAM's (``PeerMissing`` without
+    gtsam, ``LagoRefused`` on full information matrices). ``tree`` and ``chordal`` call
     ``spanning_tree_poses`` and ``chordal_poses`` of ``impl``'s ``initialisation`` module
     (``solutions``, ``exercises`` or a path), anchored at ``graph.fixed[0]`` at its file
     pose; the returned poses are checked ((N, 3), finite). A stub raises
@@ -45,6 +51,13 @@ def initialise(graph: "PoseGraph", method: str = "file", impl="solutions") -> tu
     check_method(method)
     if method == "file":
         return graph, 0.0
+    if method == "lago":
+        from course import peers
+
+        peers.require("gtsam")
+        from course.backends import gtsam_lago
+
+        return gtsam_lago.initialise(graph)
     module = impl_loader.load(impl).module("initialisation")
     function = getattr(module, FUNCTIONS[method])
     anchor = int(graph.fixed[0])

@@ -361,3 +361,46 @@ def test_a_single_pose_is_the_anchor():
     for poses in (ini.spanning_tree_poses(1, none, none, z, [1.0, 2.0, 3.0]),
                   ini.chordal_poses(1, none, none, z, info, [1.0, 2.0, 3.0])):
         np.testing.assert_array_equal(poses, [[1.0, 2.0, 3.0]])
+
+
+# ---------------------------------------------------------------- GTSAM's LAGO, and time to solution
+
+
+@pytest.mark.parametrize("name", ["intel", "m3500"])
+def test_lago_starts_near_the_minimum_with_the_anchor_in_place(data_folder, name):
+    pytest.importorskip("gtsam", reason="gtsam is not installed here (the peers extra)")
+    graph = datasets.load_dataset(name)
+    start, seconds = initialise(graph, "lago")
+    chordal, _ = initialise(graph, "chordal")
+    assert seconds > 0 and np.array_equal(start.poses[graph.fixed], graph.poses[graph.fixed])
+    final = minimize(PoseGraphProblem(graph), "gauss-newton").final_chi2
+    assert final <= start.chi2() <= 1.1 * final  # intel: 65.40 from 65.40; m3500: 137.9 from 138.1
+    assert start.chi2() < chordal.chi2()
+
+
+def test_lago_refuses_full_information_matrices_naming_an_edge(data_folder):
+    pytest.importorskip("gtsam", reason="gtsam is not installed here (the peers extra)")
+    from course.backends.gtsam_lago import LagoRefused
+
+    with pytest.raises(LagoRefused, match=r"mit: GTSAM's LAGO accepts diagonal information matrices only.*edge 0"):
+        initialise(datasets.load_dataset("mit"), "lago")
+
+
+def test_lago_without_gtsam_is_one_line(monkeypatch, data_folder):
+    import sys
+
+    from course import peers
+
+    monkeypatch.setitem(sys.modules, "gtsam", None)
+    with pytest.raises(peers.PeerMissing, match="gtsam is not installed here"):
+        initialise(datasets.load_dataset("intel"), "lago")
+
+
+def test_time_to_solution_counts_the_initialisation(data_folder):
+    pytest.importorskip("g2opy", reason="g2opy is not installed here (the peers extra)")
+    from course import benchmark
+
+    ours, g2o, ours_run, g2o_run = benchmark.time_to_solution("intel", repeats=1)
+    assert ours == pytest.approx(ours_run.init_seconds + ours_run.seconds) and ours_run.init_seconds > 0
+    assert ours_run.init == "chordal" and g2o_run.init == "file" and g2o > 0
+    assert ours_run.final_chi2 == pytest.approx(g2o_run.final_chi2, rel=1e-6)
