@@ -3,6 +3,7 @@
 Chapter 2: ``load``, ``one_thread``, ``outcome``, ``where``, ``median_time``, ``time_split``.
 Chapter 3: ``use_eleven_colours``, ``rejected``, ``gauss_newton_minimum``, ``reached``,
 ``factorizations``, ``method_table``, ``chi2_against_time``, ``show_rejections``.
+Chapter 3b: ``basin_figure``, ``lowest``, ``initialiser_table``, ``time_to_solution_table``.
 
 A run is a ``course.trace.RunResult``.
 """
@@ -220,3 +221,90 @@ def show_rejections(run: RunResult, limit: int, name: str) -> list[int]:
     if len(rows) > limit:
         print(f"{'...':>5} ({len(rows) - limit} more rows)")
     return [trace[k + 1].factorizations - trace[k].factorizations for k in rejections if k + 1 < len(trace)]
+
+
+# ---------------------------------------------------------------- chapter 3b: initialisation
+
+
+def _draw_graph(ax: Any, graph: Any, poses: np.ndarray, colour: str) -> None:
+    """The edges (segments) and poses (dots) of ``graph`` at ``poses`` on ``ax``, equal aspect."""
+    from matplotlib.collections import LineCollection
+
+    segments = np.stack([poses[graph.edges_i, :2], poses[graph.edges_j, :2]], axis=1)
+    ax.add_collection(LineCollection(list(segments), colors=colour, linewidths=0.3, alpha=0.5))
+    ax.plot(poses[:, 0], poses[:, 1], ".", color=colour, markersize=1.5)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale()
+
+
+def basin_figure(starts: dict[str, tuple[Any, RunResult]], title: str) -> Any:
+    """One row per start: its poses (grey, left) and where the run from it ends (blue, right).
+
+    ``starts`` maps a start's name (``file``, ``chordal``, ...) to (the graph holding the
+    start poses, the ``RunResult`` of the solve from them)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(11, 4.5 * len(starts)), layout="constrained")
+    for row, (name, (graph, run)) in enumerate(starts.items()):
+        panels = [(graph.poses, "0.55", f"start: {name}, chi2 {run.initial_chi2:.4g}"),
+                  (np.asarray(run.params).reshape(-1, 3), "tab:blue",
+                   f"{run.backend} {run.method} from {name}: chi2 {run.final_chi2:.6g} "
+                   f"({run.iterations} iterations)")]
+        for col, (poses, colour, label) in enumerate(panels):
+            ax = fig.add_subplot(len(starts), 2, 2 * row + col + 1)
+            _draw_graph(ax, graph, poses, colour)
+            ax.set_title(label, fontsize=9)
+    fig.suptitle(title)
+    return fig
+
+
+def lowest(runs: Sequence[RunResult]) -> float:
+    """The lowest final chi2 among the runs that ran."""
+    return min(r.final_chi2 for r in runs if not r.not_run)
+
+
+def initialiser_table(tables: dict[str, list[RunResult]], methods: Sequence[str]) -> str:
+    """A text table, one row per (graph, start): the start's chi2, the initialisation's
+    milliseconds, and per method of ``methods`` the iterations, the final chi2 and
+    ``lowest`` (yes: within 1e-6 relative of the lowest final chi2 of any run on that graph).
+
+    ``tables`` maps a graph's name to our runs on it, every start and method (``RunResult.init``
+    names the start); a pair missing from the runs is ``-``."""
+    group = 5 + 1 + 14 + 1 + 6
+    left = f"{'graph':13} {'start':8} {'start chi2':>11} {'init ms':>8}"
+    head = [(" " * len(left) + "".join(f" | {m:^{group}}" for m in methods)).rstrip(),
+            left + "".join(f" | {'iters':>5} {'final chi2':>14} {'lowest':>6}" for _ in methods)]
+    lines = head + ["-" * len(head[1])]
+    for name, runs in tables.items():
+        best = lowest(runs)
+        for init in dict.fromkeys(r.init for r in runs):
+            row = [r for r in runs if r.init == init and not r.not_run]
+            if not row:
+                continue
+            line = f"{name:13} {init:8} {row[0].initial_chi2:11.4g} {1e3 * row[0].init_seconds:8.2f}"
+            for m in methods:
+                r = next((r for r in row if r.method == m), None)
+                if r is None:
+                    line += f" | {'-':>{group}}"
+                    continue
+                at = "yes" if abs(r.final_chi2 - best) <= 1e-6 * abs(best) else "no"
+                line += f" | {r.iterations:5d} {r.final_chi2:14.8g} {at:>6}"
+            lines.append(line)
+    lines.append("lowest final chi2: " + ", ".join(f"{name} {lowest(runs):.8g}" for name, runs in tables.items()))
+    return "\n".join(lines)
+
+
+def time_to_solution_table(runs: Sequence[RunResult], title: str) -> str:
+    """A text table of ``runs``: start, iterations, initialisation, solve and total
+    milliseconds (the time to solution, ``RunResult.total_seconds``), final chi2; a run
+    that did not run (a peer not installed here) is a row with its reason."""
+    head = (f"{'backend':8} {'method':13} {'start':8} {'iters':>5} {'init ms':>9} {'solve ms':>9} "
+            f"{'total ms':>9} {'final chi2':>14}")
+    lines = [title, head, "-" * len(head)]
+    for r in runs:
+        if r.not_run:
+            lines.append(f"{r.backend:8} {r.method:13} {r.init:8} {r.not_run}")
+            continue
+        lines.append(f"{r.backend:8} {r.method:13} {r.init:8} {r.iterations:5d} {1e3 * r.init_seconds:9.2f} "
+                     f"{1e3 * r.seconds:9.2f} {1e3 * r.total_seconds:9.2f} {r.final_chi2:14.8g}")
+    return "\n".join(lines)

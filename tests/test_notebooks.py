@@ -1,7 +1,7 @@
 """The generated notebooks: current with their py:percent sources (notebooks/chapter*.py), and they run.
 
-Chapters 2 and 3 run in their small setting (``COURSE_NOTEBOOK_SMALL=1``: w100,
-``manhattan:200`` and the curve; a few seconds each); their full setting is
+Chapters 2, 3 and 3b run in their small setting (``COURSE_NOTEBOOK_SMALL=1``: w100,
+``manhattan:N`` and the curve; a few seconds each); their full setting is
 ``python -m notebooks.build --execute`` (``make notebooks``).
 
 Execution uses ``notebooks.build.execute``, which starts the kernel on this test's own
@@ -46,7 +46,7 @@ def test_source_round_trips_with_ids_and_tags(path, tmp_path):
     again = build.read(copy)
     assert [(c.id, c.source, c.metadata) for c in again.cells] == [(c.id, c.source, c.metadata) for c in nb.cells]
     tagged = {cell.id for cell in nb.cells if build.ANSWER_TAG in cell.metadata.get("tags", [])}
-    assert tagged == ({"answer-1", "answer-2"} if path == build.CHAPTER2 else set())
+    assert tagged == ({"answer-1", "answer-2"} if path in (build.CHAPTER2, build.CHAPTER3B) else set())
     assert all(set(cell.metadata) <= {"tags"} for cell in nb.cells)
 
 
@@ -191,6 +191,38 @@ def test_chapter3_executes_small():
     # after every rejection the dogleg retries without a factorization; LM type 1 factorizes again
     assert re.search(r"dogleg: [1-9]\d* retries after a rejection, new factorizations before each: \[0\]", text)
     assert re.search(r"lm-type1: [1-9]\d* retries after a rejection, new factorizations before each: \[1\]", text)
+
+
+@pytest.mark.slow
+def test_chapter3b_executes_small():
+    import time
+
+    start = time.perf_counter()
+    nb, text, images = _execute_small(build.CHAPTER3B)
+    assert time.perf_counter() - start < 60, "the quick setting should take seconds"
+    assert "Traceback" not in text
+    for words in ("manhattan:300:0 from file", "manhattan:300:0 from chordal", "start chi2", "init ms",
+                  "final chi2", "lowest", "gauss-newton", "lm-type3", "dogleg", "lowest final chi2: manhattan:200",
+                  "manhattan:1000: 1000 poses", "time to solution", "total ms"):
+        assert words in text, words
+    for init in ("file", "tree", "chordal"):
+        assert f"manhattan:200 {init}" in text
+    for name in ("intel", "m3500", "w10000"):  # the full setting only
+        assert name not in text
+    assert len(images) == 1  # the basin: two starts, two panels each
+    # a peer not installed here is a row saying so, else a row of numbers
+    for backend in ("g2o", "gtsam"):
+        assert f"{backend:8} gauss-newton  file" in text
+    markdown = {c.get("id"): c.source for c in nb.cells if c.cell_type == "markdown"}
+    assert "Question 1" in markdown["questions-md"] and "Question 2" in markdown["questions-md"]
+    assert "Your answer to question 1" in markdown["answer-1"]
+    assert "Your answer to question 2" in markdown["answer-2"]
+    # same numbers as in-process
+    from course import compare, datasets
+
+    ours = compare.run_posegraph(datasets.load_dataset("manhattan:300"), methods=["gauss-newton"],
+                                 backends=["ours"], init="chordal")[0]
+    assert f"-> {ours.final_chi2:.6g} in {ours.iterations} iterations" in text
 
 
 def test_reference_answers_stay_out_of_the_student_tree():
