@@ -54,6 +54,7 @@ LOADED_BY = {
     "pose_graph_fast.py": ("pose_graph_fast", "dogleg.end_to_end"),
     "dogleg.py": ("dogleg",),
     "initialisation.py": ("initialisation",),
+    "bundle_adjustment.py": ("bundle_adjustment",),
 }
 
 
@@ -414,7 +415,80 @@ ALTERNATIVES_INITIALISATION = {
                                                _solution_block("chordal_rotations"), _PLAIN_ROTATIONS, set()),
 }
 
-VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION}
+BA_R = "bundle_adjustment.reprojection_residuals_and_jacobians: residuals r"
+BA_JC = "bundle_adjustment.reprojection_residuals_and_jacobians: camera Jacobian J_cam"
+BA_JP = "bundle_adjustment.reprojection_residuals_and_jacobians: point Jacobian J_point"
+BA_UVW = "bundle_adjustment.normal_equations: camera blocks U, point blocks V, coupling W"
+BA_G = "bundle_adjustment.normal_equations: gradients and chi2"
+BA_CAM = "bundle_adjustment.schur_solve: camera step from the reduced system"
+BA_PT = "bundle_adjustment.schur_solve: point step by back-substitution"
+
+# chapter 4: bundle adjustment
+BUGS_BUNDLE_ADJUSTMENT = {
+    "ba_projection_sign": V(
+        "bundle_adjustment.py", [], "p = -P[:, :2] / z[:, None]", "p = P[:, :2] / z[:, None]",
+        {BA_R, BA_JC}, "the BAL projection is p = -P[:2] / P[2]"),
+    "ba_residual_flipped": V(
+        "bundle_adjustment.py", [], "r = (f * d)[:, None] * p - observations",
+        "r = observations - (f * d)[:, None] * p",
+        {BA_R}, "not observed - predicted"),
+    "ba_no_distortion": V(
+        "bundle_adjustment.py", [], "d = 1.0 + k1 * n + k2 * n * n", "d = np.ones_like(n)",
+        {BA_R, BA_JC, BA_JP}, "the radial distortion d = 1 + k1 |p|^2 + k2 |p|^4 is missing"),
+    "ba_small_angle_rotation_jacobian": V(
+        "bundle_adjustment.py", [], "dRX_dw = -np.matmul(R, np.matmul(_skew(X), Jr))",
+        "dRX_dw = -_skew(np.matmul(R, X[:, :, None])[:, :, 0])",
+        {BA_JC}, "holds only at w = 0"),
+    "ba_no_distortion_derivative": V(
+        "bundle_adjustment.py", [], "dpred_dp = (f * (2.0 * k1 + 4.0 * k2 * n))[:, None, None] * "
+                                    "(p[:, :, None] * p[:, None, :])", "dpred_dp = np.zeros((K, 2, 2))",
+        {BA_JC, BA_JP}, "the derivative of the distortion d with respect to p is missing"),
+    "ba_point_jacobian_without_rotation": V(
+        "bundle_adjustment.py", [], "J_point = np.matmul(A, R)", "J_point = A",
+        {BA_JP}, "J_point = (d predicted / d P) R"),
+    "ba_focal_column_without_distortion": V(
+        "bundle_adjustment.py", [], "J_cam[:, :, 6] = d[:, None] * p", "J_cam[:, :, 6] = p",
+        {BA_JC}, "d predicted / d f = d p"),
+    "ba_camera_blocks_by_fancy_index": V(
+        "bundle_adjustment.py", [], "U = scatter(ci, np.matmul(Jc_t, J_cam), num_cameras)",
+        "U = np.zeros((num_cameras, 9, 9))\n    U[ci] += np.matmul(Jc_t, J_cam)",
+        {BA_UVW}, "accumulate with np.add.at"),
+    "ba_point_blocks_by_fancy_index": V(
+        "bundle_adjustment.py", [], "V = scatter(pi, np.matmul(Jp_t, J_point), num_points)",
+        "V = np.zeros((num_points, 3, 3))\n    V[pi] += np.matmul(Jp_t, J_point)",
+        {BA_UVW}, "accumulate with np.add.at"),
+    "ba_coupling_summed_per_camera": V(
+        "bundle_adjustment.py", [], "W = np.matmul(Jc_t, J_point)",
+        "W = scatter(ci, np.matmul(Jc_t, J_point), num_cameras)[ci]",
+        {BA_UVW}, "one block per observation"),
+    "ba_gradient_sign": V(
+        "bundle_adjustment.py", [], "g_cam = scatter(ci,", "g_cam = -scatter(ci,",
+        {BA_G}, "the gradient has the opposite sign"),
+    "ba_half_chi2": V(
+        "bundle_adjustment.py", [], "float(np.sum(r * r))", "float(0.5 * np.sum(r * r))",
+        {BA_G}, "without a factor 1/2"),
+    "schur_point_blocks_undamped": V(
+        "bundle_adjustment.py", [], "V[:, np.arange(3), np.arange(3)] += damping_point", "pass",
+        {BA_CAM, BA_PT}, "the damping is added to V as well as U"),
+    "schur_camera_blocks_undamped": V(
+        "bundle_adjustment.py", [], "U[:, np.arange(9), np.arange(9)] += damping_cam", "pass",
+        {BA_CAM, BA_PT}, "the damping D_c is missing"),
+    "schur_coupling_added": V(
+        "bundle_adjustment.py", [], "S = scipy.linalg.block_diag(*U) - reduction.toarray()",
+        "S = scipy.linalg.block_diag(*U) + reduction.toarray()",
+        {BA_CAM, BA_PT}, "the coupling term is subtracted"),
+    "schur_rhs_sign": V(
+        "bundle_adjustment.py", [], "rhs = -np.asarray(g_cam, dtype=float).ravel() + Ys @",
+        "rhs = -np.asarray(g_cam, dtype=float).ravel() - Ys @",
+        {BA_CAM, BA_PT}, "the reduced right-hand side is -g_cam + W V^-1 g_point"),
+    "schur_back_substitution_sign": V(
+        "bundle_adjustment.py", [], "(-np.asarray(g_point, dtype=float) - back)",
+        "(-np.asarray(g_point, dtype=float) + back)",
+        {BA_PT}, "back-substitution"),
+}
+
+VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION,
+            **BUGS_BUNDLE_ADJUSTMENT}
 
 
 def apply(text: str, variant: Variant) -> str:

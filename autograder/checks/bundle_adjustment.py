@@ -1,0 +1,165 @@
+"""Checks of ``bundle_adjustment``: the BAL reprojection residuals and their Jacobians, the
+block normal equations, and the Schur-complement step, each graded alone on a small
+synthetic problem.
+
+Public inputs: 4 cameras (one with a rotation of 1e-9 rad, the small-angle case) and 12
+points, each seen by 2 to 4 cameras (observations shuffled), distortion that matters (|k1 p^2| about 0.1), observations
+perturbed by pixel noise; for the normal equations and the Schur step, the reference
+Jacobians of that problem (so each exercise is graded alone) and LM damping; hidden
+inputs: another problem of the same kind from the hidden seed.
+"""
+
+from functools import cache
+
+import numpy as np
+
+from autograder.checks import Call, Verdict
+from autograder.checks.pose_graph_edge import check, failed
+from autograder.feedback import call_fields, compare
+
+MODULES = ("bundle_adjustment",)
+RESIDUALS = "bundle_adjustment.reprojection_residuals_and_jacobians"
+NORMAL = "bundle_adjustment.normal_equations"
+SCHUR = "bundle_adjustment.schur_solve"
+
+# ---------------------------------------------------------------- inputs
+
+
+def _rotate(w, X):
+    """Rodrigues: R(w) X for (K, 3) angle-axis vectors and points."""
+    theta = np.linalg.norm(w, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k = np.where(theta > 0, w / theta, 0.0)
+    c, s = np.cos(theta), np.sin(theta)
+    return X * c + np.cross(k, X) * s + k * np.sum(k * X, axis=1, keepdims=True) * (1 - c)
+
+
+@cache
+def problem(seed=None):
+    """A small BAL problem: ``cameras`` (C, 9), ``points`` (P, 3), ``camera_index``,
+    ``point_index`` (K,), ``observations`` (K, 2); every point seen by 2 to 4 cameras, every
+    point in front of every camera that sees it (P_z < 0 in the BAL convention)."""
+    rng = np.random.default_rng(61 if seed is None else [seed, 261])
+    num_cameras, num_points = 4, 12
+    cameras = np.zeros((num_cameras, 9))
+    cameras[:, :3] = rng.normal(0, 0.3, (num_cameras, 3))
+    cameras[0, :3] = rng.normal(0, 1e-9, 3)  # the small-angle case
+    cameras[:, 3:5] = rng.normal(0, 0.5, (num_cameras, 2))
+    cameras[:, 5] = -rng.uniform(8.0, 12.0, num_cameras)
+    cameras[:, 6] = rng.uniform(400.0, 600.0, num_cameras)
+    cameras[:, 7] = rng.uniform(-8.0, 8.0, num_cameras)
+    cameras[:, 8] = rng.uniform(-40.0, 40.0, num_cameras)
+    points = rng.normal(0, 1.5, (num_points, 3))
+    pairs = []
+    for p in range(num_points):
+        seen = rng.choice(num_cameras, int(rng.integers(2, 5)), replace=False)
+        pairs += [(int(c), p) for c in sorted(seen)]
+    pairs = [pairs[k] for k in rng.permutation(len(pairs))]  # observations in no particular order
+    ci, pi = (np.array(v, dtype=np.int64) for v in zip(*pairs))
+    P = _rotate(cameras[ci, :3], points[pi]) + cameras[ci, 3:6]
+    p = -P[:, :2] / P[:, 2:]
+    r2 = np.sum(p * p, axis=1, keepdims=True)
+    predicted = cameras[ci, 6:7] * (1 + cameras[ci, 7:8] * r2 + cameras[ci, 8:9] * r2**2) * p
+    observations = predicted + rng.normal(0, 2.0, predicted.shape)
+    return {"cameras": cameras, "points": points, "camera_index": ci, "point_index": pi,
+            "observations": observations}
+
+
+def _where(g) -> str:
+    return (f"on a problem of {len(g['cameras'])} cameras (camera 0 rotated by 1e-9 rad), {len(g['points'])} "
+            f"points and {len(g['camera_index'])} observations")
+
+
+def _residual_calls(seed=None):
+    g = problem(seed)
+    args = (g["cameras"], g["points"], g["camera_index"], g["point_index"], g["observations"])
+    return [Call(f"bundle_adjustment:{RESIDUALS.split('.')[1]}", args, returns=("r", "J_cam", "J_point"),
+                 where=_where(g))]
+
+
+@cache
+def linearized(seed=None):
+    """The reference residuals and Jacobians of ``problem(seed)`` (instructor side: inside a
+    calls builder)."""
+    from autograder import oracle
+
+    g = problem(seed)
+    f = oracle.solutions_module("bundle_adjustment").reprojection_residuals_and_jacobians
+    return f(g["cameras"], g["points"], g["camera_index"], g["point_index"], g["observations"])
+
+
+def _normal_calls(seed=None):
+    g = problem(seed)
+    r, J_cam, J_point = linearized(seed)
+    args = (r, J_cam, J_point, g["camera_index"], g["point_index"], len(g["cameras"]), len(g["points"]))
+    return [Call(f"bundle_adjustment:{NORMAL.split('.')[1]}", args, returns=("U", "V", "W", "g_cam", "g_point",
+                                                                            "chi2"),
+                 where=_where(g) + ", at the reference r and Jacobians")]
+
+
+def _schur_calls(seed=None):
+    from autograder import oracle
+
+    g = problem(seed)
+    normal = oracle.solutions_module("bundle_adjustment").normal_equations
+    U, V, W, g_cam, g_point, _ = normal(*linearized(seed), g["camera_index"], g["point_index"], len(g["cameras"]),
+                                        len(g["points"]))
+    rng = np.random.default_rng(5 if seed is None else [seed, 263])
+    calls = []
+    # without damping, S is singular: bundle adjustment has a 7-dimensional gauge freedom
+    for lam in (1e-2, 1.0) if seed is None else (10.0 ** float(rng.uniform(-3, -1)), float(rng.uniform(0.5, 2))):
+        dc, dp = lam * np.einsum("cii->ci", U), lam * np.einsum("pii->pi", V)
+        what = f"LM damping lambda diag(H), lambda = {lam:.3g}"
+        args = (U, V, W, g_cam, g_point, g["camera_index"], g["point_index"])
+        calls.append(Call(f"bundle_adjustment:{SCHUR.split('.')[1]}", args,
+                          {"damping_cam": dc, "damping_point": dp}, returns=("dx_cam", "dx_point"),
+                          where=_where(g) + f", reference U, V, W, g; {what}"))
+    return calls
+
+
+# ---------------------------------------------------------------- judges
+
+
+def _judge(names, rtol, atol, labels, cause=""):
+    def judge(ctx):
+        triples, failure = call_fields(ctx, failed=failed)
+        if failure:
+            return failure
+        for index, (call, got, want) in enumerate(triples):
+            known = ctx.known(index)
+            for name in names:
+                scale = max(1.0, float(np.max(np.abs(want[name]))))
+                text = compare(got[name], want[name], labels[name], rtol, atol * scale, call.where,
+                               known.get(name, ()), cause)
+                if text:
+                    return Verdict(0.0, text)
+        return Verdict(1.0, "ok")
+
+    return judge
+
+
+_RES_LABELS = {"r": "r[{}]", "J_cam": "J_cam[{}]", "J_point": "J_point[{}]"}
+_NORMAL_LABELS = {"U": "U[{}]", "V": "V[{}]", "W": "W[{}]", "g_cam": "g_cam[{}]", "g_point": "g_point[{}]",
+                  "chi2": "chi2"}
+_SCHUR_LABELS = {"dx_cam": "dx_cam[{}]", "dx_point": "dx_point[{}]"}
+
+CHECKS = [
+    check(RESIDUALS, "residuals r", 2, _residual_calls, _judge(("r",), 1e-8, 1e-10, _RES_LABELS,
+          "r = f d p - observed with P = R(w) X + t, p = -P[:2] / P[2], d = 1 + k1 |p|^2 + k2 |p|^4")),
+    check(RESIDUALS, "camera Jacobian J_cam", 3, _residual_calls, _judge(("J_cam",), 1e-6, 1e-8, _RES_LABELS,
+          "J_cam[k] = d r_k / d (w, t, f, k1, k2), the exact derivative of R(w) X in w")),
+    check(RESIDUALS, "point Jacobian J_point", 2, _residual_calls, _judge(("J_point",), 1e-6, 1e-8, _RES_LABELS,
+          "J_point[k] = d r_k / d X = (d predicted / d P) R(w)")),
+    check(NORMAL, "camera blocks U, point blocks V, coupling W", 3, _normal_calls,
+          _judge(("U", "V", "W"), 1e-10, 1e-12, _NORMAL_LABELS,
+                 "U_c = sum J_cam^T J_cam over camera c's observations, V_p likewise, W_k = J_cam_k^T J_point_k")),
+    check(NORMAL, "gradients and chi2", 2, _normal_calls,
+          _judge(("g_cam", "g_point", "chi2"), 1e-10, 1e-12, _NORMAL_LABELS,
+                 "g_cam_c = sum J_cam^T r, g_point_p = sum J_point^T r, chi2 = sum r^T r")),
+    check(SCHUR, "camera step from the reduced system", 3, _schur_calls,
+          _judge(("dx_cam",), 1e-7, 1e-10, _SCHUR_LABELS,
+                 "S = U + D_c - sum W (V + D_p)^-1 W^T, S dx_cam = -g_cam + sum W (V + D_p)^-1 g_point")),
+    check(SCHUR, "point step by back-substitution", 2, _schur_calls,
+          _judge(("dx_point",), 1e-7, 1e-10, _SCHUR_LABELS,
+                 "dx_point_p = (V_p + D_p)^-1 (-g_point_p - sum W_k^T dx_cam)")),
+]

@@ -1,0 +1,104 @@
+"""Chapter 4 exercise: bundle adjustment in the BAL convention, vectorised over observations.
+
+Source: Agarwal, Snavely, Seitz, Szeliski, "Bundle Adjustment in the Large" (ECCV 2010)
+for the camera model; Triggs, McLauchlan, Hartley, Fitzgibbon, "Bundle Adjustment - A
+Modern Synthesis" (1999), section 6.1, for the Schur complement; G. Gallego, A. Yezzi,
+"A compact formula for the derivative of a 3-D rotation in exponential coordinates"
+(2015) for ``d R(w) v / d w``.
+
+Camera c has 9 parameters ``(w (3), t (3), f, k1, k2)``, point p has 3, and observation k
+of point ``point_index[k]`` by camera ``camera_index[k]`` gives the residual (2,)::
+
+    P = R(w) X + t,  p = -P[:2] / P[2],  d = 1 + k1 |p|^2 + k2 |p|^4,  r = f d p - observed
+
+The unknowns are updated by plain addition (also w), so the Jacobians are derivatives
+with respect to the angle-axis vector itself. No Python loop over observations anywhere.
+"""
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from course.errors import SingularSystemError
+
+#: below this |w| the coefficients of Rodrigues' formula use their Taylor series
+SMALL_ANGLE = 1e-4
+#: the reduced camera system is solved densely up to this size (9 C), sparsely beyond
+DENSE_LIMIT = 1000
+
+
+def _skew(v):
+    """``[v]_x`` (K, 3, 3) for v (K, 3): ``[v]_x u = v x u``."""
+    S = np.zeros((len(v), 3, 3))
+    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    return S
+
+
+def reprojection_residuals_and_jacobians(cameras, points, camera_index, point_index, observations):
+    """Residuals and Jacobians of all observations: ``r`` (K, 2), ``J_cam`` (K, 2, 9), ``J_point`` (K, 2, 3).
+
+    Args: cameras (C, 9), points (P, 3), camera_index, point_index (K,) int, observations (K, 2).
+
+    Rodrigues, with ``theta = |w|`` and ``W = [w]_x``::
+
+        R(w) = I + a W + b W^2,   a = sin(theta) / theta,  b = (1 - cos(theta)) / theta^2
+
+    Near theta = 0 (below ``SMALL_ANGLE``) use ``a = 1 - theta^2 / 6``, ``b = 1/2 - theta^2 / 24``
+    (never divide by theta). The exact derivative of the rotated point in w::
+
+        d (R(w) X) / d w = -R(w) [X]_x J_r(w),
+        J_r(w) = I - b W + c W^2,  c = (theta - sin(theta)) / theta^3   (1/6 - theta^2 / 120 near 0)
+
+    Chain rule, per observation (all (K, ...) arrays, batched with ``np.matmul``):
+
+    - ``dp/dP = [[-1/P_z, 0, P_x/P_z^2], [0, -1/P_z, P_y/P_z^2]]`` (2, 3)
+    - ``d predicted/dp = f (d I + (2 k1 + 4 k2 |p|^2) p p^T)`` (2, 2); call ``A = (d predicted/dp) (dp/dP)`` (2, 3)
+    - camera columns: ``A d(RX)/dw`` (w), ``A`` (t), ``d p`` (f), ``f |p|^2 p`` (k1), ``f |p|^4 p`` (k2)
+    - point columns: ``A R(w)``
+
+    Hint: gather the cameras and points of the observations first (``cameras[camera_index]``).
+    """
+    raise NotImplementedError("TODO bundle_adjustment.reprojection_residuals_and_jacobians: not implemented yet")
+
+
+def normal_equations(r, J_cam, J_point, camera_index, point_index, num_cameras, num_points):
+    """The blocks of ``H = J^T J`` and ``g = J^T r`` (unit information), and ``chi2``.
+
+    Returns ``U`` (C, 9, 9), ``V`` (P, 3, 3), ``W`` (K, 9, 3), ``g_cam`` (C, 9), ``g_point`` (P, 3),
+    ``chi2`` (float)::
+
+        U_c = sum over c's observations of J_cam_k^T J_cam_k
+        V_p = sum over p's observations of J_point_k^T J_point_k
+        W_k = J_cam_k^T J_point_k              (one coupling block per observation)
+        g_cam_c = sum J_cam_k^T r_k,  g_point_p = sum J_point_k^T r_k,  chi2 = sum r_k^T r_k
+
+    so that the Gauss-Newton step solves ``H dx = -g``. Hint: per-observation products with
+    ``np.matmul`` on transposed stacks, then a scatter-add to cameras and points
+    (``np.add.at``, or ``np.bincount`` with weights on flattened indices; no loop over k).
+    """
+    raise NotImplementedError("TODO bundle_adjustment.normal_equations: not implemented yet")
+
+
+def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=None, damping_point=None):
+    """The step ``(dx_cam (C, 9), dx_point (P, 3))`` of ``(H + D) dx = -g`` by the Schur complement.
+
+    With the damping diagonals added first (``U_c += diag(damping_cam[c])`` (C, 9),
+    ``V_p += diag(damping_point[p])`` (P, 3); None means no damping), eliminate the points::
+
+        S = U - sum_k sum_l W_k V_p^-1 W_l^T    at block (c_k, c_l), over pairs k, l of
+                                                 observations of the same point p
+        rhs = -g_cam + sum_k W_k V_{p_k}^-1 g_point_{p_k}    (into block c_k)
+        S dx_cam = rhs                         ((9C, 9C), symmetric positive definite)
+        dx_point_p = V_p^-1 (-g_point_p - sum over p's observations of W_k^T dx_cam_{c_k})
+
+    Solve S by a dense Cholesky factorization when 9C <= ``DENSE_LIMIT``, else sparse
+    (``scipy.sparse.linalg.splu``). Raise ``course.errors.SingularSystemError`` naming the
+    block when some damped V_p or S is not positive definite.
+
+    Hint: with ``Y_k = W_k V_{p_k}^-1`` (K, 9, 3), the sum over pairs is ``Ys @ Ws^T`` where Ys
+    and Ws are the sparse (9C, 3P) matrices holding the blocks Y_k and W_k at (c_k, p_k)
+    (``scipy.sparse.csr_matrix((data, (rows, cols)), shape)``): no loop over pairs.
+    """
+    raise NotImplementedError("TODO bundle_adjustment.schur_solve: not implemented yet")

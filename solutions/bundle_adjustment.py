@@ -1,0 +1,223 @@
+"""Chapter 4 exercise: bundle adjustment in the BAL convention, vectorised over observations.
+
+Source: Agarwal, Snavely, Seitz, Szeliski, "Bundle Adjustment in the Large" (ECCV 2010)
+for the camera model; Triggs, McLauchlan, Hartley, Fitzgibbon, "Bundle Adjustment - A
+Modern Synthesis" (1999), section 6.1, for the Schur complement; G. Gallego, A. Yezzi,
+"A compact formula for the derivative of a 3-D rotation in exponential coordinates"
+(2015) for ``d R(w) v / d w``.
+
+Camera c has 9 parameters ``(w (3), t (3), f, k1, k2)``, point p has 3, and observation k
+of point ``point_index[k]`` by camera ``camera_index[k]`` gives the residual (2,)::
+
+    P = R(w) X + t,  p = -P[:2] / P[2],  d = 1 + k1 |p|^2 + k2 |p|^4,  r = f d p - observed
+
+The unknowns are updated by plain addition (also w), so the Jacobians are derivatives
+with respect to the angle-axis vector itself. No Python loop over observations anywhere.
+"""
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from course.errors import SingularSystemError
+
+#: below this |w| the coefficients of Rodrigues' formula use their Taylor series
+SMALL_ANGLE = 1e-4
+#: the reduced camera system is solved densely up to this size (9 C), sparsely beyond
+DENSE_LIMIT = 1000
+
+
+def _skew(v):
+    """``[v]_x`` (K, 3, 3) for v (K, 3): ``[v]_x u = v x u``."""
+    S = np.zeros((len(v), 3, 3))
+    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    return S
+
+
+def reprojection_residuals_and_jacobians(cameras, points, camera_index, point_index, observations):
+    """Residuals and Jacobians of all observations: ``r`` (K, 2), ``J_cam`` (K, 2, 9), ``J_point`` (K, 2, 3).
+
+    Args: cameras (C, 9), points (P, 3), camera_index, point_index (K,) int, observations (K, 2).
+
+    Rodrigues, with ``theta = |w|`` and ``W = [w]_x``::
+
+        R(w) = I + a W + b W^2,   a = sin(theta) / theta,  b = (1 - cos(theta)) / theta^2
+
+    Near theta = 0 (below ``SMALL_ANGLE``) use ``a = 1 - theta^2 / 6``, ``b = 1/2 - theta^2 / 24``
+    (never divide by theta). The exact derivative of the rotated point in w::
+
+        d (R(w) X) / d w = -R(w) [X]_x J_r(w),
+        J_r(w) = I - b W + c W^2,  c = (theta - sin(theta)) / theta^3   (1/6 - theta^2 / 120 near 0)
+
+    Chain rule, per observation (all (K, ...) arrays, batched with ``np.matmul``):
+
+    - ``dp/dP = [[-1/P_z, 0, P_x/P_z^2], [0, -1/P_z, P_y/P_z^2]]`` (2, 3)
+    - ``d predicted/dp = f (d I + (2 k1 + 4 k2 |p|^2) p p^T)`` (2, 2); call ``A = (d predicted/dp) (dp/dP)`` (2, 3)
+    - camera columns: ``A d(RX)/dw`` (w), ``A`` (t), ``d p`` (f), ``f |p|^2 p`` (k1), ``f |p|^4 p`` (k2)
+    - point columns: ``A R(w)``
+
+    Hint: gather the cameras and points of the observations first (``cameras[camera_index]``).
+    """
+    # BEGIN SOLUTION
+    cam = np.asarray(cameras, dtype=float)[camera_index]
+    X = np.asarray(points, dtype=float)[point_index]
+    w = cam[:, :3]
+    t2 = np.sum(w * w, axis=1)
+    theta = np.sqrt(t2)
+    small = theta < SMALL_ANGLE
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - t2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
+    c = np.where(small, 1.0 / 6.0 - t2 / 120.0, (safe - np.sin(safe)) / safe**3)
+    Wx = _skew(w)
+    Wx2 = np.matmul(Wx, Wx)
+    eye = np.eye(3)
+    R = eye + a[:, None, None] * Wx + b[:, None, None] * Wx2
+    Jr = eye - b[:, None, None] * Wx + c[:, None, None] * Wx2
+    P = np.matmul(R, X[:, :, None])[:, :, 0] + cam[:, 3:6]
+    z = P[:, 2]
+    p = -P[:, :2] / z[:, None]
+    n = np.sum(p * p, axis=1)
+    f, k1, k2 = cam[:, 6], cam[:, 7], cam[:, 8]
+    d = 1.0 + k1 * n + k2 * n * n
+    r = (f * d)[:, None] * p - observations
+
+    K = len(r)
+    dp_dP = np.zeros((K, 2, 3))
+    dp_dP[:, 0, 0] = dp_dP[:, 1, 1] = -1.0 / z
+    dp_dP[:, :, 2] = P[:, :2] / (z * z)[:, None]
+    dpred_dp = (f * (2.0 * k1 + 4.0 * k2 * n))[:, None, None] * (p[:, :, None] * p[:, None, :])
+    dpred_dp += (f * d)[:, None, None] * np.eye(2)
+    A = np.matmul(dpred_dp, dp_dP)
+    dRX_dw = -np.matmul(R, np.matmul(_skew(X), Jr))
+    J_cam = np.empty((K, 2, 9))
+    J_cam[:, :, :3] = np.matmul(A, dRX_dw)
+    J_cam[:, :, 3:6] = A
+    J_cam[:, :, 6] = d[:, None] * p
+    J_cam[:, :, 7] = (f * n)[:, None] * p
+    J_cam[:, :, 8] = (f * n * n)[:, None] * p
+    J_point = np.matmul(A, R)
+    return r, J_cam, J_point
+    # END SOLUTION
+
+
+def normal_equations(r, J_cam, J_point, camera_index, point_index, num_cameras, num_points):
+    """The blocks of ``H = J^T J`` and ``g = J^T r`` (unit information), and ``chi2``.
+
+    Returns ``U`` (C, 9, 9), ``V`` (P, 3, 3), ``W`` (K, 9, 3), ``g_cam`` (C, 9), ``g_point`` (P, 3),
+    ``chi2`` (float)::
+
+        U_c = sum over c's observations of J_cam_k^T J_cam_k
+        V_p = sum over p's observations of J_point_k^T J_point_k
+        W_k = J_cam_k^T J_point_k              (one coupling block per observation)
+        g_cam_c = sum J_cam_k^T r_k,  g_point_p = sum J_point_k^T r_k,  chi2 = sum r_k^T r_k
+
+    so that the Gauss-Newton step solves ``H dx = -g``. Hint: per-observation products with
+    ``np.matmul`` on transposed stacks, then a scatter-add to cameras and points
+    (``np.add.at``, or ``np.bincount`` with weights on flattened indices; no loop over k).
+    """
+    # BEGIN SOLUTION
+    ci, pi = np.asarray(camera_index), np.asarray(point_index)
+    Jc_t, Jp_t = J_cam.transpose(0, 2, 1), J_point.transpose(0, 2, 1)
+
+    def scatter(index, blocks, count):
+        size = blocks[0].size
+        flat = (index[:, None] * size + np.arange(size)).ravel()
+        return np.bincount(flat, weights=blocks.ravel(), minlength=count * size).reshape((count, *blocks.shape[1:]))
+
+    U = scatter(ci, np.matmul(Jc_t, J_cam), num_cameras)
+    V = scatter(pi, np.matmul(Jp_t, J_point), num_points)
+    W = np.matmul(Jc_t, J_point)
+    g_cam = scatter(ci, np.matmul(Jc_t, r[:, :, None])[:, :, 0], num_cameras)
+    g_point = scatter(pi, np.matmul(Jp_t, r[:, :, None])[:, :, 0], num_points)
+    return U, V, W, g_cam, g_point, float(np.sum(r * r))
+    # END SOLUTION
+
+
+def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=None, damping_point=None):
+    """The step ``(dx_cam (C, 9), dx_point (P, 3))`` of ``(H + D) dx = -g`` by the Schur complement.
+
+    With the damping diagonals added first (``U_c += diag(damping_cam[c])`` (C, 9),
+    ``V_p += diag(damping_point[p])`` (P, 3); None means no damping), eliminate the points::
+
+        S = U - sum_k sum_l W_k V_p^-1 W_l^T    at block (c_k, c_l), over pairs k, l of
+                                                 observations of the same point p
+        rhs = -g_cam + sum_k W_k V_{p_k}^-1 g_point_{p_k}    (into block c_k)
+        S dx_cam = rhs                         ((9C, 9C), symmetric positive definite)
+        dx_point_p = V_p^-1 (-g_point_p - sum over p's observations of W_k^T dx_cam_{c_k})
+
+    Solve S by a dense Cholesky factorization when 9C <= ``DENSE_LIMIT``, else sparse
+    (``scipy.sparse.linalg.splu``). Raise ``course.errors.SingularSystemError`` naming the
+    block when some damped V_p or S is not positive definite.
+
+    Hint: with ``Y_k = W_k V_{p_k}^-1`` (K, 9, 3), the sum over pairs is ``Ys @ Ws^T`` where Ys
+    and Ws are the sparse (9C, 3P) matrices holding the blocks Y_k and W_k at (c_k, p_k)
+    (``scipy.sparse.csr_matrix((data, (rows, cols)), shape)``): no loop over pairs.
+    """
+    # BEGIN SOLUTION
+    ci, pi = np.asarray(camera_index), np.asarray(point_index)
+    C, P = len(U), len(V)
+    U = np.array(U, dtype=float)
+    V = np.array(V, dtype=float)
+    if damping_cam is not None:
+        U[:, np.arange(9), np.arange(9)] += damping_cam
+    if damping_point is not None:
+        V[:, np.arange(3), np.arange(3)] += damping_point
+    # V_p^-1 by Cholesky of every 3x3 block; a failure names the first bad point
+    try:
+        L = np.linalg.cholesky(V)
+    except np.linalg.LinAlgError:
+        lowest = np.linalg.eigvalsh(V)
+        bad = int(np.argmin(lowest[:, 0] / np.maximum(np.abs(lowest[:, -1]), np.finfo(float).tiny)))
+        raise SingularSystemError(f"schur_solve: V[{bad}] (point {bad}, plus damping) is not positive definite "
+                                  f"(eigenvalues {lowest[bad]}): is the point seen by fewer than 2 cameras, "
+                                  "or from one place, undamped?") from None
+    L_inv = np.linalg.inv(L)
+    V_inv = np.matmul(L_inv.transpose(0, 2, 1), L_inv)
+
+    Y = np.matmul(W, V_inv[pi])  # (K, 9, 3)
+    rows = np.broadcast_to((9 * ci)[:, None, None] + np.arange(9)[:, None], Y.shape).ravel()
+    cols = np.broadcast_to((3 * pi)[:, None, None] + np.arange(3), Y.shape).ravel()
+    shape = (9 * C, 3 * P)
+    Ys = sp.csr_matrix((Y.ravel(), (rows, cols)), shape=shape)
+    Ws_t = sp.csc_matrix((np.asarray(W, dtype=float).ravel(), (rows, cols)), shape=shape).T  # CSR, no copy
+    reduction = (Ys @ Ws_t).tocsr()
+    rhs = -np.asarray(g_cam, dtype=float).ravel() + Ys @ np.asarray(g_point, dtype=float).ravel()
+
+    n = 9 * C
+    if n <= DENSE_LIMIT:
+        S = scipy.linalg.block_diag(*U) - reduction.toarray()
+        S = 0.5 * (S + S.T)
+        try:
+            factor = scipy.linalg.cho_factor(S, lower=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            raise SingularSystemError(
+                "schur_solve: the reduced camera system S is not positive definite (undamped bundle adjustment has "
+                "a 7-dimensional gauge freedom, and weakly observed points make S ill-conditioned: add damping, "
+                "e.g. Levenberg-Marquardt)") from None
+        # pivot / diagonal entry: the part of S_ii left after elimination (scale-free)
+        kept = np.diag(factor[0]) ** 2 / np.diag(S)
+        if not np.all(np.isfinite(kept)) or kept.min() <= n * np.finfo(float).eps:
+            raise SingularSystemError(
+                f"schur_solve: the reduced camera system S is numerically singular (a pivot keeps {kept.min():.3g} "
+                "of its diagonal entry; undamped bundle adjustment has a 7-dimensional gauge freedom: add damping)")
+        dx = scipy.linalg.cho_solve(factor, rhs, check_finite=False)
+    else:
+        blocks = sp.block_diag(list(U), format="csc")
+        S_sparse = (blocks - reduction).tocsc()
+        try:
+            dx = spla.splu(S_sparse, permc_spec="MMD_AT_PLUS_A").solve(rhs)
+        except RuntimeError as exc:
+            raise SingularSystemError(f"schur_solve: the reduced camera system S is singular ({exc})") from None
+        if not np.all(np.isfinite(dx)) or dx @ rhs <= 0:
+            raise SingularSystemError("schur_solve: the reduced camera system S is not positive definite")
+    dx_cam = dx.reshape(C, 9)
+
+    Wt_dx = np.matmul(np.asarray(W).transpose(0, 2, 1), dx_cam[ci][:, :, None])[:, :, 0]  # (K, 3)
+    flat = (pi[:, None] * 3 + np.arange(3)).ravel()
+    back = np.bincount(flat, weights=Wt_dx.ravel(), minlength=3 * P).reshape(P, 3)
+    dx_point = np.matmul(V_inv, (-np.asarray(g_point, dtype=float) - back)[:, :, None])[:, :, 0]
+    return dx_cam, dx_point
+    # END SOLUTION

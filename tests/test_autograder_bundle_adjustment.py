@@ -1,0 +1,36 @@
+"""The bundle-adjustment checks (chapter 4): the reference keeps full marks, the stubs score
+zero, and each known mistake costs its own checks only and names its cause."""
+
+import pytest
+from test_autograder_chapters23 import grade_cli
+
+from autograder.checks import all_checks
+from student_variants import BUGS_BUNDLE_ADJUSTMENT, SOLUTIONS, apply, assert_loses_exactly, build
+
+
+def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(tmp_path):
+    _, results = grade_cli(tmp_path, "solutions", "bundle_adjustment", name="ref.json")
+    assert results["tests"] and all(t["score"] == t["max_score"] for t in results["tests"])
+    _, results = grade_cli(tmp_path, "exercises", "bundle_adjustment", name="stub.json")
+    assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO bundle_adjustment.")
+                                    for t in results["tests"])
+
+
+@pytest.mark.parametrize("name", sorted(BUGS_BUNDLE_ADJUSTMENT))
+def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
+    variant = BUGS_BUNDLE_ADJUSTMENT[name]
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
+    assert_loses_exactly(results, variant.fails, proc.stdout)
+    feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
+    assert variant.says in feedback, feedback
+
+
+def test_every_exercise_has_five_known_mistakes_and_they_name_real_checks():
+    checks = [c for c in all_checks() if c.exercise.startswith("bundle_adjustment.")]
+    for exercise in {c.exercise for c in checks}:
+        names = {c.name for c in checks if c.exercise == exercise}
+        assert sum(bool(v.fails & names) for v in BUGS_BUNDLE_ADJUSTMENT.values()) >= 5, exercise
+    for name, variant in BUGS_BUNDLE_ADJUSTMENT.items():
+        assert variant.fails <= {c.name for c in checks}, name
+        text = (SOLUTIONS / variant.file).read_text()
+        assert apply(text, variant) != text, name
