@@ -118,7 +118,7 @@ def normal(call, *, accumulate="add", gradient=1.0, chi2_scale=1.0, coupling="ca
 
 
 def normal_mistakes(call, ref):
-    known: dict = {name: [] for name in ref}
+    known = {name: [] for name in ref}
     for slip, text in (({"accumulate": "last"}, "U[camera_index] += blocks keeps one block per repeated index "
                                                 "(numpy's fancy-index +=): accumulate with np.add.at"),
                        ({"gradient": -1.0}, "the gradient has the opposite sign: g = J^T r (the step solves "
@@ -163,7 +163,7 @@ def schur(call, *, damp_u=True, damp_v=True, s_sign=-1.0, rhs_sign=1.0, back_sig
 
 
 def schur_mistakes(call, ref):
-    known: dict = {name: [] for name in ref}
+    known = {name: [] for name in ref}
     for slip, text in (({"damp_v": False}, "the damping is added to V as well as U, before the elimination: "
                                            "S = U + D_c - W (V + D_p)^-1 W^T"),
                        ({"damp_u": False}, "the damping D_c is missing from the camera blocks U"),
