@@ -234,13 +234,15 @@ def _index(index) -> str:
     return "[" + ", ".join(str(k) for k in index) + "]" if index else ""
 
 
-def values(names, rtol, atol, cause="", labels=None, scalar=False, errors=None):
+def values(names, rtol, atol, cause="", labels=None, scalar=False, errors=None, atol_scaled=False):
     """A judge comparing the outputs ``names`` of every call with the reference.
 
     The known mistakes of each call (``ctx.known(k)``, ``{name: [(value, text), ...]}``)
     give the likely cause; ``cause`` is the fallback hint (a string, or ``{name: text}``); ``labels`` maps an
     output to its name in feedback (``{"value": "h"}``); ``errors`` maps an exception
-    type name to a likely cause (``{"LinAlgError": "..."}``).
+    type name to a likely cause (``{"LinAlgError": "..."}``). ``atol_scaled``: ``atol`` is
+    relative to the output's largest reference entry (at least 1), for outputs whose
+    entries span orders of magnitude (Jacobians, normal-equation blocks).
     """
     labels = labels or {}
 
@@ -250,7 +252,8 @@ def values(names, rtol, atol, cause="", labels=None, scalar=False, errors=None):
             known = ctx.known(index)
             for name in names:
                 hint = cause.get(name, "") if isinstance(cause, dict) else cause
-                text = compare(got[name], want[name], labels.get(name, name), rtol, atol,
+                tolerance = atol * max(1.0, float(np.max(np.abs(want[name])))) if atol_scaled else atol
+                text = compare(got[name], want[name], labels.get(name, name), rtol, tolerance,
                                call.where, known.get(name, ()), hint, scalar)
                 if text:
                     return Verdict(0.0, text)

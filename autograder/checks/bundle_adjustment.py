@@ -13,9 +13,8 @@ from functools import cache
 
 import numpy as np
 
-from autograder.checks import Call, Verdict
-from autograder.checks.pose_graph_edge import check, failed
-from autograder.feedback import call_fields, compare
+from autograder.checks import Call
+from autograder.checks.pose_graph_edge import check, values
 
 MODULES = ("bundle_adjustment",)
 RESIDUALS = "bundle_adjustment.reprojection_residuals_and_jacobians"
@@ -120,22 +119,8 @@ def _schur_calls(seed=None):
 # ---------------------------------------------------------------- judges
 
 
-def _judge(names, rtol, atol, labels, cause=""):
-    def judge(ctx):
-        triples, failure = call_fields(ctx, failed=failed)
-        if failure:
-            return failure
-        for index, (call, got, want) in enumerate(triples):
-            known = ctx.known(index)
-            for name in names:
-                scale = max(1.0, float(np.max(np.abs(want[name]))))
-                text = compare(got[name], want[name], labels[name], rtol, atol * scale, call.where,
-                               known.get(name, ()), cause)
-                if text:
-                    return Verdict(0.0, text)
-        return Verdict(1.0, "ok")
-
-    return judge
+def _values(names, rtol, atol, labels, cause):
+    return values(names, rtol, atol, cause, labels, atol_scaled=True)
 
 
 _RES_LABELS = {"r": "r[{}]", "J_cam": "J_cam[{}]", "J_point": "J_point[{}]"}
@@ -144,22 +129,22 @@ _NORMAL_LABELS = {"U": "U[{}]", "V": "V[{}]", "W": "W[{}]", "g_cam": "g_cam[{}]"
 _SCHUR_LABELS = {"dx_cam": "dx_cam[{}]", "dx_point": "dx_point[{}]"}
 
 CHECKS = [
-    check(RESIDUALS, "residuals r", 2, _residual_calls, _judge(("r",), 1e-8, 1e-10, _RES_LABELS,
+    check(RESIDUALS, "residuals r", 2, _residual_calls, _values(("r",), 1e-8, 1e-10, _RES_LABELS,
           "r = f d p - observed with P = R(w) X + t, p = -P[:2] / P[2], d = 1 + k1 |p|^2 + k2 |p|^4")),
-    check(RESIDUALS, "camera Jacobian J_cam", 3, _residual_calls, _judge(("J_cam",), 1e-6, 1e-8, _RES_LABELS,
+    check(RESIDUALS, "camera Jacobian J_cam", 3, _residual_calls, _values(("J_cam",), 1e-6, 1e-8, _RES_LABELS,
           "J_cam[k] = d r_k / d (w, t, f, k1, k2), the exact derivative of R(w) X in w")),
-    check(RESIDUALS, "point Jacobian J_point", 2, _residual_calls, _judge(("J_point",), 1e-6, 1e-8, _RES_LABELS,
+    check(RESIDUALS, "point Jacobian J_point", 2, _residual_calls, _values(("J_point",), 1e-6, 1e-8, _RES_LABELS,
           "J_point[k] = d r_k / d X = (d predicted / d P) R(w)")),
     check(NORMAL, "camera blocks U, point blocks V, coupling W", 3, _normal_calls,
-          _judge(("U", "V", "W"), 1e-10, 1e-12, _NORMAL_LABELS,
+          _values(("U", "V", "W"), 1e-10, 1e-12, _NORMAL_LABELS,
                  "U_c = sum J_cam^T J_cam over camera c's observations, V_p likewise, W_k = J_cam_k^T J_point_k")),
     check(NORMAL, "gradients and chi2", 2, _normal_calls,
-          _judge(("g_cam", "g_point", "chi2"), 1e-10, 1e-12, _NORMAL_LABELS,
+          _values(("g_cam", "g_point", "chi2"), 1e-10, 1e-12, _NORMAL_LABELS,
                  "g_cam_c = sum J_cam^T r, g_point_p = sum J_point^T r, chi2 = sum r^T r")),
     check(SCHUR, "camera step from the reduced system", 3, _schur_calls,
-          _judge(("dx_cam",), 1e-7, 1e-10, _SCHUR_LABELS,
+          _values(("dx_cam",), 1e-7, 1e-10, _SCHUR_LABELS,
                  "S = U + D_c - sum W (V + D_p)^-1 W^T, S dx_cam = -g_cam + sum W (V + D_p)^-1 g_point")),
     check(SCHUR, "point step by back-substitution", 2, _schur_calls,
-          _judge(("dx_point",), 1e-7, 1e-10, _SCHUR_LABELS,
+          _values(("dx_point",), 1e-7, 1e-10, _SCHUR_LABELS,
                  "dx_point_p = (V_p + D_p)^-1 (-g_point_p - sum W_k^T dx_cam)")),
 ]

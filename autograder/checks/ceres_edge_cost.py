@@ -11,7 +11,7 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Verdict
-from autograder.checks.pose_graph_edge import check, edges, failed
+from autograder.checks.pose_graph_edge import check, edges, failed, values
 from autograder.feedback import call_fields, compare
 
 MODULES = ("ceres_edge_cost",)
@@ -50,22 +50,7 @@ def _ceres_calls(task):
 def _judge_ceres(names):
     causes = {"r": "r = U e", "J_i": "jacobians[0] = U A, row-major", "J_j": "jacobians[1] = U B, row-major"}
     labels = {"r": "residuals[{}]", "J_i": "jacobians[0] as 3x3 [{}]", "J_j": "jacobians[1] as 3x3 [{}]"}
-
-    def judge(ctx):
-        triples, failure = call_fields(ctx, failed=failed)
-        if failure:
-            return failure
-        for index, (call, got, want) in enumerate(triples):
-            known = ctx.known(index)
-            for name in names:
-                scale = max(1.0, float(np.max(np.abs(want[name]))))
-                text = compare(got[name], want[name], labels[name], 1e-9, 1e-12 * scale, call.where,
-                               known.get(name, ()), causes[name])
-                if text:
-                    return Verdict(0.0, text)
-        return Verdict(1.0, "ok")
-
-    return judge
+    return values(names, 1e-9, 1e-12, causes, labels, atol_scaled=True)
 
 
 def _judge_partial_jacobians(ctx):
