@@ -99,6 +99,8 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
 
     Hint: with ``Y_k = W_k V_{p_k}^-1`` (K, 9, 3), the sum over pairs is ``Ys @ Ws^T`` where Ys
     and Ws are the sparse (9C, 3P) matrices holding the blocks Y_k and W_k at (c_k, p_k)
-    (``scipy.sparse.csr_matrix((data, (rows, cols)), shape)``): no loop over pairs.
+    (``scipy.sparse.csr_matrix((data, (rows, cols)), shape)``): no loop over pairs. Faster:
+    ``scipy.sparse.bsr_matrix((blocks, block_columns, block_row_pointers), shape)``, which
+    multiplies 9x3 blocks at a time.
     """
     raise NotImplementedError("TODO bundle_adjustment.schur_solve: not implemented yet")

@@ -154,7 +154,9 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
 
     Hint: with ``Y_k = W_k V_{p_k}^-1`` (K, 9, 3), the sum over pairs is ``Ys @ Ws^T`` where Ys
     and Ws are the sparse (9C, 3P) matrices holding the blocks Y_k and W_k at (c_k, p_k)
-    (``scipy.sparse.csr_matrix((data, (rows, cols)), shape)``): no loop over pairs.
+    (``scipy.sparse.csr_matrix((data, (rows, cols)), shape)``): no loop over pairs. Faster:
+    ``scipy.sparse.bsr_matrix((blocks, block_columns, block_row_pointers), shape)``, which
+    multiplies 9x3 blocks at a time.
     """
     # BEGIN SOLUTION
     ci, pi = np.asarray(camera_index), np.asarray(point_index)
@@ -178,12 +180,14 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
     V_inv = np.matmul(L_inv.transpose(0, 2, 1), L_inv)
 
     Y = np.matmul(W, V_inv[pi])  # (K, 9, 3)
-    rows = np.broadcast_to((9 * ci)[:, None, None] + np.arange(9)[:, None], Y.shape).ravel()
-    cols = np.broadcast_to((3 * pi)[:, None, None] + np.arange(3), Y.shape).ravel()
+    # Ys and Ws as block-sparse rows (one 9x3 block per observation, rows grouped by camera):
+    # the product multiplies blocks, several times faster than the same product entry by entry
+    order = np.argsort(ci, kind="stable")
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(ci, minlength=C))])
     shape = (9 * C, 3 * P)
-    Ys = sp.csr_matrix((Y.ravel(), (rows, cols)), shape=shape)
-    Ws_t = sp.csc_matrix((np.asarray(W, dtype=float).ravel(), (rows, cols)), shape=shape).T  # CSR, no copy
-    reduction = (Ys @ Ws_t).tocsr()
+    Ys = sp.bsr_matrix((Y[order], pi[order], indptr), shape=shape)
+    Ws = sp.bsr_matrix((np.asarray(W, dtype=float)[order], pi[order], indptr), shape=shape)
+    reduction = Ys @ Ws.T  # (9C, 9C), blocks (9, 9)
     rhs = -np.asarray(g_cam, dtype=float).ravel() + Ys @ np.asarray(g_point, dtype=float).ravel()
 
     n = 9 * C
