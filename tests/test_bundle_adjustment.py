@@ -9,6 +9,7 @@ from course.datasets import DatasetError, gtsam_data_dir
 from course.errors import SingularSystemError
 from course.problems.bal import BundleAdjustmentProblem
 from course.solvers import minimize
+from course.solvers.options import SolverOptions
 from solutions import bundle_adjustment as ba
 
 #: ladybug-49's BAL cost at its start and after a converged LM (REFERENCES.md)
@@ -253,7 +254,7 @@ def _similarity(A, B):
     return s, R, mb - s * R @ ma
 
 
-@pytest.mark.parametrize("method", ["lm-type1", "lm-type3", "dogleg"])
+@pytest.mark.parametrize("method", ["lm-type1", "lm-type2", "lm-type3", "dogleg"])
 def test_zero_noise_recovers_ground_truth_up_to_gauge(method):
     p = synthetic(6, 60, seed=4, noise=0.0)
     problem = BundleAdjustmentProblem(p)
@@ -280,6 +281,34 @@ def test_ladybug_lm_reaches_the_reference_cost(data_folder):
     assert result.initial_chi2 / 2 == pytest.approx(LADYBUG_INITIAL_COST, rel=1e-9)
     assert result.iterations <= 100
     assert result.final_chi2 / 2 <= LADYBUG_TARGET_COST * (1 + 1e-6)
+
+
+def test_a_singular_damped_system_raises_lambda_tenfold_and_solves_again():
+    from course.solvers.strategies import SINGULAR_RETRIES
+
+    class Fragile(BundleAdjustmentProblem):
+        """Singular whenever the damping's smallest entry is below ``floor``."""
+
+        floor = 0.0
+        lambdas: list = []
+
+        def solve(self, lin, damping=None):
+            self.lambdas.append(float(np.min(damping)))
+            if np.min(damping) < self.floor:
+                raise SingularSystemError("schur_solve: S is singular (test)")
+            return super().solve(lin, damping)
+
+    problem = Fragile(synthetic(4, 30, seed=1, noise=0.0))
+    lin = problem.linearize(problem.x0)
+    lam0 = 1e-2 * float(np.max(lin.diagonal()))  # lm-type3's first lambda
+    problem.floor = 50 * lam0
+    result = minimize(problem, "lm-type3", options=SolverOptions(max_iterations=1))
+    assert problem.lambdas[:3] == pytest.approx([lam0, 10 * lam0, 100 * lam0])
+    assert result.factorizations == 3 and result.iterations == 1
+    problem.floor, problem.lambdas = float("inf"), []
+    with pytest.raises(SingularSystemError, match="singular"):
+        minimize(problem, "lm-type3", options=SolverOptions(max_iterations=1))
+    assert len(problem.lambdas) == SINGULAR_RETRIES + 1
 
 
 def test_fixed_gauge_lets_gauss_newton_converge():

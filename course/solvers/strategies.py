@@ -19,7 +19,7 @@ The student's pieces stay small and are graded alone: Gavin's damping rules
 turn them into strategies.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -89,6 +89,10 @@ class GaussNewtonStrategy:
         return False
 
 
+#: how often a damping strategy raises lambda tenfold after a singular damped system
+SINGULAR_RETRIES = 8
+
+
 class DampingStrategy:
     """Levenberg-Marquardt with one of Gavin's damping rules (``impl``'s ``damping`` module).
 
@@ -112,8 +116,19 @@ class DampingStrategy:
         return float(self.state.lam)
 
     def compute_step(self, problem, x, lin):
-        self.factorizations += 1
-        return problem.solve(lin, self.rule.damping_diagonal(self.diag_H, self.state.lam))
+        """The damped step; a numerically singular damped system (lambda I too small for a
+        rank-deficient H, e.g. bundle adjustment's gauge) raises lambda tenfold and solves
+        again, at most ``SINGULAR_RETRIES`` times, as a failed linear solve shrinks the trust
+        region in Ceres."""
+        for attempt in range(SINGULAR_RETRIES + 1):
+            self.factorizations += 1
+            try:
+                return problem.solve(lin, self.rule.damping_diagonal(self.diag_H, self.state.lam))
+            except SingularSystemError:
+                if attempt == SINGULAR_RETRIES:
+                    raise
+                self.state = replace(self.state, lam=10.0 * self.state.lam)
+        raise AssertionError("unreachable")
 
     def negligible_step(self, h, x, options) -> bool:
         return _short(h, x, options)
