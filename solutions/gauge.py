@@ -1,0 +1,77 @@
+"""Chapter 4, going further: the gauge freedom of bundle adjustment.
+
+Move the whole scene by a similarity (rotate it by Q, shift it by s, scale it by k) and
+move every camera with it: every reprojection stays the same, so the cost cannot tell
+the two apart. These 7 directions span the null space of the Jacobian J (K 2, 9C + 3P),
+so ``H = J^T J`` has 7 zero eigenvalues (up to rounding) and undamped Gauss-Newton meets
+a singular system. Fixing 7 of the unknowns (``BundleAdjustmentProblem(fix_gauge=True)``)
+or damping removes them.
+
+The state is ``x = concat(cameras.ravel(), points.ravel())`` (9C + 3P,) as in
+``bundle_adjustment`` (camera = angle-axis w, t, f, k1, k2; the unknowns are updated by
+addition); a direction is a tangent vector of x.
+"""
+
+import numpy as np
+
+#: below this |w| the coefficient of J_r(w)^-1 uses its Taylor series
+SMALL_ANGLE = 1e-4
+
+
+def _skew(v):
+    """``[v]_x`` (K, 3, 3) for v (K, 3)."""
+    S = np.zeros((len(v), 3, 3))
+    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    return S
+
+
+def gauge_directions(cameras, points):
+    """The 7 infinitesimal similarities of the scene as columns of ``N`` (9C + 3P, 7).
+
+    Args: cameras (C, 9), points (P, 3). Columns, in this order, for a small ``e``:
+
+    - 0, 1, 2: rotation of the scene about the world origin by ``e`` about axis a (the unit
+      vector ``u_a``): points ``dX = u_a x X``; cameras keep ``P = R X + t``, so ``R`` becomes
+      ``R exp(-e [u_a]_x)``, ``t`` stays, and with the right Jacobian ``J_r`` of the angle
+      axis (``R(w + dw) = R(w) exp([J_r(w) dw]_x)`` to first order) ``dw = -J_r(w)^-1 u_a``;
+    - 3, 4, 5: translation of the scene by ``u_a``: ``dX = u_a``, ``dt = -R(w) u_a``, ``dw = 0``;
+    - 6: scaling about the origin: ``dX = X``, ``dt = t`` (``dw = 0``; f, k1, k2 never move).
+
+    With ``theta = |w|``, ``W = [w]_x``::
+
+        J_r(w)^-1 = I + W / 2 + (1 / theta^2 - (1 + cos theta) / (2 theta sin theta)) W^2
+
+    where the last coefficient is ``1/12 + theta^2 / 720`` near theta = 0 (below
+    ``SMALL_ANGLE``). ``R(w) u`` is Rodrigues' formula (``bundle_adjustment``'s docstring).
+    """
+    # BEGIN SOLUTION
+    cameras = np.asarray(cameras, dtype=float)
+    points = np.asarray(points, dtype=float)
+    C, P = len(cameras), len(points)
+    w = cameras[:, :3]
+    t2 = np.sum(w * w, axis=1)
+    theta = np.sqrt(t2)
+    small = theta < SMALL_ANGLE
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - t2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
+    c = np.where(small, 1.0 / 12.0 + t2 / 720.0,
+                 1.0 / safe**2 - (1.0 + np.cos(safe)) / (2.0 * safe * np.sin(safe)))
+    W = _skew(w)
+    W2 = np.matmul(W, W)
+    eye = np.eye(3)
+    R = eye + a[:, None, None] * W + b[:, None, None] * W2
+    Jr_inv = eye + 0.5 * W + c[:, None, None] * W2
+    d_cam = np.zeros((7, C, 9))
+    d_point = np.zeros((7, P, 3))
+    for axis in range(3):
+        u = eye[axis]
+        d_cam[axis, :, :3] = -Jr_inv[:, :, axis]
+        d_point[axis] = np.cross(u, points)
+        d_cam[3 + axis, :, 3:6] = -R[:, :, axis]
+        d_point[3 + axis] = u
+    d_cam[6, :, 3:6] = cameras[:, 3:6]
+    d_point[6] = points
+    return np.concatenate([d_cam.reshape(7, -1), d_point.reshape(7, -1)], axis=1).T
+    # END SOLUTION

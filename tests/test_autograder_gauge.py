@@ -1,0 +1,42 @@
+"""The gauge checks (chapter 4, going further): the reference keeps full marks, the stub
+scores zero, each known mistake costs its own group's check only and names its cause, and
+the same directions written another way keep full marks."""
+
+import pytest
+from test_autograder_chapters23 import grade_cli
+
+from autograder.checks import all_checks
+from student_variants import ALTERNATIVES_GAUGE, BUGS_GAUGE, SOLUTIONS, apply, assert_loses_exactly, build
+
+
+def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(tmp_path):
+    _, results = grade_cli(tmp_path, "solutions", "gauge", name="ref.json")
+    assert len(results["tests"]) == 6 and all(t["score"] == t["max_score"] for t in results["tests"])
+    _, results = grade_cli(tmp_path, "exercises", "gauge", name="stub.json")
+    assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO gauge.gauge_directions")
+                                    for t in results["tests"])
+
+
+@pytest.mark.parametrize("name", sorted(BUGS_GAUGE))
+def test_a_known_mistake_costs_its_own_check_only(tmp_path, name):
+    variant = BUGS_GAUGE[name]
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
+    assert_loses_exactly(results, variant.fails, proc.stdout)
+    feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
+    assert variant.says in feedback, feedback
+
+
+@pytest.mark.parametrize("name", sorted(ALTERNATIVES_GAUGE))
+def test_the_same_directions_written_another_way_keep_full_marks(tmp_path, name):
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), "gauge")
+    assert_loses_exactly(results, set(), proc.stdout)
+
+
+def test_five_known_mistakes_and_they_name_real_checks():
+    names = {c.name for c in all_checks() if c.exercise == "gauge.gauge_directions"}
+    assert len(names) == 3
+    assert len(BUGS_GAUGE) >= 5
+    for name, variant in {**BUGS_GAUGE, **ALTERNATIVES_GAUGE}.items():
+        assert variant.fails <= names, name
+        text = (SOLUTIONS / variant.file).read_text()
+        assert apply(text, variant) != text, name
