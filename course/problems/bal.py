@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from course import impl as impl_loader
+from course import robust
 from course.bal import BALProblem, residuals, rotate
 from course.errors import check_array
 from course.solvers.linearization import Linearization
@@ -62,13 +63,19 @@ class BlockLinearization(Linearization):
 class BundleAdjustmentProblem:
     """``linearize`` / ``chi2`` / ``solve`` / ``retract`` for one BAL problem and implementation."""
 
-    def __init__(self, problem: BALProblem, impl="solutions", fix_gauge: bool = False):
+    def __init__(self, problem: BALProblem, impl="solutions", fix_gauge: bool = False, loss=None):
         """``fix_gauge``: hold camera 0's pose (w, t) and one translation component of camera 1 (the
         one along which the scene's scale moves it most) at their start values, which removes the
-        7-dimensional gauge freedom; Gauss-Newton then works. The minimum cost is the same."""
+        7-dimensional gauge freedom; Gauss-Newton then works. The minimum cost is the same.
+
+        ``loss``: None (least squares), or a robust loss ``(kernel, scale)`` such as ``("huber", 2.0)``
+        (:class:`course.robust.RobustLoss`, the implementation's ``robust_kernels``) on each
+        observation's ``s = |r|^2``: chi2 is then ``sum rho(s)``, in ``chi2(x)`` and ``linearize`` alike."""
+        self.loss = robust.RobustLoss.of(loss)
         self.problem = problem
         self.impl = impl_loader.load(impl)
         self.ba = self.impl.module("bundle_adjustment")
+        self.kernels = self.impl.module("robust_kernels") if self.loss is not None else None
         self.num_cameras, self.num_points = problem.num_cameras, problem.num_points
         self.x0 = np.concatenate([problem.cameras.ravel(), problem.points.ravel()]).astype(float)
         self._split = 9 * self.num_cameras
@@ -95,6 +102,8 @@ class BundleAdjustmentProblem:
         p = self.problem
         cameras, points = self.unpack(x)
         r = residuals(cameras, points, p.camera_index, p.point_index, p.observations)
+        if self.loss is not None:
+            return robust.robust_chi2(self.kernels, self.loss, r)
         value = float(np.sum(r * r))
         return value if np.isfinite(value) else float("inf")
 
@@ -108,6 +117,9 @@ class BundleAdjustmentProblem:
         r = check_array(r, (K, 2), where, "r")
         J_cam = check_array(J_cam, (K, 2, 9), where, "J_cam")
         J_point = check_array(J_point, (K, 2, 3), where, "J_point")
+        robust_chi2 = None
+        if self.loss is not None:  # r~, J~ such that normal_equations gives J^T W J and rho' J^T r (course.robust)
+            r, (J_cam, J_point), robust_chi2 = robust.reweight(self.kernels, self.loss, r, (J_cam, J_point))
         where = "bundle_adjustment.normal_equations"
         U, V, W, g_cam, g_point, chi2 = self.ba.normal_equations(
             r, J_cam, J_point, p.camera_index, p.point_index, C, P)
@@ -124,7 +136,8 @@ class BundleAdjustmentProblem:
             W[self.fixed[p.camera_index]] = 0.0
             g_cam[self.fixed] = 0.0
         b = np.concatenate([g_cam.ravel(), check_array(g_point, (P, 3), where, "g_point").ravel()])
-        return BlockLinearization(H=None, b=b, chi2=float(chi2), U=U, V=V, W=W,
+        chi2 = float(chi2) if robust_chi2 is None else robust_chi2
+        return BlockLinearization(H=None, b=b, chi2=chi2, U=U, V=V, W=W,
                                   camera_index=p.camera_index, point_index=p.point_index)
 
     def solve(self, lin: Linearization, damping=None):

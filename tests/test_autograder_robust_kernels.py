@@ -1,0 +1,54 @@
+"""The robust-kernel checks (chapter 4): the reference keeps full marks, the stubs score zero,
+each known mistake costs its own checks only and names its cause, and correct code written
+another way keeps full marks."""
+
+import pytest
+from test_autograder_chapters23 import grade_cli
+
+from autograder.checks import all_checks
+from student_variants import (
+    ALTERNATIVES_ROBUST_KERNELS,
+    BUGS_ROBUST_KERNELS,
+    SOLUTIONS,
+    apply,
+    assert_loses_exactly,
+    build,
+    losing,
+)
+
+
+def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(tmp_path):
+    _, results = grade_cli(tmp_path, "solutions", "robust_kernels", name="ref.json")
+    assert results["tests"] and all(t["score"] == t["max_score"] for t in results["tests"])
+    _, results = grade_cli(tmp_path, "exercises", "robust_kernels", name="stub.json")
+    assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO robust_kernels.")
+                                    for t in results["tests"])
+
+
+@pytest.mark.parametrize("name", sorted(BUGS_ROBUST_KERNELS))
+def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
+    variant = BUGS_ROBUST_KERNELS[name]
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
+    assert_loses_exactly(results, variant.fails, proc.stdout)
+    feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
+    assert variant.says in feedback, feedback
+
+
+@pytest.mark.parametrize("name", sorted(ALTERNATIVES_ROBUST_KERNELS))
+def test_correct_code_written_another_way_keeps_full_marks(tmp_path, name):
+    variant = ALTERNATIVES_ROBUST_KERNELS[name]
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
+    assert results["tests"] and not losing(results), proc.stdout
+
+
+def test_every_exercise_has_five_known_mistakes_and_they_name_real_checks():
+    checks = [c for c in all_checks() if c.exercise.startswith("robust_kernels.")]
+    assert {c.exercise for c in checks} == {"robust_kernels.huber", "robust_kernels.cauchy", "robust_kernels.tukey",
+                                            "robust_kernels.robust_information"}
+    for exercise in {c.exercise for c in checks}:
+        names = {c.name for c in checks if c.exercise == exercise}
+        assert sum(bool(v.fails & names) for v in BUGS_ROBUST_KERNELS.values()) >= 5, exercise
+    for name, variant in {**BUGS_ROBUST_KERNELS, **ALTERNATIVES_ROBUST_KERNELS}.items():
+        assert variant.fails <= {c.name for c in checks}, name
+        text = (SOLUTIONS / variant.file).read_text()
+        assert apply(text, variant) != text, name
