@@ -58,7 +58,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     compare = sub.add_parser("compare", help="one dataset through our methods and the peers")
     compare.add_argument("dataset", help="'curve' (generated data), a named pose graph "
-                         "(see `python -m course datasets`), manhattan:N, or a TORO/g2o file")
+                         "(see `python -m course datasets`), manhattan:N, or a TORO/g2o file; "
+                         "a BAL problem: ladybug-49, dubrovnik-3-7, bal-synthetic:CAMS:POINTS[:seed] or a BAL file")
     _add_run_arguments(compare)
     compare.add_argument("--json", metavar="FILE", help="write {dataset, runs[]} as JSON")
     compare.add_argument("--plot", metavar="FILE",
@@ -213,7 +214,7 @@ def _progress(kind, methods, backends, label):
     from course import compare
     from course.progress import Progress
 
-    plan = compare.curve_plan(methods, backends) if kind == "curve" else compare.posegraph_plan(methods, backends)
+    plan = {"curve": compare.curve_plan, "bal": compare.bal_plan}.get(kind, compare.posegraph_plan)(methods, backends)
     return Progress(len(plan), label=label)
 
 
@@ -239,6 +240,8 @@ def cmd_compare(args) -> int:
         ate = compare.format_ate(runs)
         if ate:
             print("\n" + ate)
+    if runner.kind == "bal" and compare.format_bal(runs):
+        print("\n" + compare.format_bal(runs))
     if args.json:
         path = Path(args.json)
         path.parent.mkdir(parents=True, exist_ok=True)

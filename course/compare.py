@@ -2,7 +2,8 @@
 
 A *runner* turns a dataset name into ``list[RunResult]``; ``RUNNERS`` maps a dataset
 kind to its runner and ``run(dataset, ...)`` picks the first kind whose ``matches``
-accepts the name: ``curve`` (chapter 1, generated data) and ``posegraph`` (chapter 2:
+accepts the name: ``curve`` (chapter 1, generated data), ``bal`` (chapter 4: ``ladybug-49``,
+``dubrovnik-3-7``, ``bal-synthetic:CAMS:POINTS[:seed]``, BAL files) and ``posegraph`` (chapter 2:
 named datasets such as ``intel`` or ``m3500``, ``manhattan:N`` and file paths).
 
 A runner is called as ``runner(dataset, impl=..., methods=..., backends=..., repeat=...,
@@ -294,6 +295,101 @@ def format_ate(runs) -> str:
         cells = [f"{r.ate[kind][stat]:12.4g}" for kind in ("translation", "rotation")
                  for stat in ("rmse", "median", "std", "max", "min")]
         lines.append(f"{r.backend:8} {r.method:22} " + " ".join(cells))
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- bundle adjustment (chapter 4)
+
+def bal_plan(methods=None, backends=None) -> list:
+    """The ``(backend, method)`` pairs to run on a BAL problem, filtered, in table order."""
+    return filter_pairs(registry.pairs("bal"), methods, backends, "bundle adjustment")
+
+
+def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
+            unimplemented="raise", progress=None, fix_gauge=True) -> list:
+    """Every method and peer on one ``BALProblem`` (``course.bal``), all from its own start.
+
+    Ours: ``minimize(BundleAdjustmentProblem(problem, impl, fix_gauge), method)``: by default
+    the gauge is fixed (camera 0's pose and one coordinate of camera 1), as every peer fixes it
+    (pycolmap by itself, GTSAM with priors); ``fix_gauge=False`` shows what the free gauge does
+    (Gauss-Newton then fails, and LM with lambda I converges slowly);
+    the peers: ``course.backends.colmap_bal`` (Ceres), ``gtsam_bal``, ``scipy_bal``. Returns
+    ``list[BALRunResult]`` (``course.backends.bal_common``: ``params`` the flat state,
+    ``final_chi2`` our ``sum |r|^2`` over all observations, and each peer's own cost beside
+    it). A run that stops on a singular system (undamped Gauss-Newton meets bundle
+    adjustment's 7-dimensional gauge freedom) is a row ``failed: ...``. ``impl``,
+    ``unimplemented``, ``progress`` as in ``run_curve``.
+    """
+    from course.backends.bal_common import BALRunResult
+    from course.errors import SingularSystemError
+    from course.problems.bal import BundleAdjustmentProblem
+    from course.solvers import SolverOptions, minimize
+
+    impl = _tree_impl(impl)
+    options = SolverOptions(max_iterations=max_iterations)
+    plan = bal_plan(methods, backends)
+
+    def ours(method, callback):
+        result = minimize(BundleAdjustmentProblem(problem, impl, fix_gauge=fix_gauge), method, impl=impl,
+                          options=options, callback=callback)
+        return BALRunResult.from_run(result, problem, peer_cost="ours: 0.5 sum |r|^2 over all observations")
+
+    progress = progress or quiet()
+    results = []
+    for backend, method in plan:
+        with progress.run(backend, method) as callback:
+            if backend == "ours":
+                solve = partial(ours, method, callback)
+            else:
+                solve = partial(_run_peer, "bal", backend, problem, method, max_iterations)
+            try:
+                results.append(_solve_or_row(solve, repeat, backend, method, unimplemented))
+            except SingularSystemError as exc:
+                results.append(RunResult.skipped(backend, method, f"failed: {exc}"))
+    return results
+
+
+def is_bal_name(name: str) -> bool:
+    """A named BAL problem, ``bal-synthetic:CAMS:POINTS[:seed]``, or a file whose first line is a
+    BAL header (three integers)."""
+    from course.bal import bal_names
+
+    if name in bal_names() or name.startswith("bal-synthetic:"):
+        return True
+    path = Path(name)
+    try:
+        with path.open(encoding="utf-8", errors="replace") as file:
+            first = file.readline().split()
+    except OSError:  # not a file, or unreadable: not ours to claim
+        return False
+    return len(first) == 3 and all(token.isdigit() for token in first)
+
+
+def _bal_runner(dataset, impl=None, methods=None, backends=None, **options):
+    from course.bal import load_bal
+
+    return run_bal(load_bal(dataset), impl=impl, methods=methods, backends=backends, **options)
+
+
+register("bal", _bal_runner, matches=is_bal_name,
+         description="a BAL problem: ladybug-49, dubrovnik-3-7, bal-synthetic:CAMS:POINTS[:seed] or a BAL file")
+RUNNERS["posegraph"] = RUNNERS.pop("posegraph")  # after "bal": its matcher takes any existing path
+
+
+def format_bal(runs) -> str:
+    """Per bundle-adjustment run: our final cost, the peer's own, and how it treated the observations
+    behind a camera (only runs that carry the BAL fields)."""
+    rows = [r for r in runs if not r.not_run and hasattr(r, "peer_final_cost")]
+    if not rows:
+        return ""
+    lines = ["costs: ours = 0.5 sum |r|^2 over all observations (half the chi2 above); the peer's own as it reports it",
+             f"{'backend':8} {'method':22} {'final cost (ours)':>18} {'peer final cost':>16}  "
+             "behind camera start->final  removed by the peer"]
+    for r in rows:
+        removed = f"{r.removed_points} points, {r.removed_observations} observations" \
+            if r.removed_points or r.removed_observations else "-"
+        lines.append(f"{r.backend:8} {r.method:22} {r.final_cost:18.10g} {r.peer_final_cost:16.10g}  "
+                     f"{r.behind_camera_start:>12} -> {r.behind_camera_final:<11}  {removed}")
     return "\n".join(lines)
 
 

@@ -1,6 +1,6 @@
 """Which optional libraries are installed here, and the one line said when one is not.
 
-The peers (pyceres, g2opy, gtsam) come with the ``peers`` extra, and only where they
+The peers (pyceres, g2opy, gtsam, pycolmap) come with the ``peers`` extra, and only where they
 publish wheels; qdldl and jupytext are core requirements with no wheel for every Python.
 A missing one is never a traceback: the runs, checks or datasets that need it step aside,
 and :func:`announce` says so once per process, on stderr.
@@ -16,11 +16,12 @@ LIBRARIES = {
     "pyceres": "Ceres' runs are skipped",
     "g2opy": "g2o's runs are skipped",
     "gtsam": "GTSAM's runs and the datasets in its wheel (w100, w10000) are skipped",
+    "pycolmap": "Ceres' bundle-adjustment runs are skipped",
     "qdldl": "the sparse solves use scipy's SuperLU instead",
     "jupytext": "the notebooks run from their .ipynb files as shipped",
 }
 #: what installs a library where a wheel exists
-INSTALL = {"pyceres": EXTRA_HINT, "g2opy": EXTRA_HINT, "gtsam": EXTRA_HINT,
+INSTALL = {"pyceres": EXTRA_HINT, "g2opy": EXTRA_HINT, "gtsam": EXTRA_HINT, "pycolmap": EXTRA_HINT,
            "qdldl": "pip install qdldl", "jupytext": "pip install jupytext"}
 
 _announced: set = set()

@@ -25,13 +25,23 @@ POSE_GRAPH_PEERS: dict[str, tuple[str, tuple[str, ...]]] = {
     "ceres": ("course.backends.ceres_posegraph", ("levenberg-marquardt", "dogleg")),
     "gtsam": ("course.backends.gtsam_posegraph", ("gauss-newton", "levenberg-marquardt", "dogleg")),
 }
+#: bundle adjustment's peers (chapter 4, BAL problems): backend -> (module, methods)
+BAL_PEERS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "ceres": ("course.backends.colmap_bal", ("levenberg-marquardt", "dogleg")),
+    "gtsam": ("course.backends.gtsam_bal", ("levenberg-marquardt",)),
+    "scipy": ("course.backends.scipy_bal", ("trf",)),
+}
 #: the library each peer back end needs (scipy is a core requirement)
 LIBRARY = {"ceres": "pyceres", "g2o": "g2opy", "gtsam": "gtsam", "scipy": "scipy"}
-PEERS: dict[str, dict[str, tuple[str, tuple[str, ...]]]] = {"curve": CURVE_PEERS, "posegraph": POSE_GRAPH_PEERS}
+#: where a kind's peer needs another library than ``LIBRARY`` says: Ceres' bundle adjustment
+#: runs through pycolmap (a C++ cost), not pyceres
+KIND_LIBRARY: dict[str, dict[str, str]] = {"bal": {"ceres": "pycolmap"}}
+PEERS: dict[str, dict[str, tuple[str, tuple[str, ...]]]] = {
+    "curve": CURVE_PEERS, "posegraph": POSE_GRAPH_PEERS, "bal": BAL_PEERS}
 
 
 def pairs(kind: str) -> list:
-    """Every ``(backend, method)`` of ``kind`` ("curve" or "posegraph"), ours first."""
+    """Every ``(backend, method)`` of ``kind`` ("curve", "posegraph" or "bal"), ours first."""
     from course.solvers import METHODS
 
     out = [(OURS, method) for method in METHODS]
@@ -43,6 +53,11 @@ def peer_methods(kind: str, backend: str) -> tuple:
     return PEERS[kind][backend][1]
 
 
+def library(kind: str, backend: str) -> str:
+    """The library the peer ``backend`` of ``kind`` needs (``pycolmap`` for Ceres on "bal")."""
+    return KIND_LIBRARY.get(kind, {}).get(backend, LIBRARY[backend])
+
+
 def peer_solver(kind: str, backend: str):
     """The ``solve`` function of a peer of ``kind``, importing its module (and library) now.
 
@@ -50,6 +65,6 @@ def peer_solver(kind: str, backend: str):
     """
     from course import peers
 
-    peers.require(LIBRARY[backend])
+    peers.require(library(kind, backend))
     module, _ = PEERS[kind][backend]
     return importlib.import_module(module).solve

@@ -61,10 +61,14 @@ def test_qdldl_and_jupytext_are_left_out_on_3_15_only():
 
 def test_the_peers_markers():
     peers = requirements("peers")
-    assert names(applicable(peers, target("3.12", "linux-x86_64"))) == ["pyceres", "g2opy", "gtsam"]
+    assert names(applicable(peers, target("3.12", "linux-x86_64"))) == ["pyceres", "g2opy", "gtsam", "pycolmap"]
     for python in ("3.10", "3.11", "3.12", "3.13", "3.14", "3.15"):
         assert "gtsam" not in names(applicable(peers, target(python, "windows-amd64")))
         assert "pyceres" not in names(applicable(peers, target(python, "linux-aarch64")))
+        assert "pycolmap" not in names(applicable(peers, target(python, "linux-aarch64")))  # no aarch64 wheel
+    for platform in ("linux-x86_64", "macos-arm64", "windows-amd64"):  # pycolmap 4.2.1: cp310-cp314 wheels
+        assert "pycolmap" in names(applicable(peers, target("3.10", platform)))
+        assert "pycolmap" not in names(applicable(peers, target("3.15", platform)))
     for platform in ("linux-x86_64", "linux-aarch64", "macos-arm64", "windows-amd64"):
         assert "gtsam" not in names(applicable(peers, target("3.10", platform)))
         assert "g2opy" not in names(applicable(peers, target("3.10", platform)))
