@@ -61,9 +61,9 @@ def reprojection_residuals_and_jacobians(cameras, points, camera_index, point_in
     Hint: gather the cameras and points of the observations first (``cameras[camera_index]``).
     """
     # BEGIN SOLUTION
-    cam = np.asarray(cameras, dtype=float)[camera_index]
-    X = np.asarray(points, dtype=float)[point_index]
-    w = cam[:, :3]
+    cameras = np.asarray(cameras, dtype=float)
+    # R(w) and J_r(w) once per camera (C is small), then gathered per observation
+    w = cameras[:, :3]
     t2 = np.sum(w * w, axis=1)
     theta = np.sqrt(t2)
     small = theta < SMALL_ANGLE
@@ -74,8 +74,10 @@ def reprojection_residuals_and_jacobians(cameras, points, camera_index, point_in
     Wx = _skew(w)
     Wx2 = np.matmul(Wx, Wx)
     eye = np.eye(3)
-    R = eye + a[:, None, None] * Wx + b[:, None, None] * Wx2
-    Jr = eye - b[:, None, None] * Wx + c[:, None, None] * Wx2
+    R = (eye + a[:, None, None] * Wx + b[:, None, None] * Wx2)[camera_index]
+    Jr = (eye - b[:, None, None] * Wx + c[:, None, None] * Wx2)[camera_index]
+    cam = cameras[camera_index]
+    X = np.asarray(points, dtype=float)[point_index]
     P = np.matmul(R, X[:, :, None])[:, :, 0] + cam[:, 3:6]
     z = P[:, 2]
     p = -P[:, :2] / z[:, None]
@@ -91,14 +93,14 @@ def reprojection_residuals_and_jacobians(cameras, points, camera_index, point_in
     dpred_dp = (f * (2.0 * k1 + 4.0 * k2 * n))[:, None, None] * (p[:, :, None] * p[:, None, :])
     dpred_dp += (f * d)[:, None, None] * np.eye(2)
     A = np.matmul(dpred_dp, dp_dP)
-    dRX_dw = -np.matmul(R, np.matmul(_skew(X), Jr))
+    AR = np.matmul(A, R)  # d predicted / d X
     J_cam = np.empty((K, 2, 9))
-    J_cam[:, :, :3] = np.matmul(A, dRX_dw)
+    J_cam[:, :, :3] = -np.matmul(AR, np.matmul(_skew(X), Jr))  # A d(RX)/dw, d(RX)/dw = -R [X]_x J_r
     J_cam[:, :, 3:6] = A
     J_cam[:, :, 6] = d[:, None] * p
     J_cam[:, :, 7] = (f * n)[:, None] * p
     J_cam[:, :, 8] = (f * n * n)[:, None] * p
-    J_point = np.matmul(A, R)
+    J_point = AR
     return r, J_cam, J_point
     # END SOLUTION
 
