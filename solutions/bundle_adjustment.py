@@ -129,7 +129,11 @@ def normal_equations(r, J_cam, J_point, camera_index, point_index, num_cameras, 
         flat = (index[:, None] * size + np.arange(size)).ravel()
         return np.bincount(flat, weights=blocks.ravel(), minlength=count * size).reshape((count, *blocks.shape[1:]))
 
-    U = scatter(ci, np.matmul(Jc_t, J_cam), num_cameras)
+    # U_c = J_c^T J_c, J_c camera c's rows stacked (2 K_c, 9): one matrix product per camera (C is small)
+    order = np.argsort(ci, kind="stable")
+    bounds = 2 * np.concatenate([[0], np.cumsum(np.bincount(ci, minlength=num_cameras))])
+    rows = J_cam[order].reshape(-1, 9)
+    U = np.stack([rows[lo:hi].T @ rows[lo:hi] for lo, hi in zip(bounds[:-1], bounds[1:])])
     V = scatter(pi, np.matmul(Jp_t, J_point), num_points)
     W = np.matmul(Jc_t, J_point)
     g_cam = scatter(ci, np.matmul(Jc_t, r[:, :, None])[:, :, 0], num_cameras)
@@ -181,14 +185,15 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
     L_inv = np.linalg.inv(L)
     V_inv = np.matmul(L_inv.transpose(0, 2, 1), L_inv)
 
-    Y = np.matmul(W, V_inv[pi])  # (K, 9, 3)
     # Ys and Ws as block-sparse rows (one 9x3 block per observation, rows grouped by camera):
     # the product multiplies blocks, several times faster than the same product entry by entry
     order = np.argsort(ci, kind="stable")
     indptr = np.concatenate([[0], np.cumsum(np.bincount(ci, minlength=C))])
+    W_sorted, p_sorted = np.asarray(W, dtype=float)[order], pi[order]
+    Y = np.matmul(W_sorted, V_inv[p_sorted])  # Y_k = W_k V_p^-1 (K, 9, 3), camera by camera
     shape = (9 * C, 3 * P)
-    Ys = sp.bsr_matrix((Y[order], pi[order], indptr), shape=shape)
-    Ws = sp.bsr_matrix((np.asarray(W, dtype=float)[order], pi[order], indptr), shape=shape)
+    Ys = sp.bsr_matrix((Y, p_sorted, indptr), shape=shape)
+    Ws = sp.bsr_matrix((W_sorted, p_sorted, indptr), shape=shape)
     reduction = Ys @ Ws.T  # (9C, 9C), blocks (9, 9)
     rhs = -np.asarray(g_cam, dtype=float).ravel() + Ys @ np.asarray(g_point, dtype=float).ravel()
 
