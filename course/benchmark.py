@@ -159,3 +159,7 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print):
     else:
         out(f"intel: dense solve {dense * 1e3:.1f} ms, sparse {sparse * 1e3:.2f} ms, "
             f"dense/sparse = {dense / sparse:.0f}x (median of {repeats})")
+    # chapter 4: the parallel assembly against the serial one, alone and in whole LM / dogleg iterations
+    from course import parallel_speedup
+
+    parallel_speedup.section(repeats=2 * repeats - 1, impl=impl, out=out, iteration_repeats=max(1, (repeats + 1) // 2))

@@ -55,6 +55,10 @@ LOADED_BY = {
     "dogleg.py": ("dogleg",),
     "initialisation.py": ("initialisation",),
     "bundle_adjustment.py": ("bundle_adjustment",),
+    "robust_kernels.py": ("robust_kernels",),
+    "gauge.py": ("gauge",),
+    # the parallel assembly is graded with a stand-in kernel: it never runs bundle_adjustment's code
+    "parallel_assembly.py": ("parallel_assembly",),
 }
 
 
@@ -436,21 +440,22 @@ BUGS_BUNDLE_ADJUSTMENT = {
         "bundle_adjustment.py", [], "d = 1.0 + k1 * n + k2 * n * n", "d = np.ones_like(n)",
         {BA_R, BA_JC, BA_JP}, "the radial distortion d = 1 + k1 |p|^2 + k2 |p|^4 is missing"),
     "ba_small_angle_rotation_jacobian": V(
-        "bundle_adjustment.py", [], "dRX_dw = -np.matmul(R, np.matmul(_skew(X), Jr))",
-        "dRX_dw = -_skew(np.matmul(R, X[:, :, None])[:, :, 0])",
+        "bundle_adjustment.py", [], "J_cam[:, :, :3] = -np.matmul(AR, np.matmul(_skew(X), Jr))",
+        "J_cam[:, :, :3] = -np.matmul(A, _skew(np.matmul(R, X[:, :, None])[:, :, 0]))",
         {BA_JC}, "holds only at w = 0"),
     "ba_no_distortion_derivative": V(
         "bundle_adjustment.py", [], "dpred_dp = (f * (2.0 * k1 + 4.0 * k2 * n))[:, None, None] * "
                                     "(p[:, :, None] * p[:, None, :])", "dpred_dp = np.zeros((K, 2, 2))",
         {BA_JC, BA_JP}, "the derivative of the distortion d with respect to p is missing"),
     "ba_point_jacobian_without_rotation": V(
-        "bundle_adjustment.py", [], "J_point = np.matmul(A, R)", "J_point = A",
+        "bundle_adjustment.py", [], "J_point = AR", "J_point = A",
         {BA_JP}, "J_point = (d predicted / d P) R"),
     "ba_focal_column_without_distortion": V(
         "bundle_adjustment.py", [], "J_cam[:, :, 6] = d[:, None] * p", "J_cam[:, :, 6] = p",
         {BA_JC}, "d predicted / d f = d p"),
     "ba_camera_blocks_by_fancy_index": V(
-        "bundle_adjustment.py", [], "U = scatter(ci, np.matmul(Jc_t, J_cam), num_cameras)",
+        "bundle_adjustment.py", [],
+        "U = np.stack([np.dot(rows[lo:hi].T, rows[lo:hi]) for lo, hi in zip(bounds[:-1], bounds[1:])])",
         "U = np.zeros((num_cameras, 9, 9))\n    U[ci] += np.matmul(Jc_t, J_cam)",
         {BA_UVW}, "accumulate with np.add.at"),
     "ba_point_blocks_by_fancy_index": V(
@@ -487,8 +492,233 @@ BUGS_BUNDLE_ADJUSTMENT = {
         {BA_PT}, "back-substitution"),
 }
 
+RK_HUBER, RK_CAUCHY, RK_TUKEY = "robust_kernels.huber: ", "robust_kernels.cauchy: ", "robust_kernels.tukey: "
+RHO, D_RHO, DD_RHO = "rho(s)", "rho'(s)", "rho''(s)"
+RK_WEIGHT = "robust_kernels.robust_information: "
+RK_DEFINITE = RK_WEIGHT + "corrected form where it is positive definite"
+RK_NOT_DEFINITE = RK_WEIGHT + "first-order form where the corrected one is not positive definite"
+RK_MIXED = RK_WEIGHT + "a mix of both, one Omega for all residuals"
+_TUKEY_RHO = "rho = np.where(inner, s * (1.0 + u + u * u) / 3.0, a2 / 3.0)"
+
+# chapter 4: robust kernels
+BUGS_ROBUST_KERNELS = {
+    "huber_threshold_at_a": V(
+        "robust_kernels.py", ["def huber"], "outer = s > a2", "outer = s > a",
+        {RK_HUBER + RHO, RK_HUBER + D_RHO, RK_HUBER + DD_RHO}, "the threshold is s <= a^2"),
+    "huber_linear_in_s": V(
+        "robust_kernels.py", ["def huber"], "2.0 * a * root - a2", "2.0 * a * root * root - a2",
+        {RK_HUBER + RHO}, "2 a sqrt(s) - a^2, not 2 a s - a^2"),
+    "huber_derivative_jumps_at_threshold": V(
+        "robust_kernels.py", ["def huber"], "np.where(outer, a / root, 1.0)", "np.where(outer, 2.0 * a / root, 1.0)",
+        {RK_HUBER + D_RHO}, "rho' is continuous at the threshold"),
+    "huber_second_derivative_sign": V(
+        "robust_kernels.py", ["def huber"], "-0.5 * a / (root", "0.5 * a / (root",
+        {RK_HUBER + DD_RHO}, "is negative"),
+    "huber_threshold_excluded": V(
+        "robust_kernels.py", ["def huber"], "outer = s > a2", "outer = s >= a2",
+        {RK_HUBER + DD_RHO}, "the quadratic branch includes the threshold"),
+    "huber_textbook_half": V(
+        "robust_kernels.py", ["def huber"], "rho = np.where(outer, 2.0 * a * root - a2, s)",
+        "rho = 0.5 * np.where(outer, 2.0 * a * root - a2, s)",
+        {RK_HUBER + RHO}, "the textbook Huber"),
+    "cauchy_no_front_factor": V(
+        "robust_kernels.py", ["def cauchy"], "return a2 * np.log1p(s / a2)", "return np.log1p(s / a2)",
+        {RK_CAUCHY + RHO}, "keeps rho'(0) = 1"),
+    "cauchy_second_derivative_sign": V(
+        "robust_kernels.py", ["def cauchy"], "-1.0 / (a2 * t * t)", "1.0 / (a2 * t * t)",
+        {RK_CAUCHY + DD_RHO}, "is negative"),
+    "cauchy_second_derivative_no_square": V(
+        "robust_kernels.py", ["def cauchy"], "-1.0 / (a2 * t * t)", "-1.0 / (a2 * t)",
+        {RK_CAUCHY + DD_RHO}, "the square is missing"),
+    "cauchy_unscaled_derivatives": V(
+        "robust_kernels.py", ["def cauchy"], "t = 1.0 + s / a2", "t = 1.0 + s",
+        {RK_CAUCHY + D_RHO, RK_CAUCHY + DD_RHO}, "log(1 + s) is the unit kernel"),
+    "cauchy_scale_in_s_units": V(
+        "robust_kernels.py", ["def cauchy"], "a2 = a * a", "a2 = a",
+        {RK_CAUCHY + RHO, RK_CAUCHY + D_RHO, RK_CAUCHY + DD_RHO}, "not a log(1 + s / a)"),
+    "tukey_ceres_half": V(
+        "robust_kernels.py", ["def tukey"], _TUKEY_RHO,
+        "rho = np.where(inner, s * (1.0 + u + u * u) / 6.0, a2 / 6.0)",
+        {RK_TUKEY + RHO}, "that is Ceres' TukeyLoss"),
+    "tukey_derivatives_not_zero_beyond": V(
+        "robust_kernels.py", ["def tukey"], "u = np.where(inner, 1.0 - s / a2, 0.0)", "u = 1.0 - s / a2",
+        {RK_TUKEY + D_RHO, RK_TUKEY + DD_RHO}, "rho' = rho'' = 0 there"),
+    "tukey_zero_beyond": V(
+        "robust_kernels.py", ["def tukey"], "a2 / 3.0)", "0.0)",
+        {RK_TUKEY + RHO}, "rho is continuous at s = a^2"),
+    "tukey_second_derivative_sign": V(
+        "robust_kernels.py", ["def tukey"], "-2.0 * u / a2", "2.0 * u / a2",
+        {RK_TUKEY + DD_RHO}, "is negative below the threshold"),
+    "tukey_second_derivative_no_chain_rule": V(
+        "robust_kernels.py", ["def tukey"], "-2.0 * u / a2", "-2.0 * u",
+        {RK_TUKEY + DD_RHO}, "the chain rule's 1 / a^2 is missing"),
+    "tukey_threshold_at_a": V(
+        "robust_kernels.py", ["def tukey"], "inner = s <= a2", "inner = s <= a",
+        {RK_TUKEY + RHO, RK_TUKEY + D_RHO, RK_TUKEY + DD_RHO}, "the threshold is s <= a^2"),
+    "weighting_always_corrected": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"],
+        "return np.where(definite[:, None, None], corrected, first)", "return corrected",
+        {RK_NOT_DEFINITE, RK_MIXED}, "only where it is positive definite"),
+    "weighting_always_first_order": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"],
+        "return np.where(definite[:, None, None], corrected, first)", "return first",
+        {RK_DEFINITE, RK_MIXED}, "not rho' Omega"),
+    "weighting_ceres_rule": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"],
+        "definite = d_rho + 2.0 * dd_rho * s > DEFINITE_MARGIN * d_rho", "definite = dd_rho > 0",
+        {RK_DEFINITE, RK_MIXED}, "Ceres' choice"),
+    "weighting_rank_one_without_2": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"], "(2.0 * dd_rho)[:, None, None]",
+        "dd_rho[:, None, None]",
+        {RK_DEFINITE, RK_MIXED}, "the factor 2 is missing"),
+    "weighting_rank_one_of_e": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"], "(v[:, :, None] * v[:, None, :])",
+        "(e[:, :, None] * e[:, None, :])",
+        {RK_DEFINITE, RK_MIXED}, "not 2 rho'' e e^T"),
+    "weighting_rank_one_subtracted": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"], "corrected = first + (2.0",
+        "corrected = first - (2.0",
+        {RK_DEFINITE, RK_MIXED}, "the corrected form adds"),
+    "weighting_test_without_2": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"], "definite = d_rho + 2.0 * dd_rho * s",
+        "definite = d_rho + dd_rho * s",
+        {RK_NOT_DEFINITE, RK_MIXED}, "(with the factor 2)"),
+}
+
+
+def _solution_lines(module: str, function: str) -> str:
+    """The reference's solution lines of ``function`` in ``module`` (to replace whole)."""
+    text = (SOLUTIONS / module).read_text()
+    start = text.index("# BEGIN SOLUTION\n", text.index(f"def {function}(")) + len("# BEGIN SOLUTION\n")
+    return text[start:text.index("    # END SOLUTION", start)]
+
+
+# correct but not the reference's way: they keep full marks
+_PLAIN_WEIGHTING = """    out = np.zeros((len(e), e.shape[1], e.shape[1]))
+    for k in range(len(e)):  # one residual at a time, the test written as 1 + 2 s rho'' / rho'
+        om = Omega if Omega.ndim == 2 else Omega[k]
+        v = om @ e[k]
+        out[k] = d_rho[k] * om
+        if d_rho[k] > 0 and 1.0 + 2.0 * float(e[k] @ v) * dd_rho[k] / d_rho[k] > 1e-6:
+            out[k] += 2.0 * dd_rho[k] * np.outer(v, v)
+    return out
+"""
+ALTERNATIVES_ROBUST_KERNELS = {
+    "tukey_as_written": V(
+        "robust_kernels.py", ["def tukey"], _TUKEY_RHO,
+        "rho = np.where(inner, a2 / 3.0 * (1.0 - u**3), a2 / 3.0)", set()),
+    "cauchy_with_log": V(
+        "robust_kernels.py", ["def cauchy"], "a2 * np.log1p(s / a2)", "a2 * np.log(t)", set()),
+    "weighting_one_residual_at_a_time": V(
+        "robust_kernels.py", ["def robust_information"], _solution_lines("robust_kernels.py", "robust_information"),
+        _PLAIN_WEIGHTING, set()),
+}
+
+
+GA_T, GA_R, GA_S = ("gauge.gauge_directions: " + t for t in ("translation directions", "rotation directions",
+                                                                   "scale direction"))
+BUGS_GAUGE = {
+    "gauge_cameras_turn_with_the_scene": V(
+        "gauge.py", [], "d_cam[axis, :, :3] = -Jr_inv[:, :, axis]", "d_cam[axis, :, :3] = Jr_inv[:, :, axis]",
+        {GA_R}, "the cameras turn against the scene"),
+    "gauge_rotation_without_jacobian": V(
+        "gauge.py", [], "d_cam[axis, :, :3] = -Jr_inv[:, :, axis]", "d_cam[axis, :, :3] = -u",
+        {GA_R}, "holds only at w = 0"),
+    "gauge_left_jacobian": V(
+        "gauge.py", [], "d_cam[axis, :, :3] = -Jr_inv[:, :, axis]", "d_cam[axis, :, :3] = -Jr_inv[:, axis, :]",
+        {GA_R}, "needs the right one"),
+    "gauge_cross_product_order": V(
+        "gauge.py", [], "d_point[axis] = np.cross(u, points)", "d_point[axis] = np.cross(points, u)",
+        {GA_R}, "u_a x X"),
+    "gauge_cameras_stay_when_the_scene_moves": V(
+        "gauge.py", [], "d_cam[3 + axis, :, 3:6] = -R[:, :, axis]", "d_cam[3 + axis, :, 3:6] = 0.0",
+        {GA_T}, "must move with the scene"),
+    "gauge_translation_in_the_world_frame": V(
+        "gauge.py", [], "d_cam[3 + axis, :, 3:6] = -R[:, :, axis]", "d_cam[3 + axis, :, 3:6] = -u",
+        {GA_T}, "in the camera's frame"),
+    "gauge_translation_sign": V(
+        "gauge.py", [], "d_cam[3 + axis, :, 3:6] = -R[:, :, axis]", "d_cam[3 + axis, :, 3:6] = R[:, :, axis]",
+        {GA_T}, "not +R(w) u_a"),
+    "gauge_scale_without_translations": V(
+        "gauge.py", [], "d_cam[6, :, 3:6] = cameras[:, 3:6]", "d_cam[6, :, 3:6] = 0.0",
+        {GA_S}, "scales every translation"),
+    "gauge_scale_moves_the_focal_length": V(
+        "gauge.py", [], "d_point[6] = points", "d_point[6] = points\n    d_cam[6, :, 6] = cameras[:, 6]",
+        {GA_S}, "intrinsics"),
+}
+ALTERNATIVES_GAUGE = {
+    "gauge_rotation_about_the_centroid": V(
+        "gauge.py", [], "d_point[axis] = np.cross(u, points)",
+        "d_point[axis] = np.cross(u, points - points.mean(axis=0))\n"
+        "        d_cam[axis, :, 3:6] = np.matmul(R, np.cross(u, points.mean(axis=0)))", set()),
+    "gauge_columns_scaled": V(
+        "gauge.py", [], "    return np.concatenate([d_cam.reshape(7, -1), d_point.reshape(7, -1)], axis=1).T",
+        "    return -3.0 * np.concatenate([d_cam.reshape(7, -1), d_point.reshape(7, -1)], axis=1).T", set()),
+}
+
+PA_BOUNDS = "parallel_assembly.chunk_bounds: contiguous balanced chunks"
+PA_UVW = "parallel_assembly.normal_equations_parallel: U, V and W as the serial assembly"
+PA_G = "parallel_assembly.normal_equations_parallel: gradients and chi2 as the serial assembly"
+PA_THREADS = "parallel_assembly.normal_equations_parallel: chunks run on several threads at once"
+#: the anchors of each function's code (its docstring names the same expressions)
+PA_IN_BOUNDS = ("def chunk_bounds", "# BEGIN SOLUTION")
+PA_IN_ASSEMBLY = ("def normal_equations_parallel", "# BEGIN SOLUTION")
+
+# chapter 4: the parallel assembly
+BUGS_PARALLEL_ASSEMBLY = {
+    "pa_remainder_dropped": V(
+        "parallel_assembly.py", PA_IN_BOUNDS, "[k * size + min(k, extra) for", "[k * size for",
+        {PA_BOUNDS, PA_UVW, PA_G}, "dropped"),
+    "pa_empty_chunks": V(
+        "parallel_assembly.py", PA_IN_BOUNDS, "n = min(chunks, num_observations)", "n = chunks",
+        {PA_BOUNDS, PA_UVW, PA_G}, "empty"),
+    "pa_overlapping_chunks": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY, "zip(bounds[:-1], bounds[1:])",
+        "zip(bounds[:-1], bounds[1:] + 1)",
+        {PA_UVW, PA_G}, "overlap"),
+    "pa_w_in_completion_order": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY, "for future in futures]",
+        "for future in concurrent.futures.as_completed(futures)]",
+        {PA_UVW}, "in another order"),
+    "pa_camera_blocks_overwritten": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY, "U += U_i", "U = U_i",
+        {PA_UVW}, "last chunk's partial sum only"),
+    "pa_point_gradient_overwritten": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY, "g_point += g_point_i", "g_point = g_point_i",
+        {PA_G}, "last chunk's partial sum only"),
+    "pa_chi2_of_the_last_chunk": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY, "chi2 += float(chi2_i)", "chi2 = float(chi2_i)",
+        {PA_G}, "chi2 of the last chunk only"),
+    "pa_one_thread": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY, "max_workers=workers", "max_workers=1",
+        {PA_THREADS}, "one at a time"),
+}
+#: correct but different: executor.map, the larger chunks last, the partial sums added by sum()
+ALTERNATIVES_PARALLEL_ASSEMBLY = {
+    "pa_executor_map": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY,
+        """        futures = [pool.submit(kernel, r[lo:hi], J_cam[lo:hi], J_point[lo:hi], camera_index[lo:hi],
+                               point_index[lo:hi], num_cameras, num_points)
+                   for lo, hi in zip(bounds[:-1], bounds[1:])]
+        results = [future.result() for future in futures]""",
+        "        chunk = lambda lo, hi: kernel(r[lo:hi], J_cam[lo:hi], J_point[lo:hi], camera_index[lo:hi],\n"
+        "                                      point_index[lo:hi], num_cameras, num_points)\n"
+        "        results = list(pool.map(chunk, bounds[:-1], bounds[1:]))", set()),
+    "pa_larger_chunks_last": V(
+        "parallel_assembly.py", PA_IN_BOUNDS, "[k * size + min(k, extra) for",
+        "[k * size + max(0, k - (n - extra)) for", set()),
+    "pa_sums_by_builtin_sum": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY,
+        "    for U_i, V_i, _, g_cam_i, g_point_i, chi2_i in results:",
+        "    U, V, g_cam, g_point = (sum((part[k] for part in results), start)\n"
+        "                            for k, start in zip((0, 1, 3, 4), (U, V, g_cam, g_point)))\n"
+        "    chi2 = float(sum(part[5] for part in results))\n"
+        "    for U_i, V_i, _, g_cam_i, g_point_i, chi2_i in ():", set()),
+}
+
 VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION,
-            **BUGS_BUNDLE_ADJUSTMENT}
+            **BUGS_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS, **ALTERNATIVES_ROBUST_KERNELS,
+            **BUGS_GAUGE, **ALTERNATIVES_GAUGE, **BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY}
 
 
 def apply(text: str, variant: Variant) -> str:

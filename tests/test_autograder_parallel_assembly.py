@@ -1,0 +1,58 @@
+"""The parallel-assembly checks (chapter 4): the reference keeps full marks, the stubs score
+zero, each known mistake costs its own checks only and names its cause, and correct but
+different implementations (executor.map, another balanced chunking, another way to add the
+partial sums) keep full marks."""
+
+import pytest
+from test_autograder_chapters23 import grade_cli
+
+from autograder.checks import all_checks
+from student_variants import (
+    ALTERNATIVES_PARALLEL_ASSEMBLY,
+    BUGS_PARALLEL_ASSEMBLY,
+    SOLUTIONS,
+    apply,
+    assert_loses_exactly,
+    build,
+)
+
+
+@pytest.mark.slow  # real grading runs, a child process per check
+def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(tmp_path):
+    _, results = grade_cli(tmp_path, "solutions", "parallel_assembly", name="ref.json")
+    assert results["tests"] and all(t["score"] == t["max_score"] for t in results["tests"])
+    _, results = grade_cli(tmp_path, "exercises", "parallel_assembly", name="stub.json")
+    assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO parallel_assembly.")
+                                    for t in results["tests"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(BUGS_PARALLEL_ASSEMBLY))
+def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
+    variant = BUGS_PARALLEL_ASSEMBLY[name]
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
+    assert_loses_exactly(results, variant.fails, proc.stdout)
+    feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
+    assert variant.says in feedback, feedback
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(ALTERNATIVES_PARALLEL_ASSEMBLY))
+def test_a_correct_alternative_keeps_full_marks(tmp_path, name):
+    variant = ALTERNATIVES_PARALLEL_ASSEMBLY[name]
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
+    assert_loses_exactly(results, set(), proc.stdout)
+
+
+def test_every_exercise_has_known_mistakes_and_they_name_real_checks():
+    checks = [c for c in all_checks() if c.exercise.startswith("parallel_assembly.")]
+    assert {c.exercise for c in checks} == {"parallel_assembly.chunk_bounds",
+                                            "parallel_assembly.normal_equations_parallel"}
+    assembly = {c.name for c in checks if c.exercise == "parallel_assembly.normal_equations_parallel"}
+    assert sum(bool(v.fails & assembly) for v in BUGS_PARALLEL_ASSEMBLY.values()) >= 5
+    bounds = {c.name for c in checks if c.exercise == "parallel_assembly.chunk_bounds"}
+    assert sum(bool(v.fails & bounds) for v in BUGS_PARALLEL_ASSEMBLY.values()) >= 2
+    for name, variant in {**BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY}.items():
+        assert variant.fails <= {c.name for c in checks}, name
+        text = (SOLUTIONS / variant.file).read_text()
+        assert apply(text, variant) != text, name
