@@ -2,8 +2,10 @@
 
 ``python -m course benchmark`` prints, on w10000 and m3500, our Gauss-Newton time per
 iteration over g2o's (g2opy), the time to solution of our chordal start plus Gauss-Newton
-over g2o's Gauss-Newton from the file's poses, SuperLU over qdldl on w10000 and, on intel,
-the dense over the sparse solve of one Gauss-Newton system. Nothing here is a test: the
+over g2o's Gauss-Newton from the file's poses, SuperLU over qdldl on w10000, on intel the
+dense over the sparse solve of one Gauss-Newton system, on ladybug-49 our LM iteration over
+Ceres' (pycolmap), GTSAM's and scipy's and our time to solution (:mod:`course.benchmark_bal`),
+and the parallel assembly's speed-up (:mod:`course.parallel_speedup`). Nothing here is a test: the
 machine is shared and noisy. A graph or peer missing here is one line saying so, and the
 rest runs.
 """
@@ -111,8 +113,10 @@ def dense_vs_sparse(name="intel", repeats=5, impl="solutions"):
     return statistics.median(dense), statistics.median(sparse)
 
 
-def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print):
-    """Print the benchmarks of ``impl``; what cannot run here (a graph, g2opy) is one line."""
+def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal=("ladybug-49",)):
+    """Print the benchmarks of ``impl``; what cannot run here (a graph, g2opy) is one line.
+
+    ``bal``: the bundle-adjustment problems of :mod:`course.benchmark_bal`."""
     out(f"Gauss-Newton seconds per iteration, ours over g2o (g2opy), median of {repeats}; impl {impl}:")
     out(f"{'graph':10} {'ours ms/it':>11} {'g2o ms/it':>10} {'ratio':>6} {'ours chi2':>14} {'g2o chi2':>14}")
     for name in graphs:
@@ -159,6 +163,10 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print):
     else:
         out(f"intel: dense solve {dense * 1e3:.1f} ms, sparse {sparse * 1e3:.2f} ms, "
             f"dense/sparse = {dense / sparse:.0f}x (median of {repeats})")
+    # chapter 4: one LM iteration of bundle adjustment against the peers', and our time to solution
+    from course import benchmark_bal
+
+    benchmark_bal.main(names=bal, repeats=repeats, impl=impl, out=out)
     # chapter 4: the parallel assembly against the serial one, alone and in whole LM / dogleg iterations
     from course import parallel_speedup
 
