@@ -64,7 +64,9 @@ def test_solutions_get_full_marks(tmp_path):
         assert set(test) >= {"name", "score", "max_score", "output", "visibility"}
     assert f"Total: {maximum:g} / {maximum:g}" in proc.stdout
     elapsed = float(re.search(r"Elapsed: ([\d.]+) s", proc.stdout).group(1))
-    assert elapsed < 30 and results["execution_time"] == pytest.approx(elapsed, abs=0.1)
+    # every check of every chapter, public and hidden: about 30 s on a quiet 2-core machine, so a
+    # submission is graded well inside the grader's budget (--budget, 600 s) even on a loaded one
+    assert elapsed < 90 and results["execution_time"] == pytest.approx(elapsed, abs=0.1)
 
 
 @needs("pyceres", "qdldl")
