@@ -131,7 +131,7 @@ def cmd_demo(args) -> int:
     from course.problems.curve import generate
 
     impl = args.impl or _default_impl()
-    peers.announce_missing(("pyceres", "g2opy", "gtsam", "qdldl"))  # up front, once, whatever runs
+    peers.announce_missing(("pyceres", "g2opy", "gtsam", "pycolmap", "qdldl"))  # up front, once, whatever runs
     data = generate(num_points=args.points, seed=args.seed)
     methods, backends = _names(args.methods), _names(args.backends)
     progress = _progress("curve", methods, backends, "curve")
@@ -157,6 +157,9 @@ def cmd_demo(args) -> int:
         pose_written, pose_todo = _demo_pose_graphs(impl, out, args.init)
         written += pose_written
         todo += pose_todo
+        bal_written, bal_todo = _demo_bundle_adjustment(impl, out)
+        written += bal_written
+        todo += bal_todo
     print("\nwrote " + ", ".join(str(p) for p in written))
     if todo:
         names = sorted({r.not_run.split("TODO ", 1)[-1].split(" ")[0].rstrip(":") for r in todo})
@@ -201,6 +204,34 @@ def _demo_pose_graphs(impl, out, init="file") -> tuple:
             written.append(path)
         written.append(out / f"{name}.json")
     return written, todo
+
+
+#: chapter 4's demo problem: generated (no download), every back end in a few seconds
+DEMO_BAL = "bal-synthetic:10:200"
+
+
+def _demo_bundle_adjustment(impl, out) -> tuple:
+    """Every method and peer on ``DEMO_BAL``; returns (paths written, the runs that stopped at a TODO)."""
+    from course import compare, plot
+    from course.bal import load_bal
+
+    problem = load_bal(DEMO_BAL)
+    progress = _progress("bal", None, None, DEMO_BAL)
+    runs = compare.run_bal(problem, impl=impl, unimplemented="row", progress=progress)
+    progress.close()
+    print("\n" + compare.format_table(runs, title=f"{DEMO_BAL}: {problem.num_cameras} cameras, {problem.num_points} "
+                                                  f"points, {problem.num_observations} observations; impl {impl}; "
+                                                  "ours with the gauge fixed"))
+    if compare.format_bal(runs):
+        print("\n" + compare.format_bal(runs))
+    name = DEMO_BAL.replace(":", "_")
+    json_path, png = out / f"{name}.json", out / f"{name}.png"
+    json_path.write_text(json.dumps(compare.to_json(DEMO_BAL, runs)))
+    written = [json_path]
+    if _ran(runs):
+        plot.chi2_per_iteration(_ran(runs), png, title=f"{DEMO_BAL}: chi2 per iteration")
+        written.insert(0, png)
+    return written, _todo(runs)
 
 
 def _start(graph, init, impl):
