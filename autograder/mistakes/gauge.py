@@ -5,18 +5,7 @@ camera and one point at a time, with one slip or none."""
 import numpy as np
 
 from autograder.checks.gauge import DIRECTIONS
-
-
-def _skew(v):
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def _rotation(w):
-    theta = np.linalg.norm(w)
-    if theta < 1e-12:
-        return np.eye(3) + _skew(w)
-    k = w / theta
-    return np.cos(theta) * np.eye(3) + np.sin(theta) * _skew(k) + (1 - np.cos(theta)) * np.outer(k, k)
+from autograder.mistakes.bundle_adjustment import _rotation, _skew
 
 
 def _right_jacobian(w):
