@@ -1,4 +1,4 @@
-"""Command line: ``python -m course {demo,compare,datasets,benchmark,release} ...``.
+"""Command line: ``python -m course {demo,compare,datasets,benchmark,release,ape} ...``.
 
 ``main(argv=None) -> int`` is cheap to import: every subcommand imports what it needs
 (numpy, pyceres, matplotlib, ...) when it runs. Exit codes: 0 success, 1 a failed
@@ -88,6 +88,20 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--repeats", type=int, default=5)
     bench.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
     bench.set_defaults(func=cmd_benchmark)
+
+    ape = sub.add_parser("ape", help="chapter 5: absolute pose error of a trajectory against ground truth "
+                                     "(TUM files, EuRoC CSVs), after SE(3)/Sim(3) alignment (course.ape)")
+    ape.add_argument("reference", metavar="GT",
+                     help="ground truth: a TUM file or a EuRoC CSV; or 'euroc-mh05' (the source's evaluation on "
+                          "the shipped MH_05 files, beside the source's LM row)")
+    ape.add_argument("estimate", metavar="EST", nargs="?", help="the estimated trajectory (TUM file or EuRoC CSV)")
+    ape.add_argument("--align", default="se3", choices=["se3", "sim3", "none"],
+                     help="Umeyama alignment of the estimate: se3, sim3 (monocular: also the scale) or none "
+                          "(default se3)")
+    ape.add_argument("--max-diff", type=float, default=0.01,
+                     help="largest time difference of an associated pair, seconds (default 0.01, as evo)")
+    ape.add_argument("--json", metavar="FILE", help="write {rmse, median, mean, std, max, min, pairs} (metres)")
+    ape.set_defaults(func=cmd_ape)
     return parser
 
 
@@ -361,4 +375,41 @@ def cmd_benchmark(args) -> int:
     from course import benchmark
 
     benchmark.main(repeats=args.repeats, impl=args.impl or _default_impl())
+    return 0
+
+
+def cmd_ape(args) -> int:
+    """``ape GT EST``: the APE table; ``ape euroc-mh05``: also the source's LM row and evo's."""
+    from course import ape
+    from course.trajectory_io import read_trajectory
+
+    source = args.reference == "euroc-mh05"
+    if source and args.estimate is None:
+        gt_path, est_path = ape.euroc_mh05_files()
+    elif args.estimate is None:
+        raise ValueError("ape: give GT and EST files, or 'euroc-mh05' alone")
+    else:
+        gt_path, est_path, source = Path(args.reference), Path(args.estimate), False
+    result = ape.ape(read_trajectory(gt_path), read_trajectory(est_path), align=args.align, max_diff=args.max_diff)
+    stats = result.stats
+    print(f"APE, translation part (m); alignment {args.align}; pairs within {args.max_diff:g} s")
+    print(f"  GT  {gt_path}\n  EST {est_path}")
+    if args.align == "sim3":
+        print(f"  Sim(3) scale {result.alignment.scale:.6f}")
+    print(ape.format_header())
+    print(ape.format_row("ours", stats))
+    if source:
+        if args.align == "se3":
+            print(ape.format_row("evo 1.38.1 (-a)", ape.EVO_SE3_ROW))
+        print(ape.format_row("source's LM run", ape.SOURCE_LM_ROW))
+        print("\n" + ape.compare_to_source(stats))
+        print("The source's row is its own LM run of its VIO back end, evaluated by the source with SE(3) "
+              "alignment. On the shipped files ours equals evo's (tests/test_ape.py: to 1e-9), and evo's is not "
+              "the source's row either: that row came from another run of its estimator (or another evaluation), "
+              "not from these files, so closeness, not equality, is what to expect.")
+    if args.json:
+        path = Path(args.json)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(stats, indent=1))
+        print(f"wrote {path}")
     return 0
