@@ -33,7 +33,8 @@ from autograder.records import Call, Check, Context, ErrorInfo, Outcome, Verdict
 #: check modules in report order
 ORDER = ("curve_model", "gauss_newton", "damping", "end_to_end", "pose_graph_edge", "pose_graph_assembly",
          "sparse_solve", "ceres_edge_cost", "pose_graph_fast", "pose_graph", "dogleg",
-         "initialisation", "bundle_adjustment", "robust_kernels", "gauge", "parallel_assembly")
+         "initialisation", "bundle_adjustment", "robust_kernels", "gauge", "parallel_assembly",
+         "marginalisation")
 
 
 def modules() -> list:

@@ -59,6 +59,7 @@ LOADED_BY = {
     "gauge.py": ("gauge",),
     # the parallel assembly is graded with a stand-in kernel: it never runs bundle_adjustment's code
     "parallel_assembly.py": ("parallel_assembly",),
+    "marginalisation.py": ("marginalisation",),
 }
 
 
@@ -716,9 +717,81 @@ ALTERNATIVES_PARALLEL_ASSEMBLY = {
         "    for U_i, V_i, _, g_cam_i, g_point_i, chi2_i in ():", set()),
 }
 
+MA_ROOMS, MA_H, MA_B, MA_SING = ("marginalisation.marginalise: " + t for t in (
+    "the three rooms (x2 removed)", "window prior H_prior", "window prior b_prior",
+    "singular and nearly singular H_mm"))
+MA_JJ, MA_JE = ("marginalisation.prior_residual: " + t for t in ("J^T J = H_prior, one row per kept eigenvalue",
+                                                                "J^T e = b_prior"))
+MA_UP = "marginalisation.prior_update: e = e0 + J (x - x_lin)"
+MA_IN_M = ("def marginalise", "# BEGIN SOLUTION")
+MA_IN_R = ("def prior_residual", "# BEGIN SOLUTION")
+MA_IN_U = ("def prior_update", "# BEGIN SOLUTION")
+
+# chapter 5: marginalisation
+BUGS_MARGINALISATION = {
+    "ma_schur_plus": V(
+        "marginalisation.py", MA_IN_M, "H[np.ix_(keep, keep)] - H_rm", "H[np.ix_(keep, keep)] + H_rm",
+        {MA_ROOMS, MA_H, MA_SING}, "subtracts"),
+    "ma_b_sign": V(
+        "marginalisation.py", MA_IN_M, "b[keep] - H_rm", "b[keep] + H_rm",
+        {MA_ROOMS, MA_B, MA_SING}, "same sign"),
+    "ma_b_without_the_removed_gradient": V(
+        "marginalisation.py", MA_IN_M, "b_prior = b[keep] - H_rm @ H_mm_inv @ b[remove]", "b_prior = b[keep]",
+        {MA_ROOMS, MA_B, MA_SING}, "gradient moves"),
+    "ma_plain_inverse": V(
+        "marginalisation.py", MA_IN_M, "H_mm_inv = (V[:, big] / s[big]) @ V[:, big].T",
+        "H_mm_inv = np.linalg.inv(H_mm)", {MA_SING}, "eigen"),
+    "ma_absolute_threshold": V(
+        "marginalisation.py", MA_IN_M, "big = s > eps * s.max()", "big = s > eps",
+        {MA_SING}, "eps is relative"),
+    "ma_eigenvectors_as_rows": V(
+        "marginalisation.py", MA_IN_M, "H_mm_inv = (V[:, big] / s[big]) @ V[:, big].T",
+        "H_mm_inv = V[big, :].T @ np.diag(1.0 / s[big]) @ V[big, :]",
+        {MA_H, MA_B, MA_SING}, "columns of V"),
+    "ma_kept_reversed": V(
+        "marginalisation.py", MA_IN_M, "if i not in set(remove.tolist())], dtype=np.int64)",
+        "if i not in set(remove.tolist())][::-1], dtype=np.int64)",
+        {MA_ROOMS, MA_H, MA_B, MA_SING}, "original (increasing) order"),
+    "ma_j_without_sqrt": V(
+        "marginalisation.py", MA_IN_R, "J = root[:, None] * V[:, big].T", "J = s[big][:, None] * V[:, big].T",
+        {MA_JJ, MA_JE}, "diag(s^2)"),
+    "ma_e_without_scaling": V(
+        "marginalisation.py", MA_IN_R, "e = (V[:, big].T @ b_prior) / root", "e = V[:, big].T @ b_prior",
+        {MA_JE}, "V V^T b_prior"),
+    "ma_e_over_s": V(
+        "marginalisation.py", MA_IN_R, "e = (V[:, big].T @ b_prior) / root", "e = (V[:, big].T @ b_prior) / s[big]",
+        {MA_JE}, "not diag(1 / s)"),
+    "ma_e_sign": V(
+        "marginalisation.py", MA_IN_R, "e = (V[:, big].T @ b_prior) / root", "e = -(V[:, big].T @ b_prior) / root",
+        {MA_JE}, "+b_prior"),
+    "ma_residual_absolute_threshold": V(
+        "marginalisation.py", MA_IN_R, "big = s > eps * s.max()", "big = s > eps",
+        {MA_JJ}, "eps is relative"),
+    "ma_update_sign": V(
+        "marginalisation.py", MA_IN_U, "e0 + J @ (x - x_lin)", "e0 + J @ (x_lin - x)", {MA_UP}, "x - x_lin"),
+    "ma_update_without_x_lin": V(
+        "marginalisation.py", MA_IN_U, "e0 + J @ (x - x_lin)", "e0 + J @ x", {MA_UP}, "change since"),
+    "ma_update_without_e0": V(
+        "marginalisation.py", MA_IN_U, "e0 + J @ (x - x_lin)", "J @ (x - x_lin)", {MA_UP}, "residual at x_lin"),
+    "ma_update_transposed": V(
+        "marginalisation.py", MA_IN_U, "e0 + J @ (x - x_lin)", "e0 + J.T @ (x - x_lin)", {MA_UP}, "not J^T"),
+    "ma_update_frozen": V(
+        "marginalisation.py", MA_IN_U, "return e0 + J @ (x - x_lin)", "return e0.copy()", {MA_UP}, "changes as"),
+}
+#: correct but different: np.setdiff1d for the kept indices, np.linalg.pinv(hermitian=True)
+ALTERNATIVES_MARGINALISATION = {
+    "ma_kept_by_setdiff1d": V(
+        "marginalisation.py", MA_IN_M, "keep = np.array([i for i in range(n) if i not in set(remove.tolist())], "
+        "dtype=np.int64)", "keep = np.setdiff1d(np.arange(n), remove)", set()),
+    "ma_pinv_hermitian": V(
+        "marginalisation.py", MA_IN_M, "H_mm_inv = (V[:, big] / s[big]) @ V[:, big].T",
+        "H_mm_inv = np.linalg.pinv(0.5 * (H_mm + H_mm.T), rcond=eps, hermitian=True)", set()),
+}
+
 VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION,
             **BUGS_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS, **ALTERNATIVES_ROBUST_KERNELS,
-            **BUGS_GAUGE, **ALTERNATIVES_GAUGE, **BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY}
+            **BUGS_GAUGE, **ALTERNATIVES_GAUGE, **BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY,
+            **BUGS_MARGINALISATION, **ALTERNATIVES_MARGINALISATION}
 
 
 def apply(text: str, variant: Variant) -> str:

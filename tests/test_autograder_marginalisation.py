@@ -1,0 +1,52 @@
+"""The marginalisation checks (chapter 5): the reference keeps full marks, the stub scores
+zero, each known mistake costs its own checks only and names its cause, and the same prior
+computed another way keeps full marks."""
+
+import pytest
+from test_autograder_chapters23 import grade_cli
+
+from autograder.checks import all_checks
+from student_variants import (
+    ALTERNATIVES_MARGINALISATION,
+    BUGS_MARGINALISATION,
+    SOLUTIONS,
+    apply,
+    assert_loses_exactly,
+    build,
+)
+
+FUNCTIONS = ("marginalisation.marginalise", "marginalisation.prior_residual", "marginalisation.prior_update")
+
+
+def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(tmp_path):
+    _, results = grade_cli(tmp_path, "solutions", "marginalisation", name="ref.json")
+    assert len(results["tests"]) == 14 and all(t["score"] == t["max_score"] for t in results["tests"])
+    _, results = grade_cli(tmp_path, "exercises", "marginalisation", name="stub.json")
+    assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO marginalisation.")
+                                    for t in results["tests"])
+
+
+@pytest.mark.parametrize("name", sorted(BUGS_MARGINALISATION))
+def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
+    variant = BUGS_MARGINALISATION[name]
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
+    assert_loses_exactly(results, variant.fails, proc.stdout)
+    feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
+    assert variant.says in feedback, feedback
+
+
+@pytest.mark.parametrize("name", sorted(ALTERNATIVES_MARGINALISATION))
+def test_the_same_prior_computed_another_way_keeps_full_marks(tmp_path, name):
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), "marginalisation")
+    assert_loses_exactly(results, set(), proc.stdout)
+
+
+def test_five_known_mistakes_per_function_and_they_name_real_checks():
+    names = {c.name for c in all_checks() if c.exercise in FUNCTIONS}
+    assert len(names) == 7
+    for function in FUNCTIONS:
+        assert sum(1 for v in BUGS_MARGINALISATION.values() if any(f.startswith(function) for f in v.fails)) >= 5
+    for name, variant in {**BUGS_MARGINALISATION, **ALTERNATIVES_MARGINALISATION}.items():
+        assert variant.fails <= names, name
+        text = (SOLUTIONS / variant.file).read_text()
+        assert apply(text, variant) != text, name
