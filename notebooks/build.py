@@ -3,13 +3,16 @@
     python -m notebooks.build              # write notebooks/*.ipynb, no outputs
     python -m notebooks.build --execute    # write and run them (outputs saved in the file)
     python -m notebooks.build --small      # with --execute: one run per timing, not five,
-                                           # and chapters 2, 3 and 3b on small graphs only
+                                           # chapters 2, 3 and 3b on small graphs only,
+                                           # chapter 4 on synthetic problems
     python -m notebooks.build --only chapter2 chapter3   # only those notebooks
 
 Chapter 1 compares damping strategies on the curve, chapter 2 pose graphs (dense against
 sparse, every back end on every named dataset, the written questions), chapter 3 the
 dogleg against Levenberg-Marquardt, chapter 3b the starts (file, spanning tree, chordal)
-and the time to solution.
+and the time to solution, chapter 4 bundle adjustment (the sparsity of J, H and S, ours
+against the peers on ladybug-49, rank deficiency, points behind the camera, dense against
+Schur, robust kernels, the parallel assembly, the gauge).
 
 Each notebook's source is a jupytext py:percent file next to it (``chapter2_pose_graphs.py``
 for ``chapter2_pose_graphs.ipynb``); edit the source, then rebuild. A cell starts with
@@ -55,9 +58,10 @@ CHAPTER1 = HERE / "chapter1_curve_fitting.ipynb"
 CHAPTER2 = HERE / "chapter2_pose_graphs.ipynb"
 CHAPTER3 = HERE / "chapter3_dogleg.ipynb"
 CHAPTER3B = HERE / "chapter3b_initialisation.ipynb"
+CHAPTER4 = HERE / "chapter4_bundle_adjustment.ipynb"
 
 #: each notebook and its py:percent source
-NOTEBOOKS = {path: path.with_suffix(".py") for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B)}
+NOTEBOOKS = {path: path.with_suffix(".py") for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B, CHAPTER4)}
 
 #: the tag of the cells a reader writes in (kept by ``build`` when the notebook is rebuilt)
 ANSWER_TAG = "answer"
@@ -215,7 +219,7 @@ def execute(nb, timeout=900, cwd=HERE, small=False, impl=None, progress=None):
     The kernel inherits ``COURSE_IMPL = impl`` (None: ``default_impl()``),
     ``COURSE_NOTEBOOK_REPEAT`` (1 when
     ``small``, else 5) and ``COURSE_NOTEBOOK_SMALL`` (1 when ``small``: chapters 2, 3 and 3b
-    run on small graphs only) and starts in ``cwd``. ``progress``, a name: report each
+    run on small graphs only, chapter 4 on synthetic problems) and starts in ``cwd``. ``progress``, a name: report each
     cell on stderr under it (see ``_Progress``).
     """
     from nbclient import NotebookClient

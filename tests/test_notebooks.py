@@ -1,7 +1,7 @@
 """The generated notebooks: current with their py:percent sources (notebooks/chapter*.py), and they run.
 
-Chapters 2, 3 and 3b run in their small setting (``COURSE_NOTEBOOK_SMALL=1``: w100,
-``manhattan:N`` and the curve; a few seconds each); their full setting is
+Chapters 2, 3, 3b and 4 run in their small setting (``COURSE_NOTEBOOK_SMALL=1``: w100,
+``manhattan:N``, the curve and ``bal-synthetic:C:P``; seconds each); their full setting is
 ``python -m notebooks.build --execute`` (``make notebooks``).
 
 Execution uses ``notebooks.build.execute``, which starts the kernel on this test's own
@@ -46,7 +46,7 @@ def test_source_round_trips_with_ids_and_tags(path, tmp_path):
     again = build.read(copy)
     assert [(c.id, c.source, c.metadata) for c in again.cells] == [(c.id, c.source, c.metadata) for c in nb.cells]
     tagged = {cell.id for cell in nb.cells if build.ANSWER_TAG in cell.metadata.get("tags", [])}
-    assert tagged == ({"answer-1", "answer-2"} if path in (build.CHAPTER2, build.CHAPTER3B) else set())
+    assert tagged == ({"answer-1", "answer-2"} if path in (build.CHAPTER2, build.CHAPTER3B, build.CHAPTER4) else set())
     assert all(set(cell.metadata) <= {"tags"} for cell in nb.cells)
 
 
@@ -225,11 +225,50 @@ def test_chapter3b_executes_small():
     assert f"-> {ours.final_chi2:.6g} in {ours.iterations} iterations" in text
 
 
+@pytest.mark.slow
+def test_chapter4_executes_small():
+    import time
+
+    from course import peers
+
+    start = time.perf_counter()
+    nb, text, images = _execute_small(build.CHAPTER4)
+    assert time.perf_counter() - start < 60, "the quick setting should take seconds"
+    assert "Traceback" not in text
+    for words in ("bal-synthetic:6:40:0: 6 cameras, 40 points", "neighbours 1", "nonzeros", "density",
+                  "bal-synthetic:10:300:0: 10 cameras, 300 points, 1036 observations, at most 20 iterations",
+                  "final cost (ours)", "peer final cost", "behind camera start->final",
+                  "milliseconds per iteration", "(4 points mirrored)", "observations have their point behind",
+                  "one damped step, 10 cameras", "growth exponent", "no outliers, least squares", "cauchy(a=2.45)",
+                  "tukey(a=4.5)", "the source's table", "218.77", "148.73", "61.42", "83.40",
+                  "Parallel assembly of the normal equations", "gauge free : 7 of", "gauge fixed: 0 of",
+                  "gauge_directions N"):
+        assert words in text, words
+    for words in ("ladybug-49: milliseconds per iteration", "bal-synthetic:30:3000", "cost @ 1000"):
+        assert words not in text, words  # the full setting only
+    if peers.installed("gtsam"):  # dubrovnik-3-7 ships with gtsam
+        for words in ("38 residuals (2 per observation) for 48 unknowns", "null space 3", "cost @ 100", "f_2"):
+            assert words in text, words
+    # sparsity, costs on the synthetic problem, dense against Schur, kernels, gauge
+    assert len(images) == 5
+    markdown = {c.get("id"): c.source for c in nb.cells if c.cell_type == "markdown"}
+    assert "Question 1" in markdown["questions-md"] and "Question 2" in markdown["questions-md"]
+    assert "Your answer to question 1" in markdown["answer-1"]
+    assert "Your answer to question 2" in markdown["answer-2"]
+    # same numbers as in-process
+    from course import compare
+    from course.bal import load_bal
+
+    ours = compare.run_bal(load_bal("bal-synthetic:10:300"), methods=["lm-type3"], backends=["ours"],
+                           max_iterations=20)[0]
+    assert f"{ours.final_chi2:.10g}" in text
+
+
 def test_reference_answers_stay_out_of_the_student_tree():
     from course import release
     from course.impl import REPO_ROOT
 
     answers = REPO_ROOT / "solutions" / "answers"
-    assert (answers / "chapter2.md").is_file()
+    assert (answers / "chapter2.md").is_file() and (answers / "chapter4.md").is_file()
     files = release.render(REPO_ROOT / "solutions")
     assert not [name for name in files if name.startswith("answers")]
