@@ -60,6 +60,7 @@ LOADED_BY = {
     # the parallel assembly is graded with a stand-in kernel: it never runs bundle_adjustment's code
     "parallel_assembly.py": ("parallel_assembly",),
     "marginalisation.py": ("marginalisation",),
+    "imu_preintegration.py": ("imu_preintegration",),
 }
 
 
@@ -788,10 +789,97 @@ ALTERNATIVES_MARGINALISATION = {
         "H_mm_inv = np.linalg.pinv(0.5 * (H_mm + H_mm.T), rcond=eps, hermitian=True)", set()),
 }
 
+IP = "imu_preintegration.preintegrate: "
+IP_R, IP_VP, IP_COV = IP + "delta R", IP + "delta v, delta p and delta t", IP + "covariance"
+IP_JR, IP_JVP = IP + "rotation bias Jacobian dR/dbg", IP + "velocity and position bias Jacobians"
+IP_ALL = {IP_R, IP_VP, IP_COV, IP_JR, IP_JVP}
+IR = "imu_preintegration.imu_factor_residual: "
+IR_R, IR_V, IR_P = IR + "rotation residual r_R", IR + "velocity residual r_v", IR + "position residual r_p"
+IP_IN = ("def preintegrate", "# BEGIN SOLUTION")
+IR_IN = ("def imu_factor_residual", "# BEGIN SOLUTION")
+
+# chapter 5: IMU preintegration (midpoint) and the IMU factor's residual
+BUGS_IMU_PREINTEGRATION = {
+    "ip_euler_scheme": V(
+        "imu_preintegration.py", [], 'accel_noise, scheme="midpoint"):', 'accel_noise, scheme="euler"):',
+        IP_ALL, "(Euler, as GTSAM does)"),
+    "ip_gyro_bias_not_subtracted": V(
+        "imu_preintegration.py", IP_IN, "rates = (gyro[:-1] + gyro[1:]) / 2.0 - bias_gyro",
+        "rates = (gyro[:-1] + gyro[1:]) / 2.0", IP_ALL, "gyroscope bias is not subtracted"),
+    "ip_accel_bias_not_subtracted": V(
+        "imu_preintegration.py", IP_IN, "acc = accel - bias_accel", "acc = accel",
+        {IP_VP, IP_COV, IP_JVP}, "accelerometer bias is not subtracted"),
+    "ip_both_samples_rotated_by_the_new_rotation": V(
+        "imu_preintegration.py", IP_IN, "a = (dR @ acc[k] + R_next @ acc[k + 1]) / 2.0",
+        "a = R_next @ (acc[k] + acc[k + 1]) / 2.0", {IP_VP}, "rotated by Delta R_{k+1}"),
+    "ip_dt2_without_half": V(
+        "imu_preintegration.py", IP_IN, "dp = dp + dv * h + a * (h * h / 2.0)", "dp = dp + dv * h + a * (h * h)",
+        {IP_VP}, "not a_k dt^2"),
+    "ip_position_with_the_new_velocity": V(
+        "imu_preintegration.py", IP_IN, "dp = dp + dv * h + a * (h * h / 2.0)\n        dv = dv + a * h",
+        "dv = dv + a * h\n        dp = dp + dv * h + a * (h * h / 2.0)", {IP_VP}, "with the old Delta v_k"),
+    "ip_left_jacobian": V(
+        "imu_preintegration.py", IP_IN, "B[0:3, 0:3] = -Jr * h", "B[0:3, 0:3] = -Jr.T * h",
+        {IP_COV, IP_JR, IP_JVP}, "left Jacobian"),
+    "ip_rotation_block_not_transposed": V(
+        "imu_preintegration.py", IP_IN, "A[0:3, 0:3] = E.T", "A[0:3, 0:3] = E",
+        {IP_COV, IP_JR, IP_JVP}, "the rotation block of A is E^T"),
+    "ip_noise_not_divided_by_dt": V(
+        "imu_preintegration.py", IP_IN, "np.full(3, q_a)]) / h", "np.full(3, q_a)])",
+        {IP_COV}, "divided by dt"),
+    "ip_covariance_not_propagated": V(
+        "imu_preintegration.py", IP_IN, "cov = A @ cov @ A.T + B @ Q @ B.T", "cov = cov + B @ Q @ B.T",
+        {IP_COV}, "not propagated through A_k"),
+    "ip_noises_swapped": V(
+        "imu_preintegration.py", IP_IN, "np.full(3, q_g), np.full(3, q_a)", "np.full(3, q_a), np.full(3, q_g)",
+        {IP_COV}, "noises swapped"),
+    "ip_bias_jacobian_sign": V(
+        "imu_preintegration.py", IP_IN, "J = A @ J + B", "J = A @ J - B",
+        {IP_JR, IP_JVP}, "opposite sign"),
+    "ir_R_i_not_transposed": V(
+        "imu_preintegration.py", IR_IN, "r_v = R_i.T @ (v_j", "r_v = R_i @ (v_j", {IR_V}, "with R_i^T"),
+    "ir_gravity_sign": V(
+        "imu_preintegration.py", IR_IN, "v_j - v_i - g * T", "v_j - v_i + g * T", {IR_V}, "wrong sign"),
+    "ir_gravity_without_half": V(
+        "imu_preintegration.py", IR_IN, "- 0.5 * g * T * T", "- g * T * T", {IR_P}, "not g dT^2"),
+    "ir_no_bias_correction": V(
+        "imu_preintegration.py", IR_IN,
+        "dbg = b_g - np.asarray(pre.bias_gyro, dtype=float)\n    dba = b_a - np.asarray(pre.bias_accel, dtype=float)",
+        "dbg = dba = np.zeros(3)", {IR_R, IR_V, IR_P}, "bias correction is missing"),
+    "ir_rotation_correction_on_the_left": V(
+        "imu_preintegration.py", IR_IN, "dR = np.asarray(pre.delta_R) @ so3_exp(np.asarray(pre.dR_dbg) @ dbg)",
+        "dR = so3_exp(np.asarray(pre.dR_dbg) @ dbg) @ np.asarray(pre.delta_R)", {IR_R}, "goes on the right"),
+    "ir_rotation_residual_order": V(
+        "imu_preintegration.py", IR_IN, "r_R = so3_log(dR.T @ R_i.T @ R_j)", "r_R = so3_log(R_i.T @ R_j @ dR.T)",
+        {IR_R}, "not Log(R_i^T R_j"),
+    "ir_position_without_v_i_dt": V(
+        "imu_preintegration.py", IR_IN, "p_j - p_i - v_i * T - 0.5", "p_j - p_i - 0.5", {IR_P}, "needs - v_i dT"),
+    "ir_accel_bias_correction_sign": V(
+        "imu_preintegration.py", IR_IN, "dba = b_a - np.asarray(pre.bias_accel, dtype=float)",
+        "dba = np.asarray(pre.bias_accel, dtype=float) - b_a", {IR_V, IR_P}, "not b hat - b_i"),
+}
+#: correct but different: the noise through a square root of Q, the Jacobian's columns one bias at a time,
+#: the rotation residual and the frame change written otherwise
+ALTERNATIVES_IMU_PREINTEGRATION = {
+    "ip_noise_by_square_root": V(
+        "imu_preintegration.py", IP_IN, "cov = A @ cov @ A.T + B @ Q @ B.T",
+        "G = B * np.sqrt(np.diag(Q))\n        cov = A @ cov @ A.T + G @ G.T", set()),
+    "ip_jacobian_one_bias_at_a_time": V(
+        "imu_preintegration.py", IP_IN, "J = A @ J + B",
+        "J = np.hstack([A @ J[:, :3] + B[:, :3], A @ J[:, 3:] + B[:, 3:]])", set()),
+    "ir_rotation_residual_grouped": V(
+        "imu_preintegration.py", IR_IN, "r_R = so3_log(dR.T @ R_i.T @ R_j)", "r_R = so3_log((R_i @ dR).T @ R_j)",
+        set()),
+    "ir_frame_change_by_solve": V(
+        "imu_preintegration.py", IR_IN, "r_v = R_i.T @ (v_j - v_i - g * T) - dv",
+        "r_v = np.linalg.solve(R_i, v_j - v_i - g * T) - dv", set()),
+}
+
 VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION,
             **BUGS_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS, **ALTERNATIVES_ROBUST_KERNELS,
             **BUGS_GAUGE, **ALTERNATIVES_GAUGE, **BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY,
-            **BUGS_MARGINALISATION, **ALTERNATIVES_MARGINALISATION}
+            **BUGS_MARGINALISATION, **ALTERNATIVES_MARGINALISATION,
+            **BUGS_IMU_PREINTEGRATION, **ALTERNATIVES_IMU_PREINTEGRATION}
 
 
 def apply(text: str, variant: Variant) -> str:

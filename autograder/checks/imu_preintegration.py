@@ -1,0 +1,164 @@
+"""Checks of ``imu_preintegration`` (chapter 5): the midpoint preintegration between two
+keyframes (its deltas, their covariance, their bias Jacobians) and the residual of an IMU
+factor, each graded alone.
+
+Public inputs: ``preintegrate`` on 60 intervals (0.3 s at 200 Hz) of the simulated loop
+(``course.vio_sim``, noisy samples, biases near the truth) and on 25 intervals of fast,
+random motion with a ``dt`` per interval; ``imu_factor_residual`` with the reference's
+preintegration of those windows, states near the truth (R_i far from I) or random, the bias
+at the linearisation point or off it. Hidden inputs: other windows, seeds and perturbations
+of the same kinds. Only the midpoint scheme (the default) is graded.
+"""
+
+from functools import cache
+
+import numpy as np
+
+from autograder.checks import Call, Verdict
+from autograder.checks.pose_graph_edge import check, failed, values
+from autograder.feedback import call_fields, compare
+
+MODULES = ("imu_preintegration",)
+PRE = "imu_preintegration.preintegrate"
+RES = "imu_preintegration.imu_factor_residual"
+FIELDS = ("delta_R", "delta_v", "delta_p", "delta_t", "covariance", "dR_dbg", "dv_dbg", "dv_dba", "dp_dbg",
+          "dp_dba", "bias_gyro", "bias_accel")
+GRAVITY = np.array([0.0, 0.0, -9.81])
+
+# ---------------------------------------------------------------- inputs
+
+
+def _so3_exp(phi):
+    theta = float(np.linalg.norm(phi))
+    W = np.array([[0.0, -phi[2], phi[1]], [phi[2], 0.0, -phi[0]], [-phi[1], phi[0], 0.0]])
+    if theta < 1e-12:
+        return np.eye(3) + W
+    return np.eye(3) + np.sin(theta) / theta * W + (1 - np.cos(theta)) / theta**2 * (W @ W)
+
+
+@cache
+def windows(seed=None) -> tuple:
+    """Two windows of IMU samples, each a dict: ``args`` of ``preintegrate``, ``where``, and
+    for the simulated one the true states at its ends (``state_i``, ``state_j``)."""
+    from course.vio_sim import simulate
+
+    rng = np.random.default_rng(83 if seed is None else [seed, 571])
+    sim = simulate(6.0, int(rng.integers(0, 10_000)) if seed is not None else 11)
+    i = 1000 if seed is None else int(rng.integers(700, 1100))
+    j = i + 60
+    bg = sim.bias_gyro[i] + rng.normal(0.0, 0.002, 3)
+    ba = sim.bias_accel[i] + rng.normal(0.0, 0.02, 3)
+    sim_window = {
+        "args": (sim.gyro[i:j + 1], sim.accel[i:j + 1], sim.dt, bg, ba, sim.gyro_noise, sim.accel_noise),
+        "where": f"on 60 intervals (0.3 s, dt = {sim.dt:g}) of the simulated loop {sim.name} from t = {i * sim.dt:g} s",
+        "state_i": (sim.rotations[i], sim.velocities[i], sim.positions[i]),
+        "state_j": (sim.rotations[j], sim.velocities[j], sim.positions[j]),
+    }
+    n = 25
+    gyro = rng.normal(0.0, 1.5, (n + 1, 3))
+    accel = rng.normal(0.0, 3.0, (n + 1, 3)) + np.array([0.0, 0.0, 9.81])
+    dt = rng.uniform(0.004, 0.006, n)
+    fast = {
+        "args": (gyro, accel, dt, rng.normal(0.0, 0.05, 3), rng.normal(0.0, 0.2, 3), 0.01, 0.1),
+        "where": f"on {n} intervals of fast random motion (|omega| about 2.6 rad/s) with a dt per interval",
+        "state_i": (_so3_exp(rng.normal(0.0, 1.0, 3)), rng.normal(0.0, 2.0, 3), rng.normal(0.0, 5.0, 3)),
+        "state_j": None,
+    }
+    return sim_window, fast
+
+
+def _pre_calls(seed=None):
+    return [Call(f"imu_preintegration:{PRE.split('.')[1]}", w["args"], returns=FIELDS, where=w["where"])
+            for w in windows(seed)]
+
+
+@cache
+def _reference(seed=None) -> tuple:
+    """The reference's preintegration of each window (instructor side: inside a calls builder)."""
+    from autograder import oracle
+
+    f = oracle.solutions_module("imu_preintegration").preintegrate
+    return tuple(tuple(np.asarray(x, dtype=float) for x in f(*w["args"])) for w in windows(seed))
+
+
+def _res_calls(seed=None):
+    rng = np.random.default_rng(89 if seed is None else [seed, 577])
+    sim_window, fast = windows(seed)
+    pre_sim, pre_fast = _reference(seed)
+    calls = []
+
+    def moved(state, angle, speed, distance):
+        R, v, p = state
+        return (R @ _so3_exp(rng.normal(0.0, angle, 3)), v + rng.normal(0.0, speed, 3),
+                p + rng.normal(0.0, distance, 3))
+
+    def bias(pre, off):
+        return (pre[10] + rng.normal(0.0, 0.01 * off, 3), pre[11] + rng.normal(0.0, 0.1 * off, 3))
+
+    for off, text in ((0.0, "the bias at the linearisation point"), (1.0, "the bias off the linearisation point")):
+        state_i = moved(sim_window["state_i"], 0.02, 0.1, 0.1)
+        state_j = moved(sim_window["state_j"], 0.05, 0.2, 0.3)
+        calls.append(Call(f"imu_preintegration:{RES.split('.')[1]}",
+                          (state_i, state_j, pre_sim, bias(pre_sim, off), GRAVITY),
+                          where=f"{sim_window['where']}, states near the truth, {text}"))
+    state_j = (_so3_exp(rng.normal(0.0, 1.0, 3)), rng.normal(0.0, 2.0, 3), rng.normal(0.0, 5.0, 3))
+    calls.append(Call(f"imu_preintegration:{RES.split('.')[1]}",
+                      (fast["state_i"], state_j, pre_fast, bias(pre_fast, 1.0), GRAVITY),
+                      where=f"{fast['where']}, random states, the bias off the linearisation point"))
+    return calls
+
+
+# ---------------------------------------------------------------- judges
+
+_LABELS = {name: f"{name}[{{}}]" for name in FIELDS} | {"delta_t": "delta_t"}
+
+#: the parts of the residual: (slice, label, cause)
+PARTS = {
+    "r_R": (slice(0, 3), "r_R[{}]", "r_R = Log(Delta R'^T R_i^T R_j) with Delta R' = Delta R Exp(dR/dbg delta b_g)"),
+    "r_v": (slice(3, 6), "r_v[{}]", "r_v = R_i^T (v_j - v_i - g dT) - (Delta v + dv/dbg delta b_g + dv/dba delta b_a)"),
+    "r_p": (slice(6, 9), "r_p[{}]", "r_p = R_i^T (p_j - p_i - v_i dT - 1/2 g dT^2) - (Delta p + dp/dbg delta b_g + "
+                                    "dp/dba delta b_a)"),
+}
+RES_RTOL, RES_ATOL = 1e-8, 1e-10
+
+
+def _part(name):
+    sl, label, cause = PARTS[name]
+
+    def judge(ctx):
+        triples, failure = call_fields(ctx, failed=failed)
+        for index, (call, got, want) in enumerate(triples):
+            r, ref = np.asarray(got["value"], dtype=float), np.asarray(want["value"], dtype=float)
+            if r.shape != ref.shape:
+                return Verdict(0.0, compare(r, ref, "r", RES_RTOL, RES_ATOL, call.where)
+                               + " (concatenate([r_R, r_v, r_p]))")
+            known = [(np.asarray(value, dtype=float)[sl], why) for value, why in ctx.known(index).get("value", ())]
+            text = compare(r[sl], ref[sl], label, RES_RTOL, RES_ATOL, call.where, known, cause)
+            if text:
+                return Verdict(0.0, text)
+        return failure or Verdict(1.0, "ok")
+
+    return judge
+
+
+def _values(names, rtol, atol, cause):
+    return values(names, rtol, atol, cause, _LABELS, atol_scaled=True)
+
+
+CHECKS = [
+    check(PRE, "delta R", 2, _pre_calls, _values(("delta_R",), 1e-9, 1e-12,
+          "Delta R_{k+1} = Delta R_k Exp(w_k dt_k), w_k = (omega_k + omega_{k+1}) / 2 - b_g")),
+    check(PRE, "delta v, delta p and delta t", 3, _pre_calls, _values(("delta_v", "delta_p", "delta_t"), 1e-9, 1e-12,
+          "a_k = (Delta R_k (a_k - b_a) + Delta R_{k+1} (a_{k+1} - b_a)) / 2, Delta p += Delta v dt + a_k dt^2 / 2 "
+          "with the old Delta v, then Delta v += a_k dt")),
+    check(PRE, "covariance", 3, _pre_calls, _values(("covariance",), 1e-7, 1e-12,
+          "Sigma_{k+1} = A_k Sigma_k A_k^T + B_k Q_k B_k^T, Q_k = diag(gyro_noise^2 I, accel_noise^2 I) / dt_k")),
+    check(PRE, "rotation bias Jacobian dR/dbg", 2, _pre_calls, _values(("dR_dbg",), 1e-8, 1e-12,
+          "dR/dbg_{k+1} = E^T dR/dbg_k - J_r(w_k dt) dt (J_{k+1} = A_k J_k + B_k)")),
+    check(PRE, "velocity and position bias Jacobians", 3, _pre_calls,
+          _values(("dv_dbg", "dv_dba", "dp_dbg", "dp_dba"), 1e-8, 1e-12,
+                  "J_{k+1} = A_k J_k + B_k, the rows of v and p: D_phi, D_g, D_a of the midpoint acceleration")),
+    check(RES, "rotation residual r_R", 2, _res_calls, _part("r_R")),
+    check(RES, "velocity residual r_v", 2, _res_calls, _part("r_v")),
+    check(RES, "position residual r_p", 2, _res_calls, _part("r_p")),
+]

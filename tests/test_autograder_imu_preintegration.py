@@ -1,0 +1,53 @@
+"""The IMU preintegration checks (chapter 5): the reference keeps full marks, the stub scores
+zero, each known mistake costs its own checks only and names its cause, and the same
+preintegration or residual written another way keeps full marks."""
+
+import pytest
+from test_autograder_chapters23 import grade_cli
+
+from autograder.checks import all_checks
+from student_variants import (
+    ALTERNATIVES_IMU_PREINTEGRATION,
+    BUGS_IMU_PREINTEGRATION,
+    SOLUTIONS,
+    apply,
+    assert_loses_exactly,
+    build,
+)
+
+PRE, RES = "imu_preintegration.preintegrate", "imu_preintegration.imu_factor_residual"
+
+
+def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(tmp_path):
+    _, results = grade_cli(tmp_path, "solutions", "imu_preintegration", name="ref.json")
+    assert len(results["tests"]) == 16 and all(t["score"] == t["max_score"] for t in results["tests"])
+    _, results = grade_cli(tmp_path, "exercises", "imu_preintegration", name="stub.json")
+    assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO imu_preintegration.")
+                                    for t in results["tests"])
+
+
+@pytest.mark.parametrize("name", sorted(BUGS_IMU_PREINTEGRATION))
+def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
+    variant = BUGS_IMU_PREINTEGRATION[name]
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
+    assert_loses_exactly(results, variant.fails, proc.stdout)
+    feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
+    assert variant.says in feedback, feedback
+
+
+@pytest.mark.parametrize("name", sorted(ALTERNATIVES_IMU_PREINTEGRATION))
+def test_the_same_results_written_another_way_keep_full_marks(tmp_path, name):
+    proc, results = grade_cli(tmp_path, build(name, tmp_path), "imu_preintegration")
+    assert_loses_exactly(results, set(), proc.stdout)
+
+
+def test_five_known_mistakes_per_function_and_they_name_real_checks():
+    names = {c.name for c in all_checks() if c.exercise in (PRE, RES)}
+    assert len(names) == 8
+    for exercise in (PRE, RES):
+        mine = [v for v in BUGS_IMU_PREINTEGRATION.values() if any(f.startswith(exercise) for f in v.fails)]
+        assert len(mine) >= 5, exercise
+    for name, variant in {**BUGS_IMU_PREINTEGRATION, **ALTERNATIVES_IMU_PREINTEGRATION}.items():
+        assert variant.fails <= names, name
+        text = (SOLUTIONS / variant.file).read_text()
+        assert apply(text, variant) != text, name
