@@ -36,6 +36,13 @@ Factors (every residual whitened, so chi2 is a plain sum of squares, as in the c
 - An optional linear prior (:class:`LinearPrior`) from marginalisation, in residual form
   ``e = e0 + J (x_k [-] x_lin)`` over its variables (``marginalisation.prior_residual`` /
   ``prior_update``), the Jacobian J fixed at the linearisation point.
+- First-estimate Jacobians (``VioData.first_estimates``, Huang, Mourikis, Roumeliotis 2009):
+  the Jacobians of every factor are evaluated with the prior's variables at their
+  linearisation point, the residuals at x. Without them the prior and the relinearised factors
+  disagree about the unobservable directions (position, yaw), and the prior's very stiff
+  information about them (from the first frame's prior) becomes spurious information that
+  pulls the window around: on ``vio-sim:12:0`` the APE rmse was 0.25 m without against
+  0.17 m for the window without any prior.
 
 H is assembled dense (a window has a few hundred unknowns; the 12-s batch under 2000) from a
 sparse J; the step is a dense Cholesky solve.
@@ -115,6 +122,9 @@ class VioData:
     accel_walk: float
     frame_priors: list = field(default_factory=list)
     linear_prior: LinearPrior | None = None
+    #: first-estimate Jacobians: ``(frames (a,), states (a, 15), landmarks (c,), points (c, 3))``
+    #: whose Jacobians (not residuals) are evaluated at these values, or None
+    first_estimates: tuple | None = None
 
 
 def frame_difference(s, s_ref):
@@ -272,6 +282,12 @@ class VioProblem:
         """``(r (m,), J (m, n) sparse CSR, chi2)``, the reprojections reweighted by the robust loss."""
         x = np.asarray(x, dtype=float)
         frames = self.frames(x)
+        fej = self.data.first_estimates
+        if fej is not None:
+            x_fej = x.copy()
+            fej_frames = self.frames(x_fej)
+            fej_frames[np.asarray(fej[0], dtype=np.int64)] = fej[1]
+            self.landmarks(x_fej)[np.asarray(fej[2], dtype=np.int64)] = fej[3]
         rows, cols, vals, res = [], [], [], []
         m = 0
         chi2 = 0.0
@@ -291,8 +307,14 @@ class VioProblem:
             r = self._imu_residual(k, s_i, s_j)
             chi2 += float(r @ r)
             c_idx = np.r_[FRAME_DOF * factor.i + np.arange(FRAME_DOF), FRAME_DOF * factor.j + np.arange(FRAME_DOF)]
-            add(r, c_idx, self._imu_jacobian(k, s_i, s_j))
+            if fej is None:
+                add(r, c_idx, self._imu_jacobian(k, s_i, s_j))
+            else:  # the Jacobian at the first estimates, linearised around the residual at x
+                f_i, f_j = fej_frames[factor.i], fej_frames[factor.j]
+                add(r, c_idx, self._imu_jacobian(k, f_i, f_j))
         r, J_f, J_p = self._reprojection(x, True)
+        if fej is not None:
+            _, J_f, J_p = self._reprojection(x_fej, True)
         if len(r):
             if self.loss is not None:
                 r, (J_f, J_p), c = reweight(self.kernels, self.loss, r, (J_f, J_p))

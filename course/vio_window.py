@@ -1,0 +1,372 @@
+"""Chapter 5: a sliding-window visual-inertial back end on the simulated data (``course.vio_sim``).
+
+Keyframes are every ``keyframe_every``-th camera frame (default 5: 4 Hz at 20 Hz). The window
+holds the last ``window`` keyframes (default 10) and the landmarks (3D points, see
+``course.problems.vio``) seen by at least two of them. Each step:
+
+1. add the newest keyframe, initialised by IMU propagation from the previous one
+   (``R_j = R_i Delta R``, ``v_j = v_i + g dT + R_i Delta v``,
+   ``p_j = p_i + v_i dT + 1/2 g dT^2 + R_i Delta p``, biases carried over), with the IMU factor
+   preintegrated at the previous keyframe's current biases;
+2. triangulate the landmarks newly seen twice in the window (the point nearest to all the
+   rays in least squares, ``sum_k (I - d_k d_k^T)(X - c_k) = 0``; kept when the rays span
+   more than :data:`MIN_PARALLAX` and the point is in front of every camera);
+3. solve the window with the one minimizer (``minimize(problem, method)``; ``dogleg`` by
+   default: Levenberg-Marquardt type 3 starts at lambda ~ 1e8 here (tau max diag(H), with the
+   tight first-frame prior) and needs 15 or more iterations where dogleg needs about 5);
+4. when the window is full, remove the oldest keyframe and the landmarks no remaining keyframe
+   sees:
+
+   - ``"prior"``: marginalise them (``marginalisation.marginalise`` of the window's H, b at the
+     solution, Jacobi-scaled first, then ``prior_residual``): the prior, on the kept frames and landmarks it touches,
+     enters the next windows as ``e0 + J (x [-] x_lin)``; the factors' Jacobians in the prior's
+     frames are then taken at ``x_lin`` (first estimates), and a frame already in the prior keeps
+     its first ``x_lin`` in the next one (``e0`` re-expressed about it);
+   - ``"drop"``: forget them and their measurements; the window's gauge (position and yaw, and
+     the rest of the oldest pose) is held by a prior on the new oldest frame's pose at its
+     current estimate (:data:`ANCHOR_SIGMAS`) - no information about v and the biases is kept.
+
+A keyframe's estimate is the one it has when it leaves the window (the last solve that
+contained it: a fixed-lag smoother), the last window's for the others. The first keyframe has
+a prior (:data:`FIRST_SIGMAS`) at the true pose and velocity and zero biases (the gauge and an
+initialisation, as a VIO front end would give). :func:`batch` solves all keyframes at once (the
+same factors, no marginalisation), started from a window's estimate. :func:`compare` runs the
+three and reports the APE (``course.ape``, SE(3) alignment) and the time per solve.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from course import impl as impl_loader
+from course.ape import ape
+from course.problems.vio import (
+    FRAME_DOF,
+    POINT_DOF,
+    FramePrior,
+    ImuFactor,
+    LinearPrior,
+    VioData,
+    VioProblem,
+    frame_difference,
+)
+from course.solvers import SolverOptions, minimize
+from course.trajectory_io import Trajectory
+from course.vio_sim import VioSim, load_vio_sim
+from solutions.imu_preintegration import so3_exp, so3_log
+
+#: the first keyframe's prior sigmas: rotation (rad), position (m), velocity (m/s), b_g (rad/s), b_a (m/s^2)
+FIRST_SIGMAS = np.r_[np.full(3, 1e-3), np.full(3, 1e-3), np.full(3, 0.05), np.full(3, 0.02), np.full(3, 0.1)]
+#: the "drop" variant's gauge prior on the oldest frame: its pose only
+ANCHOR_SIGMAS = np.r_[np.full(6, 1e-3), np.full(9, np.inf)]
+#: rays must span this angle (rad) for a landmark to be triangulated
+MIN_PARALLAX = np.deg2rad(2.0)
+MIN_TRIANGULATION_DEPTH = 0.5
+#: the dogleg's first radius: 1 (tangent units), not Ceres' 1e4, which the halving on a rejected step
+#: takes 15 attempts to bring down to a Gauss-Newton step of norm ~0.3 that the Cauchy kernel's
+#: curvature makes overshoot
+WINDOW_OPTIONS = SolverOptions(max_iterations=20, gradient_tolerance=1e-8, step_tolerance=1e-10,
+                               cost_tolerance=1e-6, initial_radius=1.0)
+BATCH_OPTIONS = SolverOptions(max_iterations=40, gradient_tolerance=1e-8, step_tolerance=1e-10, cost_tolerance=1e-8,
+                              initial_radius=1.0)
+VARIANTS = ("prior", "drop")
+
+
+@dataclass
+class VioRun:
+    """An estimate: keyframe ``times`` (F,), ``states`` (F, 15) ``(phi, p, v, b_g, b_a)``,
+    ``solve_seconds`` (one per minimize call), ``iterations`` (same), ``label``."""
+
+    label: str
+    times: np.ndarray
+    states: np.ndarray
+    solve_seconds: list
+    iterations: list
+
+    def trajectory(self) -> Trajectory:
+        return Trajectory(self.times, self.states[:, 3:6].copy(), rotvec_to_quaternion(self.states[:, 0:3]))
+
+
+def rotvec_to_quaternion(phi) -> np.ndarray:
+    """(N, 4) unit quaternions (w, x, y, z) of rotation vectors (N, 3)."""
+    phi = np.asarray(phi, dtype=float)
+    angle = np.linalg.norm(phi, axis=1)
+    half = angle / 2.0
+    scale = np.where(angle > 1e-12, np.sin(half) / np.where(angle > 1e-12, angle, 1.0), 0.5)
+    return np.concatenate([np.cos(half)[:, None], phi * scale[:, None]], axis=1)
+
+
+class _Keyframes:
+    """The keyframes of a simulation: camera frames every ``every``, their IMU indices, observations."""
+
+    def __init__(self, sim: VioSim, every: int):
+        self.sim = sim
+        self.camera = np.arange(0, len(sim.frame_imu_index), every)
+        self.imu_index = sim.frame_imu_index[self.camera]
+        self.times = sim.imu_times[self.imu_index]
+        self.obs = []
+        for f in self.camera:
+            sel = np.flatnonzero(sim.obs_frame == f)
+            self.obs.append((sim.obs_landmark[sel], sim.obs_pixels[sel]))
+
+    def __len__(self):
+        return len(self.camera)
+
+    def truth(self, k) -> np.ndarray:
+        i = self.imu_index[k]
+        return np.r_[so3_log(self.sim.rotations[i]), self.sim.positions[i], self.sim.velocities[i], np.zeros(6)]
+
+    def preintegrate(self, imu_module, k, state):
+        """The preintegration from keyframe k to k + 1 at the biases of ``state``."""
+        s = self.sim
+        a, b = self.imu_index[k], self.imu_index[k + 1]
+        return imu_module.preintegrate(s.gyro[a:b + 1], s.accel[a:b + 1], s.dt, state[9:12], state[12:15],
+                                       s.gyro_noise, s.accel_noise)
+
+
+def propagate(state, pre, gravity) -> np.ndarray:
+    """The state (15,) at the end of a preintegration from ``state`` (the module docstring's step 1)."""
+    R = so3_exp(state[0:3])
+    p, v, T = state[3:6], state[6:9], pre.delta_t
+    return np.r_[so3_log(R @ pre.delta_R), p + v * T + 0.5 * gravity * T * T + R @ pre.delta_p,
+                 v + gravity * T + R @ pre.delta_v, state[9:15]]
+
+
+def triangulate(sim: VioSim, states, pixels):
+    """The point (3,) nearest to the rays of ``pixels`` (k, 2) seen from frame ``states`` (k, 15),
+    or None (parallax below :data:`MIN_PARALLAX`, or behind a camera)."""
+    Kinv = np.linalg.inv(sim.K)
+    A, rhs, dirs, centres = np.zeros((3, 3)), np.zeros(3), [], []
+    for s, uv in zip(states, pixels):
+        R = so3_exp(s[0:3])
+        d = R @ sim.R_bc @ (Kinv @ np.r_[uv, 1.0])
+        d /= np.linalg.norm(d)
+        c = s[3:6] + R @ sim.t_bc
+        P = np.eye(3) - np.outer(d, d)
+        A += P
+        rhs += P @ c
+        dirs.append(d)
+        centres.append(c)
+    dirs = np.array(dirs)
+    cos = np.clip(dirs @ dirs.T, -1.0, 1.0)
+    if np.arccos(cos.min()) < MIN_PARALLAX:
+        return None
+    X = np.linalg.solve(A, rhs)
+    if np.any(np.einsum("ki,ki->k", X - np.array(centres), dirs) < MIN_TRIANGULATION_DEPTH):
+        return None
+    return X
+
+
+def _data(sim, kfs, frame_ids, landmark_ids, preints, frame_priors, linear_prior=None) -> VioData:
+    """A :class:`VioData` over keyframes ``frame_ids`` (consecutive) and ``landmark_ids``."""
+    f_local = {f: k for k, f in enumerate(frame_ids)}
+    l_local = {lm: k for k, lm in enumerate(landmark_ids)}
+    imu = [ImuFactor(f_local[f], f_local[f] + 1, preints[f]) for f in frame_ids[:-1]]
+    of, ol, px = [], [], []
+    for f in frame_ids:
+        lms, pixels = kfs.obs[f]
+        for lm, uv in zip(lms, pixels):
+            if lm in l_local:
+                of.append(f_local[f])
+                ol.append(l_local[lm])
+                px.append(uv)
+    return VioData(imu=imu, obs_frame=np.array(of, dtype=np.int64), obs_landmark=np.array(ol, dtype=np.int64),
+                   pixels=np.array(px).reshape(-1, 2), K=sim.K, R_bc=sim.R_bc, t_bc=sim.t_bc, gravity=sim.gravity,
+                   pixel_sigma=sim.pixel_noise, gyro_walk=sim.gyro_walk, accel_walk=sim.accel_walk,
+                   frame_priors=frame_priors, linear_prior=linear_prior)
+
+
+def _add_landmarks(sim, kfs, frame_ids, states, points, extra=()):
+    """The landmark ids of the window (sorted): those with an estimate (triangulated now if
+    needed) seen by at least two of ``frame_ids``, and those in ``extra``."""
+    seen = {}
+    for f in frame_ids:
+        lms, pixels = kfs.obs[f]
+        for lm, uv in zip(lms, pixels):
+            seen.setdefault(int(lm), []).append((f, uv))
+    ids = set(int(i) for i in extra)
+    for lm, views in seen.items():
+        if len(views) < 2:
+            continue
+        if lm not in points:
+            X = triangulate(sim, [states[f] for f, _ in views], [uv for _, uv in views])
+            if X is None:
+                continue
+            points[lm] = X
+        ids.add(lm)
+    return sorted(ids)
+
+
+def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, method="dogleg",
+                   impl="solutions", options=WINDOW_OPTIONS, loss="default", first_estimates="frames") -> VioRun:
+    """The sliding-window estimate of ``sim`` with ``variant`` ``"prior"`` or ``"drop"`` (module docstring);
+    ``first_estimates``: first-estimate Jacobians (``course.problems.vio``) for the prior's frames
+    (``"frames"``, the default), for its frames and landmarks (True) or none (False). On
+    ``vio-sim:12:0`` (APE rmse, m): 0.166 / 0.182 / 0.252, the window without prior 0.171."""
+    if variant not in VARIANTS:
+        raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
+    if window < 2:
+        raise ValueError(f"window must be at least 2 keyframes, got {window}")
+    implementation = impl_loader.load(impl)
+    imu_module = implementation.module("imu_preintegration")
+    marg = implementation.module("marginalisation")
+    kfs = _Keyframes(sim, keyframe_every)
+    loss_kw = {} if loss == "default" else {"loss": loss}
+    states = {0: kfs.truth(0)}
+    points: dict[int, np.ndarray] = {}
+    final = {}
+    preints = {}
+    frame_ids = [0]
+    prior_info = None  # (frame ids, landmark ids, frame_lin, landmark_lin, J, e0)
+    seconds, iterations = [], []
+    for new in range(1, len(kfs)):
+        preints[new - 1] = kfs.preintegrate(imu_module, new - 1, states[new - 1])
+        states[new] = propagate(states[new - 1], preints[new - 1], sim.gravity)
+        frame_ids.append(new)
+        extra = prior_info[1] if prior_info is not None else ()
+        lm_ids = _add_landmarks(sim, kfs, frame_ids, states, points, extra)
+        priors, linear = [], None
+        if frame_ids[0] == 0:
+            priors.append(FramePrior(0, kfs.truth(0), FIRST_SIGMAS))
+        elif variant == "drop":
+            priors.append(FramePrior(0, states[frame_ids[0]].copy(), ANCHOR_SIGMAS))
+        if prior_info is not None:
+            pf, pl, f_lin, l_lin, J, e0 = prior_info
+            f_local = {f: k for k, f in enumerate(frame_ids)}
+            l_local = {lm: k for k, lm in enumerate(lm_ids)}
+            linear = LinearPrior(np.array([f_local[f] for f in pf], dtype=np.int64),
+                                 np.array([l_local[lm] for lm in pl], dtype=np.int64), f_lin, l_lin, J, e0)
+        data = _data(sim, kfs, frame_ids, lm_ids, preints, priors, linear)
+        if linear is not None and first_estimates:
+            if first_estimates == "frames":
+                data.first_estimates = (linear.frames, linear.frame_lin, np.zeros(0, dtype=np.int64), np.zeros((0, 3)))
+            else:
+                data.first_estimates = (linear.frames, linear.frame_lin, linear.landmarks, linear.landmark_lin)
+        problem = VioProblem(np.array([states[f] for f in frame_ids]),
+                             np.array([points[lm] for lm in lm_ids]).reshape(-1, 3), data, impl, **loss_kw)
+        start = time.perf_counter()
+        result = minimize(problem, method, impl, options)
+        seconds.append(time.perf_counter() - start)
+        iterations.append(result.iterations)
+        x = result.params
+        for k, f in enumerate(frame_ids):
+            states[f] = problem.frames(x)[k].copy()
+        for k, lm in enumerate(lm_ids):
+            points[lm] = problem.landmarks(x)[k].copy()
+        if len(frame_ids) < window or new == len(kfs) - 1:
+            continue
+        oldest = frame_ids[0]
+        final[oldest] = states[oldest].copy()
+        still_seen = set()
+        for f in frame_ids[1:]:
+            still_seen.update(int(i) for i in kfs.obs[f][0])
+        gone = [k for k, lm in enumerate(lm_ids) if lm not in still_seen]
+        if variant == "prior":
+            lin = problem.linearize(x)
+            remove = np.r_[np.arange(FRAME_DOF), problem.split + (POINT_DOF * np.array(gone, dtype=np.int64)[:, None]
+                                                                  + np.arange(POINT_DOF)).ravel()].astype(np.int64)
+            # Jacobi scaling D = diag(H)^-1/2 first: H mixes information of 1e10 (gyro-bias walk) and
+            # of order 1 (a landmark along its ray), and the relative eigenvalue threshold (eps) of
+            # marginalise and prior_residual would otherwise drop the weak directions of H_mm,
+            # leaving in the prior information that belongs to the removed variables
+            D = 1.0 / np.sqrt(np.maximum(np.diag(lin.H), 1e-300))
+            H_s, b_s = marg.marginalise(D[:, None] * lin.H * D[None, :], D * lin.b, remove)
+            D_keep = np.delete(D, remove)
+            kept_frames = list(range(1, len(frame_ids)))
+            kept_lms = [k for k in range(len(lm_ids)) if k not in set(gone)]
+            blocks = [(k, FRAME_DOF) for k in kept_frames] + [(k, POINT_DOF) for k in kept_lms]
+            offsets = np.cumsum([0] + [d for _, d in blocks])
+            scale = np.abs(H_s).max()
+            touched = [i for i, (_, d) in enumerate(blocks)
+                       if np.abs(H_s[offsets[i]:offsets[i] + d]).max() > 1e-12 * scale]
+            idx = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in touched])
+            J_s, e0 = marg.prior_residual(H_s[np.ix_(idx, idx)], b_s[idx])
+            J = J_s / D_keep[idx][None, :]  # J^T J = D^-1 H_s D^-1 = H_prior, J^T e0 = b_prior
+            tf = [frame_ids[blocks[i][0]] for i in touched if i < len(kept_frames)]
+            tl = [lm_ids[blocks[i][0]] for i in touched if i >= len(kept_frames)]
+            current = np.concatenate([np.array([states[f] for f in tf]).reshape(-1, FRAME_DOF).ravel(),
+                                      np.array([points[lm] for lm in tl]).reshape(-1, POINT_DOF).ravel()])
+            old_lin = {}
+            if prior_info is not None and first_estimates:  # keep the first estimates of those already in
+                old_lin.update({("f", f): v for f, v in zip(prior_info[0], prior_info[2])})
+                old_lin.update({("l", lm): v for lm, v in zip(prior_info[1], prior_info[3])})
+            f_lin = np.array([old_lin.get(("f", f), states[f]) for f in tf]).reshape(-1, FRAME_DOF)
+            l_lin = np.array([old_lin.get(("l", lm), points[lm]) for lm in tl]).reshape(-1, POINT_DOF)
+            n_f = FRAME_DOF * len(tf)
+            shift = np.concatenate([frame_difference(current[:n_f].reshape(-1, FRAME_DOF), f_lin).ravel(),
+                                    current[n_f:] - l_lin.ravel()])
+            # e(x) = e0 + J (x [-] x_cur) ~ e0 - J (x_cur [-] x_lin) + J (x [-] x_lin): about x_lin
+            prior_info = (tf, tl, f_lin, l_lin, J, e0 - J @ shift)
+        frame_ids = frame_ids[1:]
+    for f in frame_ids:
+        final[f] = states[f].copy()
+    order = sorted(final)
+    return VioRun(f"window {window} ({'with' if variant == 'prior' else 'without'} prior)", kfs.times[order],
+                  np.array([final[f] for f in order]), seconds, iterations)
+
+
+def batch(sim: VioSim, start: VioRun, keyframe_every=5, method="dogleg", impl="solutions",
+          options=BATCH_OPTIONS, loss="default") -> VioRun:
+    """All keyframes and landmarks in one problem (first-keyframe prior, no marginalisation),
+    started from ``start``'s states; one minimize call."""
+    imu_module = impl_loader.load(impl).module("imu_preintegration")
+    kfs = _Keyframes(sim, keyframe_every)
+    if len(start.states) != len(kfs):
+        raise ValueError(f"start has {len(start.states)} keyframes, the simulation {len(kfs)}")
+    states = {k: start.states[k].copy() for k in range(len(kfs))}
+    preints = {k: kfs.preintegrate(imu_module, k, states[k]) for k in range(len(kfs) - 1)}
+    points: dict[int, np.ndarray] = {}
+    frame_ids = list(range(len(kfs)))
+    lm_ids = _add_landmarks(sim, kfs, frame_ids, states, points)
+    data = _data(sim, kfs, frame_ids, lm_ids, preints, [FramePrior(0, kfs.truth(0), FIRST_SIGMAS)])
+    loss_kw = {} if loss == "default" else {"loss": loss}
+    problem = VioProblem(start.states, np.array([points[lm] for lm in lm_ids]).reshape(-1, 3), data, impl, **loss_kw)
+    t0 = time.perf_counter()
+    result = minimize(problem, method, impl, options)
+    seconds = time.perf_counter() - t0
+    return VioRun("batch", kfs.times, problem.frames(result.params).copy(), [seconds], [result.iterations])
+
+
+def ground_truth(sim: VioSim) -> Trajectory:
+    """The true trajectory at the IMU rate."""
+    return Trajectory(sim.imu_times, sim.positions, rotvec_to_quaternion(np.array([so3_log(R) for R in sim.rotations])))
+
+
+def compare(name="vio-sim:12:0", window=10, keyframe_every=5, method="dogleg", impl="solutions") -> dict:
+    """APE rmse (m, SE(3) alignment) and time per solve (s) of the window with the
+    marginalisation prior, the window that drops old frames, and the batch solution.
+
+    Returns ``{label: {"rmse", "max", "mean_solve_seconds", "solves", "mean_iterations"}}``.
+    """
+    sim = load_vio_sim(name)
+    truth = ground_truth(sim)
+    runs = [sliding_window(sim, v, window, keyframe_every, method, impl) for v in VARIANTS]
+    runs.append(batch(sim, runs[0], keyframe_every, method, impl))
+    out = {}
+    for run in runs:
+        stats = ape(truth, run.trajectory()).stats
+        out[run.label] = {"rmse": stats["rmse"], "max": stats["max"],
+                          "mean_solve_seconds": float(np.mean(run.solve_seconds)), "solves": len(run.solve_seconds),
+                          "mean_iterations": float(np.mean(run.iterations))}
+    return out
+
+
+def format_comparison(results: dict) -> str:
+    """A table of :func:`compare`'s figures."""
+    lines = [f"{'estimator':<28} {'APE rmse (m)':>12} {'max (m)':>9} {'s/solve':>9} {'solves':>7} {'iters':>6}"]
+    for label, r in results.items():
+        lines.append(f"{label:<28} {r['rmse']:>12.4f} {r['max']:>9.4f} {r['mean_solve_seconds']:>9.3f} "
+                     f"{r['solves']:>7d} {r['mean_iterations']:>6.1f}")
+    return "\n".join(lines)
+
+
+__all__ = ["VioRun", "batch", "compare", "format_comparison", "frame_difference", "ground_truth", "sliding_window"]
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import sys
+
+    print(format_comparison(compare(*(sys.argv[1:2] or ["vio-sim:12:0"]))))
