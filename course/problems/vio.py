@@ -37,8 +37,9 @@ Factors (every residual whitened, so chi2 is a plain sum of squares, as in the c
   ``e = e0 + J (x_k [-] x_lin)`` over its variables (``marginalisation.prior_residual`` /
   ``prior_update``), the Jacobian J fixed at the linearisation point.
 - First-estimate Jacobians (``VioData.first_estimates``, Huang, Mourikis, Roumeliotis 2009):
-  the Jacobians of every factor are evaluated with the prior's variables at their
-  linearisation point, the residuals at x. Without them the prior and the relinearised factors
+  the Jacobians of every factor are evaluated with the listed variables (the prior's frames, by
+  default in ``course.vio_window``; its landmarks too if asked) at their linearisation point,
+  the residuals at x. Without them the prior and the relinearised factors
   disagree about the unobservable directions (position, yaw), and the prior's very stiff
   information about them (from the first frame's prior) becomes spurious information that
   pulls the window around: on ``vio-sim:12:0`` the APE rmse was 0.25 m without against
