@@ -51,7 +51,7 @@ prior converge slowly (first-estimate Jacobians disagree with the residuals); wi
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -66,6 +66,7 @@ from course.problems.vio import (
     VioData,
     VioProblem,
     frame_difference,
+    gauge_directions,
 )
 from course.solvers import SolverOptions, minimize
 from course.trajectory_io import Trajectory
@@ -76,8 +77,12 @@ from solutions.imu_preintegration import so3_exp, so3_log
 FIRST_SIGMAS = np.r_[np.full(3, 1e-3), np.full(3, 1e-3), np.full(3, 0.05), np.full(3, 0.02), np.full(3, 0.1)]
 #: the "drop" variant's gauge prior on the oldest frame: its pose only
 ANCHOR_SIGMAS = np.r_[np.full(6, 1e-3), np.full(9, np.inf)]
+#: the "prior" variant's anchor (position, m, and yaw, rad) on its oldest frame
+ANCHOR_GAUGE_SIGMA = 1e-3
 #: rays must span this angle (rad) for a landmark to be triangulated
 MIN_PARALLAX = np.deg2rad(2.0)
+#: a landmark enters the window when this many of its keyframes have seen it
+MIN_VIEWS = 2
 MIN_TRIANGULATION_DEPTH = 0.5
 #: the dogleg's first radius: 1 (tangent units), not Ceres' 1e4, which the halving on a rejected step
 #: takes 15 attempts to bring down to a Gauss-Newton step of norm ~0.3 that the Cauchy kernel's
@@ -92,13 +97,26 @@ VARIANTS = ("prior", "drop")
 @dataclass
 class VioRun:
     """An estimate: keyframe ``times`` (F,), ``states`` (F, 15) ``(phi, p, v, b_g, b_a)``,
-    ``solve_seconds`` (one per minimize call), ``iterations`` (same), ``label``."""
+    ``solve_seconds`` (one per minimize call), ``iterations`` (same), ``label``.
+
+    ``steps`` (one dict per solve of a window): ``time`` (s, the newest keyframe's), ``chi2``
+    (at the solution, robust), ``frames``, ``landmarks`` (in the window), ``prior_dof`` (the
+    variables the marginalisation prior touches, tangent dimension; 0 without) and
+    ``prior_rank`` (its rows). ``hessians`` (when asked for with ``keep_hessians_at``):
+    ``before`` the window's H (n, n) at its solution, ``removed`` the indices marginalised out of
+    it, ``after`` the next window's H at its start (its prior included); ``*_frames`` the frame
+    counts (frames first in the layout, 15 each, then the landmarks, 3 each); ``prior_J``
+    (r, 15a + 3c) the new prior's Jacobian and its linearisation point ``prior_frame_lin`` (a, 15),
+    ``prior_landmark_lin`` (c, 3).
+    """
 
     label: str
     times: np.ndarray
     states: np.ndarray
     solve_seconds: list
     iterations: list
+    steps: list = field(default_factory=list)
+    hessians: dict = field(default_factory=dict)
 
     def trajectory(self) -> Trajectory:
         return Trajectory(self.times, self.states[:, 3:6].copy(), rotvec_to_quaternion(self.states[:, 0:3]))
@@ -174,6 +192,25 @@ def triangulate(sim: VioSim, states, pixels):
     return X
 
 
+def anchor(state) -> LinearPrior:
+    """The gauge anchor of a window whose prior has no gauge information: position and yaw (the
+    rotation about gravity, ``(R^T e_z)^T dphi``) of its oldest frame (local index 0) held at
+    ``state`` (15,) with :data:`ANCHOR_GAUGE_SIGMA`; (4, 15) rows, ``e = J (s [-] state)``."""
+    J = np.zeros((4, FRAME_DOF))
+    J[0:3, 3:6] = np.eye(3)
+    J[3, 0:3] = so3_exp(state[0:3]).T @ np.array([0.0, 0.0, 1.0])
+    return LinearPrior(np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.asarray(state)[None].copy(),
+                       np.zeros((0, POINT_DOF)), J / ANCHOR_GAUGE_SIGMA, np.zeros(4))
+
+
+def _without_gauge(H, b, N):
+    """``(P H P, P b)`` with ``P = I - N (N^T N)^-1 N^T`` the projector off the columns of N
+    (n, k): the prior then says nothing along them (``H N = 0``, ``b^T N = 0``)."""
+    Q, _ = np.linalg.qr(N)
+    P = np.eye(len(b)) - Q @ Q.T
+    return P @ H @ P, P @ b
+
+
 def _data(sim, kfs, frame_ids, landmark_ids, preints, frame_priors, linear_prior=None) -> VioData:
     """A :class:`VioData` over keyframes ``frame_ids`` (consecutive) and ``landmark_ids``."""
     f_local = {f: k for k, f in enumerate(frame_ids)}
@@ -203,7 +240,7 @@ def _add_landmarks(sim, kfs, frame_ids, states, points, extra=()):
             seen.setdefault(int(lm), []).append((f, uv))
     ids = set(int(i) for i in extra)
     for lm, views in seen.items():
-        if len(views) < 2:
+        if len(views) < MIN_VIEWS:
             continue
         if lm not in points:
             X = triangulate(sim, [states[f] for f, _ in views], [uv for _, uv in views])
@@ -215,11 +252,18 @@ def _add_landmarks(sim, kfs, frame_ids, states, points, extra=()):
 
 
 def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, method="dogleg",
-                   impl="solutions", options=WINDOW_OPTIONS, loss="default", first_estimates="frames") -> VioRun:
+                   impl="solutions", options=WINDOW_OPTIONS, loss="default", first_estimates="frames",
+                   keep_hessians_at: int | None = None, gauge="project") -> VioRun:
     """The sliding-window estimate of ``sim`` with ``variant`` ``"prior"`` or ``"drop"`` (module docstring);
     ``first_estimates``: first-estimate Jacobians (``course.problems.vio``) for the prior's frames
     (``"frames"``, the default), for its frames and landmarks (True) or none (False). On
-    ``vio-sim:12:0`` (APE rmse, m): 0.166 / 0.182 / 0.252, the window without prior 0.171."""
+    ``vio-sim:12:0`` (APE rmse, m): 0.166 / 0.182 / 0.252, the window without prior 0.171.
+    ``keep_hessians_at``: the index of the solve whose H (and the next window's) to keep in
+    ``VioRun.hessians``, for the fill-in figure. ``gauge``: ``"project"`` (the default) takes
+    the 4 unobservable directions out of every new prior and holds the window by
+    :func:`anchor` on its oldest frame; ``"keep"`` leaves the first frame's prior in the chain."""
+    if gauge not in ("project", "keep"):
+        raise ValueError(f"gauge must be 'project' or 'keep', got {gauge!r}")
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
     if window < 2:
@@ -235,7 +279,8 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
     preints = {}
     frame_ids = [0]
     prior_info = None  # (frame ids, landmark ids, frame_lin, landmark_lin, J, e0)
-    seconds, iterations = [], []
+    anchor_refs: dict[int, np.ndarray] = {}
+    seconds, iterations, steps, hessians = [], [], [], {}
     for new in range(1, len(kfs)):
         preints[new - 1] = kfs.preintegrate(imu_module, new - 1, states[new - 1])
         states[new] = propagate(states[new - 1], preints[new - 1], sim.gravity)
@@ -254,6 +299,8 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
             linear = LinearPrior(np.array([f_local[f] for f in pf], dtype=np.int64),
                                  np.array([l_local[lm] for lm in pl], dtype=np.int64), f_lin, l_lin, J, e0)
         data = _data(sim, kfs, frame_ids, lm_ids, preints, priors, linear)
+        if variant == "prior" and gauge == "project" and frame_ids[0] != 0:
+            data.anchor = anchor(anchor_refs.setdefault(frame_ids[0], states[frame_ids[0]].copy()))
         if linear is not None and first_estimates:
             if first_estimates == "frames":
                 data.first_estimates = (linear.frames, linear.frame_lin, np.zeros(0, dtype=np.int64), np.zeros((0, 3)))
@@ -261,11 +308,16 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
                 data.first_estimates = (linear.frames, linear.frame_lin, linear.landmarks, linear.landmark_lin)
         problem = VioProblem(np.array([states[f] for f in frame_ids]),
                              np.array([points[lm] for lm in lm_ids]).reshape(-1, 3), data, impl, **loss_kw)
+        if keep_hessians_at is not None and len(steps) == keep_hessians_at + 1:
+            hessians.update(after=problem.linearize(problem.x0).H, after_frames=len(frame_ids))
         start = time.perf_counter()
         result = minimize(problem, method, impl, options)
         seconds.append(time.perf_counter() - start)
         iterations.append(result.iterations)
         x = result.params
+        steps.append({"time": float(kfs.times[new]), "chi2": float(problem.chi2(x)), "frames": len(frame_ids),
+                      "landmarks": len(lm_ids), "prior_dof": 0 if linear is None else int(linear.J.shape[1]),
+                      "prior_rank": 0 if linear is None else int(linear.J.shape[0])})
         for k, f in enumerate(frame_ids):
             states[f] = problem.frames(x)[k].copy()
         for k, lm in enumerate(lm_ids):
@@ -280,8 +332,16 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
         gone = [k for k, lm in enumerate(lm_ids) if lm not in still_seen]
         if variant == "prior":
             lin = problem.linearize(x)
+            if data.anchor is not None:  # the anchor holds this window only: not marginalised
+                cols = problem.columns([0], [])
+                J_a = data.anchor.J
+                r_a = J_a @ frame_difference(problem.frames(x)[0], data.anchor.frame_lin[0])
+                lin.H[np.ix_(cols, cols)] -= J_a.T @ J_a
+                lin.b[cols] -= J_a.T @ r_a
             remove = np.r_[np.arange(FRAME_DOF), problem.split + (POINT_DOF * np.array(gone, dtype=np.int64)[:, None]
                                                                   + np.arange(POINT_DOF)).ravel()].astype(np.int64)
+            if keep_hessians_at is not None and len(steps) == keep_hessians_at + 1:
+                hessians.update(before=lin.H, removed=remove, before_frames=len(frame_ids))
             # Jacobi scaling D = diag(H)^-1/2 first: H mixes information of 1e10 (gyro-bias walk) and
             # of order 1 (a landmark along its ray), and the relative eigenvalue threshold (eps) of
             # marginalise and prior_residual would otherwise drop the weak directions of H_mm,
@@ -297,8 +357,6 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
             touched = [i for i, (_, d) in enumerate(blocks)
                        if np.abs(H_s[offsets[i]:offsets[i] + d]).max() > 1e-12 * scale]
             idx = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in touched])
-            J_s, e0 = marg.prior_residual(H_s[np.ix_(idx, idx)], b_s[idx])
-            J = J_s / D_keep[idx][None, :]  # J^T J = D^-1 H_s D^-1 = H_prior, J^T e0 = b_prior
             tf = [frame_ids[blocks[i][0]] for i in touched if i < len(kept_frames)]
             tl = [lm_ids[blocks[i][0]] for i in touched if i >= len(kept_frames)]
             current = np.concatenate([np.array([states[f] for f in tf]).reshape(-1, FRAME_DOF).ravel(),
@@ -309,6 +367,13 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
                 old_lin.update({("l", lm): v for lm, v in zip(prior_info[1], prior_info[3])})
             f_lin = np.array([old_lin.get(("f", f), states[f]) for f in tf]).reshape(-1, FRAME_DOF)
             l_lin = np.array([old_lin.get(("l", lm), points[lm]) for lm in tl]).reshape(-1, POINT_DOF)
+            H_p, b_p = H_s[np.ix_(idx, idx)], b_s[idx]
+            if gauge == "project":
+                H_p, b_p = _without_gauge(H_p, b_p, gauge_directions(f_lin, l_lin) / D_keep[idx][:, None])
+            J_s, e0 = marg.prior_residual(H_p, b_p)
+            J = J_s / D_keep[idx][None, :]  # J^T J = D^-1 H_s D^-1 = H_prior, J^T e0 = b_prior
+            if keep_hessians_at is not None and len(steps) == keep_hessians_at + 1:
+                hessians.update(prior_J=J, prior_frame_lin=f_lin, prior_landmark_lin=l_lin)
             n_f = FRAME_DOF * len(tf)
             shift = np.concatenate([frame_difference(current[:n_f].reshape(-1, FRAME_DOF), f_lin).ravel(),
                                     current[n_f:] - l_lin.ravel()])
@@ -319,7 +384,7 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
         final[f] = states[f].copy()
     order = sorted(final)
     return VioRun(f"window {window} ({'with' if variant == 'prior' else 'without'} prior)", kfs.times[order],
-                  np.array([final[f] for f in order]), seconds, iterations)
+                  np.array([final[f] for f in order]), seconds, iterations, steps, hessians)
 
 
 def batch(sim: VioSim, start: VioRun, keyframe_every=5, method="dogleg", impl="solutions",

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from course import vio_window as vw
-from course.problems.vio import VioProblem
+from course.problems.vio import VioProblem, gauge_directions
 from course.vio_sim import load_vio_sim
 
 #: the analytic reprojection and the central-difference IMU Jacobians against central
@@ -43,6 +43,33 @@ def test_the_jacobian_matches_central_differences():
                            - problem.residual_and_jacobian(problem.retract(x, -h))[0]) / (2 * step)
     assert np.abs(J - numeric).max() <= JACOBIAN_TOL * max(1.0, np.abs(J).max())
     assert problem.chi2(x) == pytest.approx(float(r @ r), rel=1e-12)
+
+
+def test_the_four_gauge_directions_are_null_directions_of_the_factors():
+    problem = _small_problem()  # IMU and reprojections, no prior
+    x = problem.retract(problem.x0, 1e-2 * np.random.default_rng(1).standard_normal(problem.n))
+    _, J, _ = problem.residual_and_jacobian(x)
+    N = gauge_directions(problem.frames(x), problem.landmarks(x))
+    assert N.shape == (problem.n, 4)
+    assert np.linalg.norm(J @ N) <= 1e-6 * np.linalg.norm(J.toarray()) * np.linalg.norm(N)
+    # and nothing else is: J has exactly 4 singular values at rounding level
+    s = np.linalg.svd(J.toarray(), compute_uv=False)
+    assert s[-4] <= 1e-9 * s[0] and s[-5] >= 1e3 * s[-4]
+
+
+def test_the_prior_carries_no_gauge_information():
+    sim = load_vio_sim("vio-sim:3.5:0")
+    run = vw.sliding_window(sim, "prior", keep_hessians_at=9)
+    assert run.steps[-1]["prior_rank"] > 0
+    h = run.hessians
+    assert len(h["removed"]) >= 15 and np.array_equal(h["removed"][:15], np.arange(15))
+    J, N = h["prior_J"], gauge_directions(h["prior_frame_lin"], h["prior_landmark_lin"])
+    assert np.linalg.norm(J @ N) <= 1e-9 * np.linalg.norm(J) * np.linalg.norm(N)
+    assert np.linalg.matrix_rank(J) == J.shape[0] and J.shape[0] <= J.shape[1] - 4
+    # the same run keeping the first frame's gauge in the chain: the prior is stiff along N
+    kept = vw.sliding_window(sim, "prior", keep_hessians_at=9, gauge="keep").hessians
+    N = gauge_directions(kept["prior_frame_lin"], kept["prior_landmark_lin"])
+    assert np.linalg.norm(kept["prior_J"] @ N) > 1e2 * np.linalg.norm(kept["prior_J"]) * 1e-9 * np.linalg.norm(N)
 
 
 @pytest.mark.slow

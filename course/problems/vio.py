@@ -63,6 +63,8 @@ from course.robust import RobustLoss, reweight, robust_chi2
 from course.solvers.linearization import Linearization
 from solutions.imu_preintegration import so3_exp, so3_log  # formulas given to students, not graded
 
+EZ = np.array([0.0, 0.0, 1.0])
+
 FRAME_DOF, POINT_DOF = 15, 3
 #: the central-difference step of the numerical IMU Jacobians (tangent units: rad, m, m/s, ...)
 FD_STEP = 1e-6
@@ -123,6 +125,9 @@ class VioData:
     accel_walk: float
     frame_priors: list = field(default_factory=list)
     linear_prior: LinearPrior | None = None
+    #: a linear gauge anchor (same form as the linear prior), kept apart so that it can be
+    #: left out of what is marginalised
+    anchor: LinearPrior | None = None
     #: first-estimate Jacobians: ``(frames (a,), states (a, 15), landmarks (c,), points (c, 3))``
     #: whose Jacobians (not residuals) are evaluated at these values, or None
     first_estimates: tuple | None = None
@@ -136,6 +141,27 @@ def frame_difference(s, s_ref):
     for k in range(len(flat)):
         flat_out[k, 0:3] = so3_log(so3_exp(flat_ref[k, 0:3]).T @ so3_exp(flat[k, 0:3]))
     return flat_out.reshape(out.shape)
+
+
+def gauge_directions(frames, landmarks) -> np.ndarray:
+    """The 4 directions (15a + 3c, 4) along which no IMU or reprojection residual changes, at
+    frame states ``frames`` (a, 15) and points ``landmarks`` (c, 3), in tangent coordinates:
+    a translation of the world (3 columns: ``dp = dX = e_k``) and a rotation about gravity
+    (``dphi = R^T e_z``, ``dp = e_z x p``, ``dv = e_z x v``, ``dX = e_z x X``; the biases, in
+    the body frame, do not change). Roll and pitch are seen through gravity, scale through the
+    accelerometer, so a visual-inertial problem without an anchor has exactly these 4."""
+    frames = np.asarray(frames, dtype=float).reshape(-1, FRAME_DOF)
+    landmarks = np.asarray(landmarks, dtype=float).reshape(-1, POINT_DOF)
+    N_f = np.zeros((len(frames), FRAME_DOF, 4))
+    N_f[:, 3:6, 0:3] = np.eye(3)
+    for k, s in enumerate(frames):
+        N_f[k, 0:3, 3] = so3_exp(s[0:3]).T @ EZ
+        N_f[k, 3:6, 3] = np.cross(EZ, s[3:6])
+        N_f[k, 6:9, 3] = np.cross(EZ, s[6:9])
+    N_l = np.zeros((len(landmarks), POINT_DOF, 4))
+    N_l[:, :, 0:3] = np.eye(3)
+    N_l[:, :, 3] = np.cross(EZ, landmarks)
+    return np.concatenate([N_f.reshape(-1, 4), N_l.reshape(-1, 4)])
 
 
 def frame_retract(s, d):
@@ -175,6 +201,12 @@ class VioProblem:
 
     def landmarks(self, x):
         return np.asarray(x[self.split:]).reshape(-1, POINT_DOF)
+
+    def columns(self, frames, landmarks) -> np.ndarray:
+        """The tangent indices of problem-local ``frames`` (a,) then ``landmarks`` (c,): (15a + 3c,)."""
+        frames, landmarks = np.asarray(frames, dtype=np.int64), np.asarray(landmarks, dtype=np.int64)
+        return np.concatenate([(FRAME_DOF * frames[:, None] + np.arange(FRAME_DOF)).ravel(),
+                               (self.split + POINT_DOF * landmarks[:, None] + np.arange(POINT_DOF)).ravel()])
 
     def retract(self, x, h):
         """Frames by :func:`frame_retract`, landmarks by addition."""
@@ -256,13 +288,12 @@ class VioProblem:
             r = (frame_difference(frames[prior.frame], prior.reference) / np.where(keep, prior.sigmas, 1.0))[keep]
             cols = FRAME_DOF * prior.frame + np.arange(FRAME_DOF)
             out.append((r, cols, np.diag(1.0 / prior.sigmas[keep]) @ np.eye(FRAME_DOF)[keep] if jacobians else None))
-        lp = self.data.linear_prior
-        if lp is not None:
+        for lp in (self.data.linear_prior, self.data.anchor):
+            if lp is None:
+                continue
             dx = np.concatenate([frame_difference(frames[lp.frames], lp.frame_lin).ravel(),
                                  (points[lp.landmarks] - lp.landmark_lin).ravel()])
-            cols = np.concatenate([(FRAME_DOF * lp.frames[:, None] + np.arange(FRAME_DOF)).ravel(),
-                                   (self.split + POINT_DOF * lp.landmarks[:, None] + np.arange(POINT_DOF)).ravel()])
-            out.append((lp.e0 + lp.J @ dx, cols, lp.J if jacobians else None))
+            out.append((lp.e0 + lp.J @ dx, self.columns(lp.frames, lp.landmarks), lp.J if jacobians else None))
         return out
 
     # ------------------------------------------------------------------ the minimizer's interface
