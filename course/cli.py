@@ -317,6 +317,9 @@ def cmd_datasets(args) -> int:
         edges = "?" if info.edges is None else info.edges
         where = info.origin if info.available else f"{info.origin} (missing: {info.reason})"
         print(f"{info.name:18} {poses:>6} {edges:>6}  {info.format:9}  {where}")
+    print(f"\n{'name':28} {'size':36} where")
+    for name, size, where, reason in datasets.list_other_data():
+        print(f"{name:28} {size:36} {where}{f' (missing: {reason})' if reason else ''}")
     return 0
 
 

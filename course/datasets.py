@@ -443,3 +443,30 @@ def load_dataset(name: str) -> PoseGraph:
         return read_graph(name)
     known = ", ".join([*_NAMED, "manhattan:N[:seed]"])
     raise DatasetError(f"unknown dataset {name!r} and no such file; known names: {known}")
+
+
+def list_other_data() -> list[tuple[str, str, str, str]]:
+    """The other chapters' named data: ``(name, size, where, reason missing or "")`` for the BAL
+    problems (chapter 4), EuRoC MH_05's trajectories and the VIO simulator (chapter 5)."""
+    from course import ape, bal
+
+    rows = []
+    for name, (where, rel, cams, points, obs) in bal._NAMED.items():
+        origin = f"gtsam wheel Data/{rel}" if where == "gtsam" else f"data folder: {rel}"
+        try:
+            bal._locate(name)
+            reason = ""
+        except DatasetError as e:
+            reason = str(e)
+        rows.append((name, f"{cams} cameras, {points} points, {obs} obs", origin, reason))
+    rows.append(("bal-synthetic:C:P[:seed]", "C cameras, P points", "generator course.bal.synthetic", ""))
+    try:
+        ape.euroc_mh05_files()
+        reason = ""
+    except DatasetError as e:
+        reason = str(e)
+    rows.append(("euroc-mh05", "EuRoC CSV truth + a TUM estimate", f"data folder: {', '.join(ape.EUROC_MH05)}",
+                 reason))
+    rows.append(("vio-sim[:seconds[:seed]]", "IMU 200 Hz, camera 20 Hz, 480 pts", "generator course.vio_sim",
+                 ""))
+    return rows

@@ -280,3 +280,14 @@ def test_missing_data_folder(tmp_path, monkeypatch):
     info = {i.name: i for i in datasets.list_datasets()}["m3500"]
     assert (info.poses, info.edges, info.available) == (3500, 5453, False)
     assert "COURSE_DATA" in info.reason
+
+
+def test_the_other_chapters_data_are_listed_and_missing_ones_say_why(tmp_path, monkeypatch):
+    rows = {name: (size, where, reason) for name, size, where, reason in datasets.list_other_data()}
+    assert {"ladybug-49", "dubrovnik-3-7", "bal-synthetic:C:P[:seed]", "euroc-mh05",
+            "vio-sim[:seconds[:seed]]"} <= set(rows)
+    assert rows["ladybug-49"][0] == "49 cameras, 7776 points, 31843 obs"
+    monkeypatch.setenv("COURSE_DATA", str(tmp_path / "absent"))
+    rows = {name: reason for name, _, _, reason in datasets.list_other_data()}
+    assert "not found" in rows["ladybug-49"] and "COURSE_DATA" in rows["euroc-mh05"]
+    assert rows["vio-sim[:seconds[:seed]]"] == ""
