@@ -4,7 +4,8 @@
     python -m notebooks.build --execute    # write and run them (outputs saved in the file)
     python -m notebooks.build --small      # with --execute: one run per timing, not five,
                                            # chapters 2, 3 and 3b on small graphs only,
-                                           # chapter 4 on synthetic problems
+                                           # chapter 4 on synthetic problems, chapter 5 on a
+                                           # 4-second simulation
     python -m notebooks.build --only chapter2 chapter3   # only those notebooks
 
 Chapter 1 compares damping strategies on the curve, chapter 2 pose graphs (dense against
@@ -12,7 +13,10 @@ sparse, every back end on every named dataset, the written questions), chapter 3
 dogleg against Levenberg-Marquardt, chapter 3b the starts (file, spanning tree, chordal)
 and the time to solution, chapter 4 bundle adjustment (the sparsity of J, H and S, ours
 against the peers on ladybug-49, rank deficiency, points behind the camera, dense against
-Schur, robust kernels, the parallel assembly, the gauge).
+Schur, robust kernels, the parallel assembly, the gauge), chapter 5 a sliding-window
+visual-inertial back end (the fill-in of H when a keyframe is marginalised, the window's
+cost and the prior's size, the APE over time of the window with and without the prior,
+the batch and GTSAM's, the source's EuRoC MH_05 table).
 
 Each notebook's source is a jupytext py:percent file next to it (``chapter2_pose_graphs.py``
 for ``chapter2_pose_graphs.ipynb``); edit the source, then rebuild. A cell starts with
@@ -59,9 +63,11 @@ CHAPTER2 = HERE / "chapter2_pose_graphs.ipynb"
 CHAPTER3 = HERE / "chapter3_dogleg.ipynb"
 CHAPTER3B = HERE / "chapter3b_initialisation.ipynb"
 CHAPTER4 = HERE / "chapter4_bundle_adjustment.ipynb"
+CHAPTER5 = HERE / "chapter5_vio.ipynb"
 
 #: each notebook and its py:percent source
-NOTEBOOKS = {path: path.with_suffix(".py") for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B, CHAPTER4)}
+NOTEBOOKS = {path: path.with_suffix(".py")
+             for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B, CHAPTER4, CHAPTER5)}
 
 #: the tag of the cells a reader writes in (kept by ``build`` when the notebook is rebuilt)
 ANSWER_TAG = "answer"
@@ -219,7 +225,8 @@ def execute(nb, timeout=900, cwd=HERE, small=False, impl=None, progress=None):
     The kernel inherits ``COURSE_IMPL = impl`` (None: ``default_impl()``),
     ``COURSE_NOTEBOOK_REPEAT`` (1 when
     ``small``, else 5) and ``COURSE_NOTEBOOK_SMALL`` (1 when ``small``: chapters 2, 3 and 3b
-    run on small graphs only, chapter 4 on synthetic problems) and starts in ``cwd``. ``progress``, a name: report each
+    run on small graphs only, chapter 4 on synthetic problems, chapter 5 on a 4-second
+    simulation) and starts in ``cwd``. ``progress``, a name: report each
     cell on stderr under it (see ``_Progress``).
     """
     from nbclient import NotebookClient

@@ -1,8 +1,8 @@
 """The generated notebooks: current with their py:percent sources (notebooks/chapter*.py), and they run.
 
-Chapters 2, 3, 3b and 4 run in their small setting (``COURSE_NOTEBOOK_SMALL=1``: w100,
-``manhattan:N``, the curve and ``bal-synthetic:C:P``; seconds each); their full setting is
-``python -m notebooks.build --execute`` (``make notebooks``).
+Chapters 2, 3, 3b, 4 and 5 run in their small setting (``COURSE_NOTEBOOK_SMALL=1``: w100,
+``manhattan:N``, the curve, ``bal-synthetic:C:P`` and ``vio-sim:4:0``; seconds each); their
+full setting is ``python -m notebooks.build --execute`` (``make notebooks``).
 
 Execution uses ``notebooks.build.execute``, which starts the kernel on this test's own
 interpreter (``sys.executable``): the ``python3`` kernelspec when it resolves to it,
@@ -46,7 +46,8 @@ def test_source_round_trips_with_ids_and_tags(path, tmp_path):
     again = build.read(copy)
     assert [(c.id, c.source, c.metadata) for c in again.cells] == [(c.id, c.source, c.metadata) for c in nb.cells]
     tagged = {cell.id for cell in nb.cells if build.ANSWER_TAG in cell.metadata.get("tags", [])}
-    assert tagged == ({"answer-1", "answer-2"} if path in (build.CHAPTER2, build.CHAPTER3B, build.CHAPTER4) else set())
+    assert tagged == ({"answer-1", "answer-2"} if path in (build.CHAPTER2, build.CHAPTER3B, build.CHAPTER4,
+                                                           build.CHAPTER5) else set())
     assert all(set(cell.metadata) <= {"tags"} for cell in nb.cells)
 
 
@@ -264,11 +265,59 @@ def test_chapter4_executes_small():
     assert f"{ours.final_chi2:.10g}" in text
 
 
+@pytest.mark.slow
+def test_chapter5_executes_small():
+    import time
+
+    from course import peers
+    from course.datasets import DatasetError
+
+    start = time.perf_counter()
+    nb, text, images = _execute_small(build.CHAPTER5)
+    assert time.perf_counter() - start < 90, "the quick setting should take well under a minute"
+    assert "Traceback" not in text and "did not run here" not in text and "not implemented" not in text
+    for words in ("vio-sim:4:0: 801 IMU samples of ground truth", "window 10 (with prior)", "window 10 (without prior)",
+                  "17 keyframes", "before: n = ", "(10 frames, ", "removed: the oldest frame and ", "fill-in ",
+                  "the block that fills in: ", "after: the next window at its start", "diag(H) of the next window",
+                  "solves with a prior, from t = 2.50 s", "dof - rank: 4", "APE rmse (m)", "s/solve", "batch  "):
+        assert words in text, words
+    assert "vio-sim:12:0" not in text  # the full setting only
+    if peers.installed("gtsam"):
+        for words in ("GTSAM batch", "GTSAM fixed-lag (window 10)"):
+            assert words in text, words
+    else:
+        assert "GTSAM: not run (gtsam is not installed here" in text
+    try:
+        from course.ape import euroc_mh05_files
+
+        euroc_mh05_files()
+    except DatasetError:
+        assert "EuRoC MH_05: skipped" in text
+    else:  # the source's evaluation: ours equals evo's, beside the source's LM row
+        for words in ("ours                    0.245723  0.231451", "source's LM run         0.247000", "rmse within"):
+            assert words in text, words
+    # fill-in, cost and prior size, APE over time
+    assert len(images) == 3
+    markdown = {c.get("id"): c.source for c in nb.cells if c.cell_type == "markdown"}
+    assert "Question 1" in markdown["questions-md"] and "Question 2" in markdown["questions-md"]
+    assert "Your answer to question 1" in markdown["answer-1"]
+    assert "Your answer to question 2" in markdown["answer-2"]
+    # same numbers as in-process
+    from course.ape import ape
+    from course.vio_sim import load_vio_sim
+    from course.vio_window import ground_truth, sliding_window
+
+    sim = load_vio_sim("vio-sim:4:0")
+    drop = sliding_window(sim, "drop")
+    assert f"{drop.label:<28} {ape(ground_truth(sim), drop.trajectory()).stats['rmse']:>12.4f}" in text
+
+
 def test_reference_answers_stay_out_of_the_student_tree():
     from course import release
     from course.impl import REPO_ROOT
 
     answers = REPO_ROOT / "solutions" / "answers"
-    assert (answers / "chapter2.md").is_file() and (answers / "chapter4.md").is_file()
+    for chapter in ("chapter2", "chapter3b", "chapter4", "chapter5"):
+        assert (answers / f"{chapter}.md").is_file(), chapter
     files = release.render(REPO_ROOT / "solutions")
     assert not [name for name in files if name.startswith("answers")]
