@@ -1,4 +1,4 @@
-"""Command line: ``python -m course {demo,compare,datasets,benchmark,release,ape} ...``.
+"""Command line: ``python -m course {demo,compare,datasets,benchmark,release,ape,vio} ...``.
 
 ``main(argv=None) -> int`` is cheap to import: every subcommand imports what it needs
 (numpy, pyceres, matplotlib, ...) when it runs. Exit codes: 0 success, 1 a failed
@@ -102,6 +102,15 @@ def build_parser() -> argparse.ArgumentParser:
                      help="largest time difference of an associated pair, seconds (default 0.01, as evo)")
     ape.add_argument("--json", metavar="FILE", help="write {rmse, median, mean, std, max, min, pairs} (metres)")
     ape.set_defaults(func=cmd_ape)
+
+    vio = sub.add_parser("vio", help="chapter 5: the sliding window with and without the marginalisation prior, "
+                                     "the batch, and GTSAM's, on simulated visual-inertial data (APE, time per solve)")
+    vio.add_argument("name", nargs="?", default="vio-sim:12:0", help="vio-sim[:seconds[:seed]] (default vio-sim:12:0)")
+    vio.add_argument("--window", type=int, default=10, help="keyframes in the window (default 10)")
+    vio.add_argument("--no-peers", action="store_true", help="ours only (no GTSAM rows)")
+    vio.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
+    vio.add_argument("--json", metavar="FILE", help="write {label: {rmse, max, scale, mean_solve_seconds, ...}}")
+    vio.set_defaults(func=cmd_vio)
     return parser
 
 
@@ -378,6 +387,23 @@ def cmd_benchmark(args) -> int:
     from course import benchmark
 
     benchmark.main(repeats=args.repeats, impl=args.impl or _default_impl())
+    return 0
+
+
+def cmd_vio(args) -> int:
+    """``vio [NAME]``: :func:`course.vio_window.compare`'s table."""
+    from course import vio_window
+
+    results = vio_window.compare(args.name, window=args.window, impl=args.impl or _default_impl(),
+                                 peers=not args.no_peers)
+    print(f"{args.name}: keyframes every 0.25 s, window {args.window}; APE after SE(3) alignment, "
+          "scale from Sim(3)")
+    print(vio_window.format_comparison(results))
+    if args.json:
+        path = Path(args.json)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(results, indent=1))
+        print(f"wrote {path}")
     return 0
 
 

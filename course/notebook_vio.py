@@ -449,7 +449,7 @@ def ape_table(estimates: Estimates, curves: Sequence[ApeCurve]) -> str:
     results = {}
     for run in estimates.runs():
         stats = by_label[run.label].stats
-        results[run.label] = {"rmse": stats["rmse"], "max": stats["max"],
+        results[run.label] = {"rmse": stats["rmse"], "max": stats["max"], "scale": by_label[run.label].sim3_scale,
                               "mean_solve_seconds": float(np.mean(run.solve_seconds)),
                               "solves": len(run.solve_seconds), "mean_iterations": float(np.mean(run.iterations))}
     lines = [format_comparison(results)] if results else ["no run to compare"]

@@ -57,6 +57,7 @@ import numpy as np
 
 from course import impl as impl_loader
 from course.ape import ape
+from course.peers import installed
 from course.problems.vio import (
     FRAME_DOF,
     POINT_DOF,
@@ -68,10 +69,10 @@ from course.problems.vio import (
     frame_difference,
     gauge_directions,
 )
+from course.so3 import so3_exp, so3_log
 from course.solvers import SolverOptions, minimize
 from course.trajectory_io import Trajectory
 from course.vio_sim import VioSim, load_vio_sim
-from solutions.imu_preintegration import so3_exp, so3_log
 
 #: the first keyframe's prior sigmas: rotation (rad), position (m), velocity (m/s), b_g (rad/s), b_a (m/s^2)
 FIRST_SIGMAS = np.r_[np.full(3, 1e-3), np.full(3, 1e-3), np.full(3, 0.05), np.full(3, 0.02), np.full(3, 0.1)]
@@ -182,12 +183,12 @@ def triangulate(sim: VioSim, states, pixels):
         rhs += P @ c
         dirs.append(d)
         centres.append(c)
-    dirs = np.array(dirs)
-    cos = np.clip(dirs @ dirs.T, -1.0, 1.0)
+    rays = np.array(dirs)
+    cos = np.clip(rays @ rays.T, -1.0, 1.0)
     if np.arccos(cos.min()) < MIN_PARALLAX:
         return None
     X = np.linalg.solve(A, rhs)
-    if np.any(np.einsum("ki,ki->k", X - np.array(centres), dirs) < MIN_TRIANGULATION_DEPTH):
+    if np.any(np.einsum("ki,ki->k", X - np.array(centres), rays) < MIN_TRIANGULATION_DEPTH):
         return None
     return X
 
@@ -280,7 +281,10 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
     frame_ids = [0]
     prior_info = None  # (frame ids, landmark ids, frame_lin, landmark_lin, J, e0)
     anchor_refs: dict[int, np.ndarray] = {}
-    seconds, iterations, steps, hessians = [], [], [], {}
+    seconds: list[float] = []
+    iterations: list[int] = []
+    steps: list[dict] = []
+    hessians: dict = {}
     for new in range(1, len(kfs)):
         preints[new - 1] = kfs.preintegrate(imu_module, new - 1, states[new - 1])
         states[new] = propagate(states[new - 1], preints[new - 1], sim.gravity)
@@ -326,28 +330,23 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
             continue
         oldest = frame_ids[0]
         final[oldest] = states[oldest].copy()
-        still_seen = set()
+        still_seen: set[int] = set()
         for f in frame_ids[1:]:
             still_seen.update(int(i) for i in kfs.obs[f][0])
         gone = [k for k, lm in enumerate(lm_ids) if lm not in still_seen]
         if variant == "prior":
-            lin = problem.linearize(x)
-            if data.anchor is not None:  # the anchor holds this window only: not marginalised
-                cols = problem.columns([0], [])
-                J_a = data.anchor.J
-                r_a = J_a @ frame_difference(problem.frames(x)[0], data.anchor.frame_lin[0])
-                lin.H[np.ix_(cols, cols)] -= J_a.T @ J_a
-                lin.b[cols] -= J_a.T @ r_a
             remove = np.r_[np.arange(FRAME_DOF), problem.split + (POINT_DOF * np.array(gone, dtype=np.int64)[:, None]
                                                                   + np.arange(POINT_DOF)).ravel()].astype(np.int64)
+            H_m, b_m = problem.marginal_system(x, remove)
             if keep_hessians_at is not None and len(steps) == keep_hessians_at + 1:
-                hessians.update(before=lin.H, removed=remove, before_frames=len(frame_ids))
+                hessians.update(before=problem.linearize(x).H, marginalised=H_m, removed=remove,
+                                before_frames=len(frame_ids))
             # Jacobi scaling D = diag(H)^-1/2 first: H mixes information of 1e10 (gyro-bias walk) and
             # of order 1 (a landmark along its ray), and the relative eigenvalue threshold (eps) of
             # marginalise and prior_residual would otherwise drop the weak directions of H_mm,
             # leaving in the prior information that belongs to the removed variables
-            D = 1.0 / np.sqrt(np.maximum(np.diag(lin.H), 1e-300))
-            H_s, b_s = marg.marginalise(D[:, None] * lin.H * D[None, :], D * lin.b, remove)
+            D = 1.0 / np.sqrt(np.maximum(np.diag(H_m), 1e-300))
+            H_s, b_s = marg.marginalise(D[:, None] * H_m * D[None, :], D * b_m, remove)
             D_keep = np.delete(D, remove)
             kept_frames = list(range(1, len(frame_ids)))
             kept_lms = [k for k in range(len(lm_ids)) if k not in set(gone)]
@@ -361,7 +360,7 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
             tl = [lm_ids[blocks[i][0]] for i in touched if i >= len(kept_frames)]
             current = np.concatenate([np.array([states[f] for f in tf]).reshape(-1, FRAME_DOF).ravel(),
                                       np.array([points[lm] for lm in tl]).reshape(-1, POINT_DOF).ravel()])
-            old_lin = {}
+            old_lin: dict[tuple[str, int], np.ndarray] = {}
             if prior_info is not None and first_estimates:  # keep the first estimates of those already in
                 old_lin.update({("f", f): v for f, v in zip(prior_info[0], prior_info[2])})
                 old_lin.update({("l", lm): v for lm, v in zip(prior_info[1], prior_info[3])})
@@ -414,20 +413,29 @@ def ground_truth(sim: VioSim) -> Trajectory:
     return Trajectory(sim.imu_times, sim.positions, rotvec_to_quaternion(np.array([so3_log(R) for R in sim.rotations])))
 
 
-def compare(name="vio-sim:12:0", window=10, keyframe_every=5, method="dogleg", impl="solutions") -> dict:
+def compare(name="vio-sim:12:0", window=10, keyframe_every=5, method="dogleg", impl="solutions",
+            peers=True) -> dict:
     """APE rmse (m, SE(3) alignment) and time per solve (s) of the window with the
-    marginalisation prior, the window that drops old frames, and the batch solution.
+    marginalisation prior, the window that drops old frames, the batch solution, and (``peers``,
+    where gtsam is installed) GTSAM's batch and fixed-lag smoother on the same problem
+    (``course.backends.gtsam_vio``).
 
-    Returns ``{label: {"rmse", "max", "mean_solve_seconds", "solves", "mean_iterations"}}``.
+    Returns ``{label: {"rmse", "max", "scale", "mean_solve_seconds", "solves", "mean_iterations"}}``
+    (``scale``: the Sim(3) alignment's scale, the trajectory's scale error).
     """
     sim = load_vio_sim(name)
     truth = ground_truth(sim)
     runs = [sliding_window(sim, v, window, keyframe_every, method, impl) for v in VARIANTS]
     runs.append(batch(sim, runs[0], keyframe_every, method, impl))
+    if peers and installed("gtsam"):
+        from course.backends.gtsam_vio import gtsam_batch, gtsam_window
+
+        runs += [gtsam_window(sim, window, keyframe_every), gtsam_batch(sim, None, keyframe_every)]
     out = {}
     for run in runs:
         stats = ape(truth, run.trajectory()).stats
         out[run.label] = {"rmse": stats["rmse"], "max": stats["max"],
+                          "scale": ape(truth, run.trajectory(), align="sim3").alignment.scale,
                           "mean_solve_seconds": float(np.mean(run.solve_seconds)), "solves": len(run.solve_seconds),
                           "mean_iterations": float(np.mean(run.iterations))}
     return out
@@ -435,10 +443,11 @@ def compare(name="vio-sim:12:0", window=10, keyframe_every=5, method="dogleg", i
 
 def format_comparison(results: dict) -> str:
     """A table of :func:`compare`'s figures."""
-    lines = [f"{'estimator':<28} {'APE rmse (m)':>12} {'max (m)':>9} {'s/solve':>9} {'solves':>7} {'iters':>6}"]
+    lines = [f"{'estimator':<30} {'APE rmse (m)':>12} {'max (m)':>9} {'scale':>8} {'s/solve':>9} {'solves':>7} "
+             f"{'iters':>6}"]
     for label, r in results.items():
-        lines.append(f"{label:<28} {r['rmse']:>12.4f} {r['max']:>9.4f} {r['mean_solve_seconds']:>9.3f} "
-                     f"{r['solves']:>7d} {r['mean_iterations']:>6.1f}")
+        lines.append(f"{label:<30} {r['rmse']:>12.4f} {r['max']:>9.4f} {r['scale']:>8.4f} "
+                     f"{r['mean_solve_seconds']:>9.3f} {r['solves']:>7d} {r['mean_iterations']:>6.1f}")
     return "\n".join(lines)
 
 

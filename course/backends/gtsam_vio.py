@@ -95,9 +95,9 @@ import time
 
 import numpy as np
 
+from course.so3 import so3_exp, so3_log
 from course.vio_sim import VioSim
 from course.vio_window import FIRST_SIGMAS, VioRun, _add_landmarks, _Keyframes
-from solutions.imu_preintegration import so3_exp, so3_log
 
 #: the reprojections' Cauchy scale, in whitened units (as ``course.problems.vio.DEFAULT_LOSS``)
 CAUCHY_SCALE = 3.0

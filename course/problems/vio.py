@@ -60,8 +60,8 @@ import scipy.sparse as sp
 from course import impl as impl_loader
 from course.errors import SingularSystemError
 from course.robust import RobustLoss, reweight, robust_chi2
+from course.so3 import so3_exp, so3_log
 from course.solvers.linearization import Linearization
-from solutions.imu_preintegration import so3_exp, so3_log  # formulas given to students, not graded
 
 EZ = np.array([0.0, 0.0, 1.0])
 
@@ -363,11 +363,35 @@ class VioProblem:
             vals += [J_f.ravel(), J_p.ravel()]
             res.append(r.ravel())
             m += 2 * M
+        starts = []
         for r, c_idx, block in self._prior_rows(x, True):
             chi2 += float(r @ r)
+            starts.append(m)
             add(r, c_idx, block)
+        starts.append(m)
+        # the rows of the linear prior and of the anchor, the last one or two groups
+        groups = [self.data.linear_prior, self.data.anchor]
+        n_groups = sum(g is not None for g in groups)
+        ranges = list(zip(starts[-n_groups - 1:-1], starts[-n_groups:])) if n_groups else []
+        named = [name for name, g in zip(("linear_prior", "anchor"), groups) if g is not None]
+        self.prior_row_ranges = dict(zip(named, ranges))
         J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, self.n))
         return np.concatenate(res), J, chi2
+
+    def marginal_system(self, x, remove) -> tuple[np.ndarray, np.ndarray]:
+        """``(H, b)`` (n, n), (n,) of the factors that leave the window when the tangent indices
+        ``remove`` do: every factor with a row touching them, and the whole linear prior (the new
+        prior replaces it); not the anchor, not the factors among the variables that stay (they are
+        still in the next window: putting them in the prior too would count them twice)."""
+        r, J, _ = self.residual_and_jacobian(x)
+        touches = np.asarray(abs(J)[:, np.asarray(remove)].sum(axis=1)).ravel() > 0
+        ranges = self.prior_row_ranges
+        if "linear_prior" in ranges:
+            touches[slice(*ranges["linear_prior"])] = True
+        if "anchor" in ranges:
+            touches[slice(*ranges["anchor"])] = False
+        J_out, r_out = J[touches], r[touches]
+        return (J_out.T @ J_out).toarray(), np.asarray(J_out.T @ r_out).ravel()
 
     def linearize(self, x) -> Linearization:
         """Dense ``H = J~^T J~`` (n, n), ``b = J~^T r~`` (n,), chi2 (robust)."""
