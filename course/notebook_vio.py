@@ -78,15 +78,17 @@ class Estimates:
 
 
 def _timed(call: Callable[[], Any], what: str, estimates: Estimates, log: Callable[[str], None] | None) -> Any:
-    """``call()``, its wall time kept in ``estimates.seconds``; a ``NotImplementedError``
-    becomes a note (and None)."""
+    """``call()``, its wall time kept in ``estimates.seconds``; a ``NotImplementedError`` (an
+    unwritten exercise) or a ``RuntimeError`` (GTSAM's indeterminate system) becomes a note (and None)."""
     start = time.perf_counter()
     try:
         run = call()
-    except NotImplementedError as exc:
-        estimates.notes.append(f"{what}: {not_implemented_reason(exc)}")
+    except (NotImplementedError, RuntimeError) as exc:
+        reason = not_implemented_reason(exc) if isinstance(exc, NotImplementedError) else (
+            "failed: " + " ".join(str(exc).split())[:160])
+        estimates.notes.append(f"{what}: {reason}")
         if log is not None:
-            log(f"{what}: {not_implemented_reason(exc)}")
+            log(f"{what}: {reason}")
         return None
     seconds = time.perf_counter() - start
     estimates.seconds[run.label] = seconds

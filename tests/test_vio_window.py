@@ -57,6 +57,25 @@ def test_the_four_gauge_directions_are_null_directions_of_the_factors():
     assert s[-4] <= 1e-9 * s[0] and s[-5] >= 1e3 * s[-4]
 
 
+def test_the_marginal_system_holds_the_leaving_factors_only():
+    """What leaves with frame 0 goes into the prior; what stays must not (it would count twice)."""
+    problem = _small_problem()
+    x = problem.x0
+    d = problem.data
+    only_frame0 = [lm for lm in range(problem.num_landmarks) if set(d.obs_frame[d.obs_landmark == lm]) == {0}]
+    remove = problem.columns([0], only_frame0)
+    H_m, b_m = problem.marginal_system(x, remove)
+    lin = problem.linearize(x)
+    H_stay = lin.H - H_m
+    scale = np.abs(lin.H).max()
+    assert np.abs(H_stay[remove]).max() <= 1e-12 * scale  # every factor on a removed variable is in H_m
+    assert np.abs((lin.b - b_m)[remove]).max() <= 1e-12 * np.abs(lin.b).max()
+    neighbours = problem.columns([0, 1], sorted(set(d.obs_landmark[d.obs_frame == 0])))
+    outside = np.setdiff1d(np.arange(problem.n), neighbours)
+    assert np.abs(H_m[np.ix_(outside, outside)]).max() == 0.0  # and nothing else
+    assert np.abs(H_stay[np.ix_(outside, outside)]).max() > 0.0
+
+
 def test_the_prior_carries_no_gauge_information():
     sim = load_vio_sim("vio-sim:3.5:0")
     run = vw.sliding_window(sim, "prior", keep_hessians_at=9)

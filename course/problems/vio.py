@@ -37,13 +37,13 @@ Factors (every residual whitened, so chi2 is a plain sum of squares, as in the c
   ``e = e0 + J (x_k [-] x_lin)`` over its variables (``marginalisation.prior_residual`` /
   ``prior_update``), the Jacobian J fixed at the linearisation point.
 - First-estimate Jacobians (``VioData.first_estimates``, Huang, Mourikis, Roumeliotis 2009):
-  the Jacobians of every factor are evaluated with the listed variables (the prior's frames, by
-  default in ``course.vio_window``; its landmarks too if asked) at their linearisation point,
-  the residuals at x. Without them the prior and the relinearised factors
-  disagree about the unobservable directions (position, yaw), and the prior's very stiff
-  information about them (from the first frame's prior) becomes spurious information that
-  pulls the window around: on ``vio-sim:12:0`` the APE rmse was 0.25 m without against
-  0.17 m for the window without any prior.
+  the Jacobians of every factor are evaluated with the listed variables (the prior's frames, or
+  its frames and landmarks) at their linearisation point, the residuals at x, so that the prior
+  and the relinearised factors agree about the directions nothing measures (position, yaw:
+  :func:`gauge_directions`). ``course.vio_window`` takes those directions out of the prior instead
+  and leaves this off by default (its docstring has the figures).
+- An optional gauge anchor (``VioData.anchor``, the same linear form), kept apart from the prior
+  so that :meth:`VioProblem.marginal_system` can leave it out.
 
 H is assembled dense (a window has a few hundred unknowns; the 12-s batch under 2000) from a
 sparse J; the step is a dense Cholesky solve.
