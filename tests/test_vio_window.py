@@ -92,9 +92,21 @@ def test_the_prior_carries_no_gauge_information():
 
 
 @pytest.mark.slow
-def test_the_prior_beats_dropping_and_is_near_the_batch():
-    results = vw.compare("vio-sim:12:0")
+@pytest.mark.parametrize("name", ["vio-sim:12:0", "vio-sim:8:0"])
+def test_the_prior_beats_dropping_and_is_near_the_batch(name):
+    results = vw.compare(name, peers=False)
     print("\n" + vw.format_comparison(results))
-    with_prior, without, batch = (results[k]["rmse"] for k in results)
+    with_prior, without, batch = (results[label]["rmse"] for label in
+                                  ("window 10 (with prior)", "window 10 (without prior)", "batch"))
     assert with_prior < without
     assert with_prior <= BATCH_MARGIN * batch
+
+
+def test_the_window_and_gtsam_on_a_short_run():
+    """4 s: the prior beats dropping; GTSAM's batch reaches our batch's optimum (same problem)."""
+    pytest.importorskip("gtsam")
+    results = vw.compare("vio-sim:4:0")
+    print("\n" + vw.format_comparison(results))
+    assert results["window 10 (with prior)"]["rmse"] < 0.5 * results["window 10 (without prior)"]["rmse"]
+    assert results["batch"]["rmse"] == pytest.approx(results["GTSAM batch"]["rmse"], abs=1e-3)
+    assert results["GTSAM fixed-lag (window 10)"]["solves"] == results["window 10 (with prior)"]["solves"]
