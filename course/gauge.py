@@ -18,13 +18,13 @@ def dense_hessian(lin: BlockLinearization) -> np.ndarray:
     C, P = len(lin.U), len(lin.V)
     n = 9 * C + 3 * P
     H = np.zeros((n, n))
-    for c in range(C):
-        H[9 * c:9 * c + 9, 9 * c:9 * c + 9] = lin.U[c]
-    for p in range(P):
-        H[9 * C + 3 * p:9 * C + 3 * p + 3, 9 * C + 3 * p:9 * C + 3 * p + 3] = lin.V[p]
-    for k, (c, p) in enumerate(zip(lin.camera_index, lin.point_index)):
-        H[9 * c:9 * c + 9, 9 * C + 3 * p:9 * C + 3 * p + 3] += lin.W[k]
-        H[9 * C + 3 * p:9 * C + 3 * p + 3, 9 * c:9 * c + 9] += lin.W[k].T
+    cam = 9 * np.arange(C)[:, None] + np.arange(9)  # (C, 9) rows of each camera
+    pt = 9 * C + 3 * np.arange(P)[:, None] + np.arange(3)  # (P, 3) rows of each point
+    H[cam[:, :, None], cam[:, None, :]] = lin.U
+    H[pt[:, :, None], pt[:, None, :]] = lin.V
+    rows, cols = cam[lin.camera_index][:, :, None], pt[lin.point_index][:, None, :]  # (K, 9, 1), (K, 1, 3)
+    np.add.at(H, (rows, cols), lin.W)  # a (camera, point) pair may be observed twice
+    np.add.at(H, (cols.transpose(0, 2, 1), rows.transpose(0, 2, 1)), lin.W.transpose(0, 2, 1))
     return H
 
 

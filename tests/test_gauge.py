@@ -6,6 +6,7 @@ import pytest
 
 from course.bal import synthetic
 from course.gauge import dense_hessian, gauge_count, spectrum
+from course.notebook_bal import jacobian_matrix
 from course.problems.bal import BundleAdjustmentProblem
 from solutions.gauge import gauge_directions
 
@@ -19,6 +20,8 @@ def test_the_seven_directions_are_the_null_space_of_h(scene):
     problem = BundleAdjustmentProblem(scene)
     lin = problem.linearize(problem.x0)
     H = dense_hessian(lin)
+    J = jacobian_matrix(scene).toarray()
+    np.testing.assert_allclose(H, J.T @ J, rtol=1e-12, atol=1e-9 * np.abs(H).max())
     N = gauge_directions(scene.cameras, scene.points)
     assert N.shape == (9 * 5 + 3 * 40, 7)
     s = np.linalg.svd(N, compute_uv=False)
