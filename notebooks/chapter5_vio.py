@@ -161,7 +161,8 @@ else:
 # $\chi^2$ grows with them; once it is full, as many measurements leave as arrive, and a
 # consistent estimator's $\chi^2$ levels off near the number of residuals minus the number of
 # unknowns. Bottom: the prior's size, the tangent dimension of the variables it touches and
-# its rows (its rank: 4 fewer, the gauge directions projected out), beside the window's own
+# its rows (its rank: at least 4 fewer, the gauge directions projected out; a kept landmark
+# the removed keyframe saw once gets no depth from it), beside the window's own
 # dimension. It cannot grow without bound (it touches only variables still in the window);
 # look at how much of the window it covers, against the orange block of section 2.
 
