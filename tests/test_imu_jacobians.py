@@ -1,0 +1,191 @@
+"""The analytic IMU-factor Jacobian (course/imu_jacobians.py): its residual against the reference
+``imu_factor_residual``, its Jacobian against central differences through the frame retraction."""
+
+import ast
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from course import imu_jacobians as ij
+from course.problems.vio import frame_retract
+from course.so3 import so3_exp, so3_log
+from course.vio_sim import load_vio_sim
+
+try:
+    import solutions.imu_preintegration  # noqa: F401
+
+    HAVE_SOLUTIONS = True
+except ImportError:  # a student tree
+    HAVE_SOLUTIONS = False
+needs_solutions = pytest.mark.skipif(not HAVE_SOLUTIONS, reason="solutions/ absent (a student tree)")
+
+#: the residual against the reference's: the same operations, so only rounding apart
+RESIDUAL_TOL = 1e-12
+#: the Jacobian against central differences, relative to its largest entry
+JACOBIAN_REL_TOL = 1e-6
+FD_STEP = 1e-6
+#: keyframes every 5 camera frames (0.25 s, 50 IMU intervals) of a 2-second simulation
+SIM_NAME, EVERY = "vio-sim:2:0", 5
+#: the largest rotation angle (rad) of a state or of a rotation residual at a test point
+MAX_ANGLE = 3.0
+
+
+def _rotation_vector(rng, angle):
+    u = rng.standard_normal(3)
+    return angle * u / np.linalg.norm(u)
+
+
+@pytest.fixture(scope="module")
+def sim():
+    return load_vio_sim(SIM_NAME)
+
+
+def _keyframe(sim, k):
+    """The true state (15,) of keyframe k (its biases the simulated ones) and its IMU index."""
+    i = int(sim.frame_imu_index[EVERY * k])
+    s = np.r_[so3_log(sim.rotations[i]), sim.positions[i], sim.velocities[i], sim.bias_gyro[i], sim.bias_accel[i]]
+    return s, i
+
+
+def _sim_preintegration(sim, k, scheme, bias_offset):
+    """The preintegration from keyframe k to k + 1 at the true biases of k plus ``bias_offset`` (6,)."""
+    from solutions.imu_preintegration import preintegrate
+
+    s, a = _keyframe(sim, k)
+    _, b = _keyframe(sim, k + 1)
+    return preintegrate(sim.gyro[a:b + 1], sim.accel[a:b + 1], sim.dt, s[9:12] + bias_offset[:3],
+                        s[12:15] + bias_offset[3:], sim.gyro_noise, sim.accel_noise, scheme=scheme)
+
+
+def _synthetic_preintegration(rng):
+    """Twelve random values shaped as a Preintegrated (no reference needed), with gyro-bias
+    Jacobians large enough that ``Exp(dR/dbg delta b_g)`` turns by tenths of a radian."""
+    m = lambda scale: scale * rng.standard_normal((3, 3))
+    return (so3_exp(_rotation_vector(rng, 1.3)), rng.standard_normal(3), rng.standard_normal(3), 0.4, np.eye(9),
+            m(3.0), m(1.0), m(0.5), m(0.3), m(0.1), 0.01 * rng.standard_normal(3), 0.1 * rng.standard_normal(3))
+
+
+def _points(rng, s_i, s_j, pre):
+    """Pairs of states around (s_i, s_j): perturbed, with biases away from the preintegration's
+    (which were set near s_i's), turned far (|phi| up to 3 rad), with a large rotation residual.
+
+    Every angle stays below :data:`MAX_ANGLE`: the shared ``so3_log`` loses accuracy as its angle
+    nears pi (about 1e-16 / (pi - t)^2), which central differences through the retraction (and
+    the residual's own ``Log``) would magnify by 1 / FD_STEP."""
+    out = []
+    for kind in ("near", "near", "far turned", "far turned", "large residual"):
+        for _ in range(1000):
+            a, b = s_i.copy(), s_j.copy()
+            a[0:3] = so3_log(so3_exp(a[0:3]) @ so3_exp(_rotation_vector(rng, 0.01)))
+            b[0:3] = so3_log(so3_exp(b[0:3]) @ so3_exp(_rotation_vector(rng, 0.01)))
+            a[3:9] += 0.1 * rng.standard_normal(6)
+            b[3:9] += 0.1 * rng.standard_normal(6)
+            a[9:15] += np.r_[0.02 * rng.standard_normal(3), 0.2 * rng.standard_normal(3)]  # delta b != 0
+            b[9:15] += rng.standard_normal(6)  # unused by the factor
+            if kind == "far turned":  # both turned by the same rotation, so that |phi_i| is in [2.5, 3]
+                R_i = so3_exp(_rotation_vector(rng, rng.uniform(2.5, 3.0)))
+                b[0:3] = so3_log(R_i @ so3_exp(a[0:3]).T @ so3_exp(b[0:3]))
+                a[0:3] = so3_log(R_i)
+            elif kind == "large residual":
+                b[0:3] = so3_log(so3_exp(b[0:3]) @ so3_exp(_rotation_vector(rng, 2.0)))
+            r, _ = ij.imu_residual_jacobian(a, b, pre, np.zeros(3))
+            if max(np.linalg.norm(a[0:3]), np.linalg.norm(b[0:3]), np.linalg.norm(r[0:3])) <= MAX_ANGLE:
+                break
+        else:
+            raise AssertionError(f"no {kind} point with angles below {MAX_ANGLE}")
+        out.append((a, b))
+    return out
+
+
+def _central_differences(s_i, s_j, pre, gravity):
+    """(9, 30): central differences of the residual through ``frame_retract``."""
+    J = np.zeros((9, 30))
+    for col in range(30):
+        d = np.zeros(15)
+        d[col % 15] = FD_STEP
+        if col < 15:
+            plus = ij.imu_residual_jacobian(frame_retract(s_i, d), s_j, pre, gravity)[0]
+            minus = ij.imu_residual_jacobian(frame_retract(s_i, -d), s_j, pre, gravity)[0]
+        else:
+            plus = ij.imu_residual_jacobian(s_i, frame_retract(s_j, d), pre, gravity)[0]
+            minus = ij.imu_residual_jacobian(s_i, frame_retract(s_j, -d), pre, gravity)[0]
+        J[:, col] = (plus - minus) / (2.0 * FD_STEP)
+    return J
+
+
+def _cases(sim, scheme, seed):
+    """(s_i, s_j, preintegration) triples from the simulation's first three keyframe pairs."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(3):
+        s_i, _ = _keyframe(sim, k)
+        s_j, _ = _keyframe(sim, k + 1)
+        offset = np.r_[0.01 * rng.standard_normal(3), 0.05 * rng.standard_normal(3)]
+        pre = _sim_preintegration(sim, k, scheme, offset)
+        out += [(a, b, pre) for a, b in _points(rng, s_i, s_j, pre)]
+    return out
+
+
+def _check_jacobian(s_i, s_j, pre, gravity):
+    r, J = ij.imu_residual_jacobian(s_i, s_j, pre, gravity)
+    assert r.shape == (9,) and J.shape == (9, 30)
+    numeric = _central_differences(s_i, s_j, pre, gravity)
+    err = np.max(np.abs(J - numeric))
+    assert err <= JACOBIAN_REL_TOL * np.max(np.abs(J)), (err, np.max(np.abs(J)))
+    assert np.all(J[:, 24:30] == 0.0)  # frame j's biases
+
+
+@needs_solutions
+@pytest.mark.parametrize("scheme", ["midpoint", "euler"])
+def test_the_residual_is_the_reference_one(sim, scheme):
+    from solutions.imu_preintegration import imu_factor_residual
+
+    for s_i, s_j, pre in _cases(sim, scheme, seed=1):
+        r, _ = ij.imu_residual_jacobian(s_i, s_j, pre, sim.gravity)
+        ref = imu_factor_residual((so3_exp(s_i[0:3]), s_i[6:9], s_i[3:6]), (so3_exp(s_j[0:3]), s_j[6:9], s_j[3:6]),
+                                  pre, (s_i[9:12], s_i[12:15]), sim.gravity)
+        np.testing.assert_allclose(r, ref, rtol=0.0, atol=RESIDUAL_TOL)
+
+
+@needs_solutions
+@pytest.mark.parametrize("scheme", ["midpoint", "euler"])
+def test_the_jacobian_matches_central_differences_on_the_simulation(sim, scheme):
+    for s_i, s_j, pre in _cases(sim, scheme, seed=2):
+        _check_jacobian(s_i, s_j, pre, sim.gravity)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_jacobian_matches_central_differences_on_random_values(seed):
+    """No reference needed: random states and a random preintegration with large bias Jacobians."""
+    rng = np.random.default_rng(100 + seed)
+    pre = _synthetic_preintegration(rng)
+    s_i = np.r_[_rotation_vector(rng, 1.0), rng.standard_normal(12)]
+    s_j = np.r_[so3_log(so3_exp(s_i[0:3]) @ so3_exp(_rotation_vector(rng, 1.0))), rng.standard_normal(12)]
+    s_i[9:15] = np.r_[pre[10], pre[11]] + 0.1 * rng.standard_normal(6)
+    for a, b in _points(rng, s_i, s_j, pre):
+        _check_jacobian(a, b, pre, np.array([0.0, 0.0, -9.81]))
+
+
+@pytest.mark.parametrize("angle", [0.0, 1e-6, 1e-4, 0.3, 2.0, np.pi - 1e-6, np.pi])
+def test_the_inverse_right_jacobian_inverts_the_right_jacobian(angle):
+    phi = _rotation_vector(np.random.default_rng(3), angle) if angle else np.zeros(3)
+    np.testing.assert_allclose(ij.right_jacobian_inverse(phi) @ ij.right_jacobian(phi), np.eye(3), atol=1e-12)
+
+
+def test_bad_arguments_are_named():
+    pre = _synthetic_preintegration(np.random.default_rng(4))
+    with pytest.raises(ValueError, match="s_i"):
+        ij.imu_residual_jacobian(np.zeros(9), np.zeros(15), pre, np.zeros(3))
+    with pytest.raises(ValueError, match="12 values"):
+        ij.imu_residual_jacobian(np.zeros(15), np.zeros(15), pre[:11], np.zeros(3))
+    with pytest.raises(ValueError, match="gravity"):
+        ij.imu_residual_jacobian(np.zeros(15), np.zeros(15), pre, np.zeros(2))
+
+
+def test_the_module_does_not_import_the_solutions():
+    """It must run in a student tree, where solutions/ is absent."""
+    tree = ast.parse(Path(ij.__file__).read_text())
+    names = [alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names]
+    names += [node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)]
+    assert not [name for name in names if name.split(".")[0] in ("solutions", "exercises")]
