@@ -109,15 +109,15 @@ def so3_log(R) -> np.ndarray:
     """``Log(R)`` (3,), the angle in [0, pi] (stable near pi: from the symmetric part)."""
     R = np.asarray(R, dtype=float)
     cos_t = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
-    t = float(np.arccos(cos_t))
     w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0  # sin(t) u
+    t = float(np.arctan2(np.linalg.norm(w), cos_t))  # accurate at every angle, unlike arccos
     if t < SMALL_ANGLE:
         return w * (1.0 + t * t / 6.0)
     if t < np.pi - 1e-3:
         return w * (t / np.sin(t))
     S = (R + R.T) / 2.0 - cos_t * np.eye(3)  # (1 - cos t) u u^T
     k = int(np.argmax(np.diag(S)))
-    u = S[:, k] / np.sqrt(S[k, k])
+    u = S[:, k] / np.sqrt((1.0 - cos_t) * S[k, k])  # S[:, k] = (1 - cos t) u_k u
     if u @ w < 0:
         u = -u
     return t * u

@@ -188,3 +188,15 @@ def test_clear_errors(kwargs, says):
             "bias_accel": np.zeros(3), "gyro_noise": 0.1, "accel_noise": 0.1} | kwargs
     with pytest.raises(ValueError, match=says):
         preintegrate(**args)
+
+
+@pytest.mark.parametrize("angle", [1e-9, 1e-4, 0.5, 2.0, 3.0, np.pi - 2e-3, np.pi - 1e-4, np.pi - 1e-8, np.pi])
+def test_so3_log_inverts_exp_at_every_angle_up_to_pi(angle):
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        u = rng.standard_normal(3)
+        u /= np.linalg.norm(u)
+        phi = so3_log(so3_exp(angle * u))
+        assert np.linalg.norm(so3_exp(phi) - so3_exp(angle * u)) <= 1e-12  # the same rotation
+        if angle < np.pi - 1e-6:  # below pi the vector itself is unique
+            assert np.allclose(phi, angle * u, rtol=0, atol=1e-9)
