@@ -25,6 +25,14 @@ def _names(text):
     return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
 
 
+def _write_json(name: str, content) -> None:
+    """Write ``content`` as JSON to the file ``name`` (its folders made) and say so."""
+    path = Path(name)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(content, indent=1))
+    print(f"wrote {path}")
+
+
 def _add_run_arguments(parser):
     parser.add_argument("--impl", default=None,
                         help="solutions, exercises or a directory laid out like exercises/ "
@@ -400,10 +408,7 @@ def cmd_vio(args) -> int:
           "scale from Sim(3)")
     print(vio_window.format_comparison(results))
     if args.json:
-        path = Path(args.json)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(results, indent=1))
-        print(f"wrote {path}")
+        _write_json(args.json, results)
     return 0
 
 
@@ -437,8 +442,5 @@ def cmd_ape(args) -> int:
               "the source's row either: that row came from another run of its estimator (or another evaluation), "
               "not from these files, so closeness, not equality, is what to expect.")
     if args.json:
-        path = Path(args.json)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(stats, indent=1))
-        print(f"wrote {path}")
+        _write_json(args.json, stats)
     return 0

@@ -50,31 +50,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from course.so3 import so3_exp, so3_log
+from course.so3 import right_jacobian, skew, so3_exp, so3_log
 
-#: below this angle (rad) J_r and J_r^-1 use their Taylor series
+#: below this angle (rad) J_r^-1 uses its Taylor series
 SMALL_ANGLE = 1e-4
 #: the number of values of a preintegration (``Preintegrated``'s fields, in that order)
 PREINTEGRATED_LENGTH = 12
 FRAME_DOF = 15
-
-
-def skew(v) -> np.ndarray:
-    """``[v]`` (3, 3) with ``[v] u = v x u``."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def right_jacobian(phi) -> np.ndarray:
-    """``J_r(phi) = I - (1 - cos t)/t^2 [phi] + (t - sin t)/t^3 [phi]^2`` (3, 3), ``t = |phi|``."""
-    phi = np.asarray(phi, dtype=float)
-    t2 = float(phi @ phi)
-    t = np.sqrt(t2)
-    if t < SMALL_ANGLE:
-        b, c = 0.5 - t2 / 24.0, 1.0 / 6.0 - t2 / 120.0
-    else:
-        b, c = (1.0 - np.cos(t)) / t2, (t - np.sin(t)) / (t2 * t)
-    W = skew(phi)
-    return np.eye(3) - b * W + c * (W @ W)
 
 
 def right_jacobian_inverse(phi) -> np.ndarray:

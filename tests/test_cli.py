@@ -93,3 +93,18 @@ def test_no_command_is_a_usage_error():
     with pytest.raises(SystemExit) as exc:
         main([])
     assert exc.value.code == 2
+
+
+def test_vio_prints_the_table_and_writes_json(tmp_path, capsys):
+    assert main(["vio", "vio-sim:3:0", "--no-peers", "--json", str(tmp_path / "vio.json")]) == 0
+    out = capsys.readouterr().out
+    assert "APE rmse (m)" in out and "window 10 (with prior)" in out and "GTSAM" not in out
+    results = json.loads((tmp_path / "vio.json").read_text())
+    assert set(results) == {"window 10 (with prior)", "window 10 (without prior)", "batch"}
+    assert set(results["batch"]) == {"rmse", "max", "scale", "mean_solve_seconds", "solves", "mean_iterations"}
+    assert 0.0 < results["window 10 (with prior)"]["rmse"] < 0.1
+
+
+def test_vio_with_unwritten_exercises_says_which_todo(capsys):
+    assert main(["vio", "vio-sim:2:0", "--no-peers", "--impl", "exercises"]) == 1
+    assert "TODO imu_preintegration.preintegrate" in capsys.readouterr().err
