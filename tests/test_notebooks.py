@@ -309,7 +309,7 @@ def test_chapter5_executes_small():
 
     sim = load_vio_sim("vio-sim:4:0")
     drop = sliding_window(sim, "drop")
-    assert f"{drop.label:<28} {ape(ground_truth(sim), drop.trajectory()).stats['rmse']:>12.4f}" in text
+    assert f"{drop.label:<30} {ape(ground_truth(sim), drop.trajectory()).stats['rmse']:>12.4f}" in text
 
 
 def test_reference_answers_stay_out_of_the_student_tree():
