@@ -153,7 +153,7 @@ def rotvec_to_quaternion(phi) -> np.ndarray:
     return np.concatenate([np.cos(half)[:, None], phi * scale[:, None]], axis=1)
 
 
-class _Keyframes:
+class Keyframes:
     """The keyframes of a simulation: camera frames every ``every``, their IMU indices, observations."""
 
     def __init__(self, sim: VioSim, every: int):
@@ -233,7 +233,7 @@ def _without_gauge(H, b, N):
     return P @ H @ P, P @ b
 
 
-def _data(sim, kfs, frame_ids, landmark_ids, preints, frame_priors, linear_prior=None) -> VioData:
+def window_data(sim, kfs, frame_ids, landmark_ids, preints, frame_priors, linear_prior=None) -> VioData:
     """A :class:`VioData` over keyframes ``frame_ids`` (consecutive) and ``landmark_ids``."""
     f_local = {f: k for k, f in enumerate(frame_ids)}
     l_local = {lm: k for k, lm in enumerate(landmark_ids)}
@@ -252,7 +252,7 @@ def _data(sim, kfs, frame_ids, landmark_ids, preints, frame_priors, linear_prior
                    frame_priors=frame_priors, linear_prior=linear_prior)
 
 
-def _add_landmarks(sim, kfs, frame_ids, states, points, extra=()):
+def add_landmarks(sim, kfs, frame_ids, states, points, extra=()):
     """The landmark ids of the window (sorted): those with an estimate (triangulated now if
     needed) seen by at least two of ``frame_ids``, and those in ``extra``."""
     seen = {}
@@ -292,7 +292,7 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
     implementation = impl_loader.load(impl)
     imu_module = implementation.module("imu_preintegration")
     marg = implementation.module("marginalisation")
-    kfs = _Keyframes(sim, keyframe_every)
+    kfs = Keyframes(sim, keyframe_every)
     loss_kw = {} if loss == "default" else {"loss": loss}
     states = {0: kfs.truth(0)}
     points: dict[int, np.ndarray] = {}
@@ -310,7 +310,7 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
         states[new] = propagate(states[new - 1], preints[new - 1], sim.gravity)
         frame_ids.append(new)
         extra = prior_info[1] if prior_info is not None else ()
-        lm_ids = _add_landmarks(sim, kfs, frame_ids, states, points, extra)
+        lm_ids = add_landmarks(sim, kfs, frame_ids, states, points, extra)
         priors, linear = [], None
         if frame_ids[0] == 0:
             priors.append(FramePrior(0, kfs.truth(0), FIRST_SIGMAS))
@@ -322,7 +322,7 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
             l_local = {lm: k for k, lm in enumerate(lm_ids)}
             linear = LinearPrior(np.array([f_local[f] for f in pf], dtype=np.int64),
                                  np.array([l_local[lm] for lm in pl], dtype=np.int64), f_lin, l_lin, J, e0)
-        data = _data(sim, kfs, frame_ids, lm_ids, preints, priors, linear)
+        data = window_data(sim, kfs, frame_ids, lm_ids, preints, priors, linear)
         if variant == "prior" and gauge == "project" and frame_ids[0] != 0:
             data.anchor = anchor(anchor_refs.setdefault(frame_ids[0], states[frame_ids[0]].copy()))
         if linear is not None and first_estimates:
@@ -411,15 +411,15 @@ def batch(sim: VioSim, start: VioRun, keyframe_every=5, method="dogleg", impl="s
     """All keyframes and landmarks in one problem (first-keyframe prior, no marginalisation),
     started from ``start``'s states; one minimize call."""
     imu_module = impl_loader.load(impl).module("imu_preintegration")
-    kfs = _Keyframes(sim, keyframe_every)
+    kfs = Keyframes(sim, keyframe_every)
     if len(start.states) != len(kfs):
         raise ValueError(f"start has {len(start.states)} keyframes, the simulation {len(kfs)}")
     states = {k: start.states[k].copy() for k in range(len(kfs))}
     preints = {k: kfs.preintegrate(imu_module, k, states[k]) for k in range(len(kfs) - 1)}
     points: dict[int, np.ndarray] = {}
     frame_ids = list(range(len(kfs)))
-    lm_ids = _add_landmarks(sim, kfs, frame_ids, states, points)
-    data = _data(sim, kfs, frame_ids, lm_ids, preints, [FramePrior(0, kfs.truth(0), FIRST_SIGMAS)])
+    lm_ids = add_landmarks(sim, kfs, frame_ids, states, points)
+    data = window_data(sim, kfs, frame_ids, lm_ids, preints, [FramePrior(0, kfs.truth(0), FIRST_SIGMAS)])
     loss_kw = {} if loss == "default" else {"loss": loss}
     problem = VioProblem(start.states, np.array([points[lm] for lm in lm_ids]).reshape(-1, 3), data, impl, **loss_kw)
     t0 = time.perf_counter()
@@ -483,7 +483,8 @@ def format_comparison(results: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["VioRun", "batch", "compare", "format_comparison", "frame_difference", "ground_truth", "sliding_window"]
+__all__ = ["Keyframes", "VioRun", "add_landmarks", "anchor", "batch", "compare", "format_comparison",
+           "frame_difference", "ground_truth", "propagate", "sliding_window", "triangulate", "window_data"]
 
 
 if __name__ == "__main__":  # pragma: no cover

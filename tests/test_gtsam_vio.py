@@ -47,7 +47,7 @@ def _reorder():
 
 
 def test_preintegration_matches_ours_on_one_interval(sim):
-    kfs = vw._Keyframes(sim, 5)
+    kfs = vw.Keyframes(sim, 5)
     a, b = kfs.imu_index[5], kfs.imu_index[6]
     bg, ba = sim.bias_gyro[a], sim.bias_accel[a]
     ours = preintegrate(sim.gyro[a:b + 1], sim.accel[a:b + 1], sim.dt, bg, ba, sim.gyro_noise, sim.accel_noise)
@@ -69,9 +69,9 @@ def test_preintegration_matches_ours_on_one_interval(sim):
 def test_factor_errors_vanish_at_the_truth_on_noise_free_data(sim):
     """Noise-free samples (no bias: the truth's biases are 0) and pixels; the true states and points."""
     clean = dataclasses.replace(sim, gyro=sim.gyro_true, accel=sim.accel_true, obs_pixels=sim.obs_pixels_true)
-    kfs = vw._Keyframes(clean, 5)
+    kfs = vw.Keyframes(clean, 5)
     states = {k: kfs.truth(k) for k in range(len(kfs))}
-    ids = vw._add_landmarks(clean, kfs, list(states), states, {})
+    ids = vw.add_landmarks(clean, kfs, list(states), states, {})
     graph, values, lm_ids = gv.batch_graph(clean, states, {lm: clean.landmarks[lm] for lm in ids})
     assert lm_ids == ids and len(ids) > 50
     errors = {}
@@ -91,16 +91,16 @@ def test_factor_errors_vanish_at_the_truth_on_noise_free_data(sim):
 
 def test_the_graph_error_is_half_our_chi2(sim):
     """Noisy data; the true states with the true biases at the keyframes, triangulated points."""
-    kfs = vw._Keyframes(sim, 5)
+    kfs = vw.Keyframes(sim, 5)
     frames = list(range(len(kfs)))
     states = {k: kfs.truth(k) for k in frames}
     for k in frames:
         states[k][9:15] = np.r_[sim.bias_gyro[kfs.imu_index[k]], sim.bias_accel[kfs.imu_index[k]]]
     points: dict = {}
-    lm_ids = vw._add_landmarks(sim, kfs, frames, states, points)
+    lm_ids = vw.add_landmarks(sim, kfs, frames, states, points)
     graph, values, _ = gv.batch_graph(sim, states, points)
     preints = {k: kfs.preintegrate(imu, k, states[k]) for k in frames[:-1]}
-    data = vw._data(sim, kfs, frames, lm_ids, preints, [FramePrior(0, kfs.truth(0), vw.FIRST_SIGMAS)])
+    data = vw.window_data(sim, kfs, frames, lm_ids, preints, [FramePrior(0, kfs.truth(0), vw.FIRST_SIGMAS)])
     problem = VioProblem(np.array([states[k] for k in frames]), np.array([points[lm] for lm in lm_ids]), data)
     ours = problem.chi2(problem.x0)
     assert ours > 100.0  # not a trivial agreement
@@ -142,7 +142,7 @@ def test_batch_and_window_on_a_short_run(sim):
     for run, label in ((batch, "GTSAM batch"), (window, "GTSAM fixed-lag (window 10)")):
         assert run.label == label
         assert run.states.shape == (17, 15)
-        assert np.array_equal(run.times, vw._Keyframes(sim, 5).times)
+        assert np.array_equal(run.times, vw.Keyframes(sim, 5).times)
         assert ape(truth, run.trajectory()).stats["rmse"] < 0.03
     assert len(batch.solve_seconds) == 1 and len(window.solve_seconds) == 16
 

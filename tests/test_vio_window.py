@@ -17,15 +17,15 @@ BATCH_MARGIN = 1.20
 
 def _small_problem():
     sim = load_vio_sim("vio-sim:2:0")
-    kfs = vw._Keyframes(sim, 5)
+    kfs = vw.Keyframes(sim, 5)
     frame_ids = list(range(4))
     states = {k: kfs.truth(k) for k in frame_ids}
     import solutions.imu_preintegration as imu
 
     preints = {k: kfs.preintegrate(imu, k, states[k]) for k in frame_ids[:-1]}
     points = {}
-    lm_ids = vw._add_landmarks(sim, kfs, frame_ids, states, points)
-    data = vw._data(sim, kfs, frame_ids, lm_ids, preints, [])  # no frame prior: its Jacobian is first-order
+    lm_ids = vw.add_landmarks(sim, kfs, frame_ids, states, points)
+    data = vw.window_data(sim, kfs, frame_ids, lm_ids, preints, [])  # no frame prior: its Jacobian is first-order
     return VioProblem(np.array([states[f] for f in frame_ids]), sim.landmarks[lm_ids], data, loss=None)
 
 
