@@ -75,6 +75,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from course import impl as impl_loader
 from course.ape import ape
@@ -141,16 +142,13 @@ class VioRun:
     hessians: dict = field(default_factory=dict)
 
     def trajectory(self) -> Trajectory:
-        return Trajectory(self.times, self.states[:, 3:6].copy(), rotvec_to_quaternion(self.states[:, 0:3]))
+        rotations = Rotation.from_rotvec(self.states[:, 0:3])
+        return Trajectory(self.times, self.states[:, 3:6].copy(), _quaternions(rotations))
 
 
-def rotvec_to_quaternion(phi) -> np.ndarray:
-    """(N, 4) unit quaternions (w, x, y, z) of rotation vectors (N, 3)."""
-    phi = np.asarray(phi, dtype=float)
-    angle = np.linalg.norm(phi, axis=1)
-    half = angle / 2.0
-    scale = np.where(angle > 1e-12, np.sin(half) / np.where(angle > 1e-12, angle, 1.0), 0.5)
-    return np.concatenate([np.cos(half)[:, None], phi * scale[:, None]], axis=1)
+def _quaternions(rotation: Rotation) -> np.ndarray:
+    """(N, 4) unit quaternions (w, x, y, z), the trajectory files' order, of N rotations."""
+    return np.roll(rotation.as_quat(), 1, axis=1)  # scipy gives (x, y, z, w)
 
 
 class Keyframes:
@@ -339,7 +337,7 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
         seconds.append(time.perf_counter() - start)
         iterations.append(result.iterations)
         x = result.params
-        steps.append({"time": float(kfs.times[new]), "chi2": float(problem.chi2(x)), "frames": len(frame_ids),
+        steps.append({"time": float(kfs.times[new]), "chi2": float(result.final_chi2), "frames": len(frame_ids),
                       "landmarks": len(lm_ids), "prior_dof": 0 if linear is None else int(linear.J.shape[1]),
                       "prior_rank": 0 if linear is None else int(linear.J.shape[0])})
         for k, f in enumerate(frame_ids):
@@ -430,7 +428,7 @@ def batch(sim: VioSim, start: VioRun, keyframe_every=5, method="dogleg", impl="s
 
 def ground_truth(sim: VioSim) -> Trajectory:
     """The true trajectory at the IMU rate."""
-    return Trajectory(sim.imu_times, sim.positions, rotvec_to_quaternion(np.array([so3_log(R) for R in sim.rotations])))
+    return Trajectory(sim.imu_times, sim.positions, _quaternions(Rotation.from_matrix(sim.rotations)))
 
 
 def compare(name="vio-sim:12:0", window=10, keyframe_every=5, method="dogleg", impl="solutions",

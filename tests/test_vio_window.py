@@ -110,3 +110,14 @@ def test_the_window_and_gtsam_on_a_short_run():
     assert results["window 10 (with prior)"]["rmse"] < 0.5 * results["window 10 (without prior)"]["rmse"]
     assert results["batch"]["rmse"] == pytest.approx(results["GTSAM batch"]["rmse"], abs=1e-3)
     assert results["GTSAM fixed-lag (window 10)"]["solves"] == results["window 10 (with prior)"]["solves"]
+
+
+def test_trajectories_carry_the_rotations_in_w_x_y_z_order():
+    from course.trajectory_io import quaternion_to_rotation
+
+    sim = load_vio_sim("vio-sim:1:0")
+    truth = vw.ground_truth(sim)
+    assert np.abs(quaternion_to_rotation(truth.quaternions) - sim.rotations).max() <= 1e-12
+    kfs = vw.Keyframes(sim, 5)
+    run = vw.VioRun("truth", kfs.times, np.array([kfs.truth(k) for k in range(len(kfs))]), [], [])
+    assert np.abs(quaternion_to_rotation(run.trajectory().quaternions) - sim.rotations[kfs.imu_index]).max() <= 1e-12
