@@ -3,7 +3,7 @@
 Started by :mod:`autograder.sandbox` as
 ``python -I -B -c "<bootstrap>" CALLS OUT PROGRESS`` with a fresh process group.
 It sets its resource limits before numpy loads, reads the calls (a pickle written by
-the parent), loads the implementation with ``course.impl.load``, runs each call and
+the parent), loads the implementation with ``course.core.impl.load``, runs each call and
 writes every output as named float arrays (errors as strings) to ``OUT`` with
 ``numpy.savez``; the parent reads that file with ``allow_pickle=False``. Before each
 call it writes the call's index to ``PROGRESS`` so that the parent can name the call
@@ -281,7 +281,7 @@ def main(argv) -> int:
     roots = [os.path.realpath(root)]
     modified: list = []
     try:
-        from course import impl as impl_loader
+        from course.core import impl as impl_loader
 
         impl = impl_loader.load(spec["impl"])
         results = run_calls(impl, calls, roots, progress, modified)

@@ -12,7 +12,7 @@ Values are plain JSON with tagged objects for what JSON lacks, decoded without r
 any code from the file: ``{"__array__": dtype, "shape": [...], "data": [...]}`` (floats
 written by ``repr``, so they round-trip exactly; NaN and infinities as Python's json
 writes them), ``{"__tuple__": [...]}`` and ``{"__state__": {"lam": ..., "nu": ...}}``
-(a ``course.damping.DampingState``).
+(a ``course.solver.damping.DampingState``).
 """
 
 import json
@@ -46,7 +46,7 @@ class Expected:
 
 def encode(value):
     """A JSON-ready form of the inputs and outputs a check uses."""
-    from course.damping import DampingState
+    from course.solver.damping import DampingState
 
     if isinstance(value, np.ndarray) or isinstance(value, np.generic):
         arr = np.asarray(value)
@@ -83,7 +83,7 @@ def decode(value):
     if "__tuple__" in value:
         return tuple(decode(v) for v in value["__tuple__"])
     if "__state__" in value:
-        from course.damping import DampingState
+        from course.solver.damping import DampingState
 
         return DampingState(lam=float(value["__state__"]["lam"]), nu=float(value["__state__"]["nu"]))
     return {k: decode(v) for k, v in value.items()}
@@ -153,3 +153,22 @@ def load(module: str, directory: Path = DIRECTORY) -> dict:
         return {name: decode_expected(data) for name, data in body["checks"].items()}
     except (KeyError, TypeError, ValueError) as exc:
         raise ExpectedDataError(f"{path}: malformed ({type(exc).__name__}: {exc})") from None
+
+
+def same_data(text_a: str, text_b: str, rtol: float = 1e-9, atol: float = 1e-12) -> bool:
+    """Whether two renderings of the expected data agree: the same structure, strings and
+    integers, and floats within ``rtol``/``atol``. Another numpy or CPU may round the last digit
+    of a reference output differently (``exp`` by another SIMD path); that is not stale data."""
+
+    def same(a, b) -> bool:
+        if isinstance(a, dict):
+            return isinstance(b, dict) and a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+        if isinstance(a, list):
+            return isinstance(b, list) and len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+        if isinstance(a, float) or isinstance(b, float):
+            if not isinstance(a, (int, float)) or not isinstance(b, (int, float)) or isinstance(a, bool):
+                return False
+            return bool(np.isclose(a, b, rtol=rtol, atol=atol)) or (np.isnan(a) and np.isnan(b))
+        return type(a) is type(b) and a == b
+
+    return same(json.loads(text_a), json.loads(text_b))

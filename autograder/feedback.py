@@ -120,7 +120,7 @@ def fields_of(outcome, call):
     if returns == "state":
         if not outcome.kind.startswith("dataclass:") or not {"lam", "nu"} <= set(raw):
             return None, (f"{call.function} returned {_kind_text(outcome.kind)}, expected a "
-                          "DampingState(lam, nu) (from course.damping)")
+                          "DampingState(lam, nu) (from course.solver.damping)")
         return {"lam": raw["lam"], "nu": raw["nu"]}, None
     if returns == "dict":
         return dict(raw), None

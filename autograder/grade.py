@@ -10,7 +10,7 @@ with ``visibility: after_published``.
 Every expected output exists before the first child starts; results are written by the
 caller after :func:`grade` returns, when every child is gone. A check that needs a library
 not installed here (``Check.needs``, e.g. pyceres) is not run: it scores 0 and says why,
-and the library's absence is said once (``course.peers``).
+and the library's absence is said once (``course.core.peers``).
 """
 
 import sys
@@ -25,7 +25,7 @@ from autograder import expected as expected_data
 from autograder import sandbox
 from autograder.checks import all_checks, module_of, select
 from autograder.records import Check, Context, Verdict
-from course import peers
+from course.core import peers
 
 PRINTED_LINES = 5
 SETS = ("public", "hidden", "all")

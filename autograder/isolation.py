@@ -231,7 +231,7 @@ def _copy_tree(source: Path, target: Path, skip=()) -> None:
 
 def stage(impl: str, root: Path) -> str:
     """Copy what the child imports into ``root`` (created, root-owned, 0755); return the
-    path of the staged implementation (a package directory) for ``course.impl.load``."""
+    path of the staged implementation (a package directory) for ``course.core.impl.load``."""
     root.mkdir(mode=0o755)
     os.chmod(root, 0o755)
     _copy_tree(REPO_ROOT / "course", root / "course")

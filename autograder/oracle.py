@@ -17,8 +17,9 @@ import os
 
 import numpy as np
 
-from autograder.expected import Expected, dumps
+from autograder.expected import Expected, dumps, same_data
 from autograder.records import Outcome
+from autograder.reference import reference_implementation
 
 DEFAULT_HIDDEN_SEED = 7211
 
@@ -31,17 +32,6 @@ def hidden_seed() -> int:
         return int(text)
     except ValueError:
         raise ValueError(f"AUTOGRADER_HIDDEN_SEED must be an integer, got {text!r}") from None
-
-
-def reference_implementation():
-    from course import impl as impl_loader
-
-    return impl_loader.load("solutions")
-
-
-def solutions_module(name: str):
-    """A module of the reference implementation (for inputs that need a reference output)."""
-    return reference_implementation().module(name)
 
 
 def _mistake_catalogue(module: str) -> dict:
@@ -104,7 +94,7 @@ def release_expected(check=False, directory=None) -> list:
     files = render()
     present = {f"expected/{p.name}" for p in (base / "expected").glob("*.json")}
     stale = sorted(rel for rel, text in files.items()
-                   if not (base / rel).is_file() or (base / rel).read_text() != text)
+                   if not (base / rel).is_file() or not same_data((base / rel).read_text(), text))
     stale += sorted(present - set(files))
     if not check and stale:
         (base / "expected").mkdir(exist_ok=True)

@@ -49,11 +49,6 @@ class ErrorInfo:
     message: str
     where: str = ""  # "line 12 of damping.py: return x"
 
-    def describe(self, call: Call | None = None) -> str:
-        from autograder.feedback import describe_error
-
-        return describe_error(self, call)
-
 
 @dataclass
 class Outcome:

@@ -13,9 +13,9 @@ import numpy as np
 
 
 def minimize_curve(method, impl, num_points=100, seed=0):
-    """``course.solvers.minimize`` on the curve problem (noise ``seed``), every piece from ``impl``."""
-    from course.problems.curve import CurveProblem, generate
-    from course.solvers import minimize
+    """``course.solver.minimize`` on the curve problem (noise ``seed``), every piece from ``impl``."""
+    from course.problems.curve.problem import CurveProblem, generate
+    from course.solver import minimize
 
     problem = CurveProblem(generate(num_points=num_points, seed=seed), impl=impl)
     result = minimize(problem, method, impl=impl)
@@ -73,7 +73,7 @@ def _stub_todo(call) -> str:
 
 
 def _graph(graph: dict):
-    from course.graph import PoseGraph
+    from course.problems.posegraph.graph import PoseGraph
 
     return PoseGraph(graph["poses"], graph["edges_i"], graph["edges_j"], graph["measurements"],
                      graph["information"], fixed=graph["fixed"], name=graph.get("name", "graph"))
@@ -417,13 +417,13 @@ def fast_assemble(graph, blocks, impl):
 
 
 def minimize_pose_graph(graph, method, impl, problem_impl=None, vectorized=False):
-    """``course.solvers.minimize`` on a pose graph given as arrays.
+    """``course.solver.minimize`` on a pose graph given as arrays.
 
     The problem (edge, assembly, sparse solve; ``vectorized=False``: the per-edge loop)
     comes from ``problem_impl`` (default ``impl``), the method's pieces from ``impl``.
     """
-    from course.problems.posegraph import PoseGraphProblem
-    from course.solvers import minimize
+    from course.problems.posegraph.problem import PoseGraphProblem
+    from course.solver import minimize
 
     problem = PoseGraphProblem(_graph(graph), impl=impl if problem_impl is None else problem_impl,
                                vectorized=vectorized)
@@ -432,8 +432,8 @@ def minimize_pose_graph(graph, method, impl, problem_impl=None, vectorized=False
 
 def minimize_curve_run(method, impl, num_points=100, seed=0):
     """Like :func:`minimize_curve`, with the trace summary (rejections, factorizations)."""
-    from course.problems.curve import CurveProblem, generate
-    from course.solvers import minimize
+    from course.problems.curve.problem import CurveProblem, generate
+    from course.solver import minimize
 
     problem = CurveProblem(generate(num_points=num_points, seed=seed), impl=impl)
     return _summary(minimize(problem, method, impl=impl))

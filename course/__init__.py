@@ -6,6 +6,6 @@ problems, the minimizer loops, traces, datasets, peer back ends and the CLI.
 
 __version__ = "0.1.0"
 
-from course.threads import limit_blas_threads
+from course.core.threads import limit_blas_threads
 
 limit_blas_threads()

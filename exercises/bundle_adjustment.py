@@ -20,20 +20,13 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from course.errors import SingularSystemError
+from course.core.errors import SingularSystemError
+from course.geometry.so3 import skew
 
 #: below this |w| the coefficients of Rodrigues' formula use their Taylor series
 SMALL_ANGLE = 1e-4
 #: the reduced camera system is solved densely up to this size (9 C), sparsely beyond
 DENSE_LIMIT = 1000
-
-
-def _skew(v):
-    """``[v]_x`` (K, 3, 3) for v (K, 3): ``[v]_x u = v x u``."""
-    S = np.zeros((len(v), 3, 3))
-    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
-    return S
 
 
 def reprojection_residuals_and_jacobians(cameras, points, camera_index, point_index, observations):
@@ -94,7 +87,7 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
         dx_point_p = V_p^-1 (-g_point_p - sum over p's observations of W_k^T dx_cam_{c_k})
 
     Solve S by a dense Cholesky factorization when 9C <= ``DENSE_LIMIT``, else sparse
-    (``scipy.sparse.linalg.splu``). Raise ``course.errors.SingularSystemError`` naming the
+    (``scipy.sparse.linalg.splu``). Raise ``course.core.errors.SingularSystemError`` naming the
     block when some damped V_p or S is not positive definite.
 
     Hint: with ``Y_k = W_k V_{p_k}^-1`` (K, 9, 3), the sum over pairs is ``Ys @ Ws^T`` where Ys

@@ -2,13 +2,13 @@
 
 Source: H. P. Gavin, "The Levenberg-Marquardt algorithm for nonlinear least squares
 curve-fitting problems" (Duke University), section 4.1.1, eqs. 12-16, and the
-defaults of its ``lm.m``. Notation in ``course/damping.py``: ``b = J^T W r`` is minus
+defaults of its ``lm.m``. Notation in ``course/solver/damping.py``: ``b = J^T W r`` is minus
 Gavin's ``J^T W (y - y_hat)``, and the damped system is ``(H + diag(d)) h = -b``.
 """
 
 import numpy as np
 
-from course.damping import DampingState, DampingStrategy
+from course.solver.damping import DampingState, DampingStrategy
 
 #: lambda bounds of lm.m (Gavin, section 4.1.1)
 LAMBDA_MIN = 1e-7

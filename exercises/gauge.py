@@ -14,16 +14,10 @@ addition); a direction is a tangent vector of x.
 
 import numpy as np
 
+from course.geometry.so3 import skew
+
 #: below this |w| the coefficient of J_r(w)^-1 uses its Taylor series
 SMALL_ANGLE = 1e-4
-
-
-def _skew(v):
-    """``[v]_x`` (K, 3, 3) for v (K, 3)."""
-    S = np.zeros((len(v), 3, 3))
-    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
-    return S
 
 
 def gauge_directions(cameras, points):

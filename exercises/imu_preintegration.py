@@ -21,7 +21,7 @@ starting from ``(I, 0, 0)``, independent of the states and of gravity. What ``w_
 - ``"euler"`` (GTSAM's, Forster's paper): the left end only, ``w_k = omega_k - b_g`` and
   ``a_k = Delta R_k (a_k - b_a)`` (the last sample ``omega_N``, ``a_N`` is not used).
 
-How far apart, on 0.3 s (60 intervals) of the simulated loop (``course.vio_sim``): with
+How far apart, on 0.3 s (60 intervals) of the simulated loop (``course.problems.vio.sim``): with
 ``scheme="euler"`` this module agrees with GTSAM's ``PreintegratedImuMeasurementsManifold``
 to about 1e-15 relative (deltas, bias Jacobians and covariance); the midpoint scheme differs
 from it by about 1e-4 relative in Delta R and 2e-2 in Delta v and Delta p (3e-2 in the
@@ -59,8 +59,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-#: below this angle (rad) Exp, Log and J_r use their Taylor series
-SMALL_ANGLE = 1e-5
+from course.geometry.so3 import right_jacobian, skew, so3_exp, so3_log
+
 SCHEMES = ("midpoint", "euler")
 
 
@@ -85,55 +85,6 @@ class Preintegrated(NamedTuple):
     dp_dba: np.ndarray
     bias_gyro: np.ndarray
     bias_accel: np.ndarray
-
-
-def skew(v) -> np.ndarray:
-    """``[v]_x`` (3, 3) with ``[v]_x u = v x u``."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def so3_exp(phi) -> np.ndarray:
-    """``Exp(phi) = I + sin(t)/t [phi] + (1 - cos t)/t^2 [phi]^2`` (3, 3), ``t = |phi|``."""
-    phi = np.asarray(phi, dtype=float)
-    t2 = float(phi @ phi)
-    t = np.sqrt(t2)
-    if t < SMALL_ANGLE:
-        a, b = 1.0 - t2 / 6.0, 0.5 - t2 / 24.0
-    else:
-        a, b = np.sin(t) / t, (1.0 - np.cos(t)) / t2
-    W = skew(phi)
-    return np.eye(3) + a * W + b * (W @ W)
-
-
-def so3_log(R) -> np.ndarray:
-    """``Log(R)`` (3,), the angle in [0, pi] (stable near pi: from the symmetric part)."""
-    R = np.asarray(R, dtype=float)
-    cos_t = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
-    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0  # sin(t) u
-    t = float(np.arctan2(np.linalg.norm(w), cos_t))  # accurate at every angle, unlike arccos
-    if t < SMALL_ANGLE:
-        return w * (1.0 + t * t / 6.0)
-    if t < np.pi - 1e-3:
-        return w * (t / np.sin(t))
-    S = (R + R.T) / 2.0 - cos_t * np.eye(3)  # (1 - cos t) u u^T
-    k = int(np.argmax(np.diag(S)))
-    u = S[:, k] / np.sqrt((1.0 - cos_t) * S[k, k])  # S[:, k] = (1 - cos t) u_k u
-    if u @ w < 0:
-        u = -u
-    return t * u
-
-
-def right_jacobian(phi) -> np.ndarray:
-    """``J_r(phi) = I - (1 - cos t)/t^2 [phi] + (t - sin t)/t^3 [phi]^2`` (3, 3)."""
-    phi = np.asarray(phi, dtype=float)
-    t2 = float(phi @ phi)
-    t = np.sqrt(t2)
-    if t < SMALL_ANGLE:
-        b, c = 0.5 - t2 / 24.0, 1.0 / 6.0 - t2 / 120.0
-    else:
-        b, c = (1.0 - np.cos(t)) / t2, (t - np.sin(t)) / (t2 * t)
-    W = skew(phi)
-    return np.eye(3) - b * W + c * (W @ W)
 
 
 def _vector(value, name, n) -> np.ndarray:

@@ -17,7 +17,7 @@ def edge_error_and_jacobians(x_i, x_j, z_ij):
         B_ij = [[ R_ij^T R_i^T,  0],
                 [ 0    0,        1]]
 
-    Hint: ``dR^T/dtheta = [[-sin, cos], [-cos, -sin]]``; ``course.geometry.wrap_angle``
+    Hint: ``dR^T/dtheta = [[-sin, cos], [-cos, -sin]]``; ``course.geometry.se2.wrap_angle``
     wraps angles.
     """
     raise NotImplementedError("TODO pose_graph_edge.edge_error_and_jacobians: not implemented yet")

@@ -23,8 +23,8 @@ for ``chapter2_pose_graphs.ipynb``); edit the source, then rebuild. A cell start
 ``# %%`` (code) or ``# %% [markdown]``, followed by its metadata: ``id="..."`` (the cell id,
 fixed so that rebuilding gives the same file and ``tests/test_notebooks.py`` can check
 that the committed notebook's cells are current) and ``tags=["answer"]``. The cells hold
-no logic of their own: they call the package (``course.compare``, ``course.plot``,
-``course.notebook_helpers``, ...). They read their settings from the environment
+no logic of their own: they call the package (``course.app.compare``, ``course.app.plot``,
+``course.notebook_helpers.common``, ...). They read their settings from the environment
 (``COURSE_IMPL``, ``COURSE_NOTEBOOK_REPEAT``, ``COURSE_NOTEBOOK_SMALL``), so they are the
 same whatever the build options. Without ``COURSE_IMPL`` they use the tree's own
 implementation: ``solutions`` where ``solutions/`` exists, ``exercises`` in a student tree.
@@ -55,7 +55,7 @@ from pathlib import Path
 
 import nbformat
 
-from course import peers
+from course.core import peers
 
 HERE = Path(__file__).resolve().parent
 CHAPTER1 = HERE / "chapter1_curve_fitting.ipynb"

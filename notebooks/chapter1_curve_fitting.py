@@ -31,10 +31,10 @@ if str(root) not in sys.path:
 import numpy as np
 from IPython.display import Image, display
 
-from course import compare, plot
-from course.notebook_helpers import ran
-from course.problems.curve import CurveProblem, generate
-from course.solvers import SolverOptions
+from course.app import compare, plot
+from course.notebook_helpers.common import ran
+from course.problems.curve.problem import CurveProblem, generate
+from course.solver import SolverOptions
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);
 # by default this tree's own: "exercises" where there is no solutions/ folder
@@ -47,7 +47,7 @@ REPEAT = int(os.environ.get("COURSE_NOTEBOOK_REPEAT", "5"))
 # ## The comparison
 #
 # `compare.run_curve` runs every (back end, method) pair on one generated data set and
-# returns one `RunResult` each (the schema of `course/trace.py`); `format_table` prints it.
+# returns one `RunResult` each (the schema of `course/core/trace.py`); `format_table` prints it.
 # Times are for the solve alone (milliseconds; the machine is shared, so read them as
 # orders of magnitude).
 
@@ -148,13 +148,13 @@ display(Image(plot.to_png(plot.curve_fit(data, runs))))
 # %% [markdown] id="peers-md"
 # ## Ceres and scipy side by side
 #
-# * **Ceres** (`course/backends/ceres_curve.py`): a Python `pyceres.CostFunction` with all
+# * **Ceres** (`course/backends/curve/ceres.py`): a Python `pyceres.CostFunction` with all
 #   100 points in one residual block (one block per point is about 15 times slower: Ceres
 #   calls Python once per block per evaluation); chi2 per iteration from an
 #   `IterationCallback`. Its LM starts from a trust radius of $10^4$ (so
 #   $\mu = 10^{-4}$, almost Gauss-Newton) and needs several rejections before its first
 #   success from this start.
-# * **scipy** (`course/backends/scipy_curve.py`): `least_squares` with the analytic
+# * **scipy** (`course/backends/curve/scipy.py`): `least_squares` with the analytic
 #   Jacobian. scipy has no per-iteration callback for `lm`, so the trace is recorded by
 #   wrapping the residual function: one record per residual evaluation, i.e. per trial
 #   point; `iterations = nfev - 1`.

@@ -38,10 +38,11 @@ import numpy as np
 from IPython.display import Image, Markdown, display
 from matplotlib.figure import Figure
 
-from course import benchmark, compare, datasets, plot
-from course.notebook_helpers import load, median_time, one_thread, outcome, ran, time_split, where
-from course.problems.posegraph import PoseGraphProblem
-from course.solvers import minimize
+from course.app import benchmark, compare, plot
+from course.notebook_helpers.common import load, median_time, one_thread, outcome, ran, time_split, where
+from course.problems.posegraph import dataset as datasets
+from course.problems.posegraph.problem import PoseGraphProblem
+from course.solver import minimize
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);
 # by default this tree's own: "exercises" where there is no solutions/ folder
@@ -79,7 +80,7 @@ display(Image(plot.to_png(plot.pose_graph_before_after(graph, gn))))
 # $H$ is $3N \times 3N$ (2187 x 2187 on intel) but has only the $3 \times 3$ blocks of the
 # poses that share an edge. A dense Cholesky factorization costs $O(n^3)$ whatever the
 # zeros; a sparse one, after a fill-reducing ordering (AMD), costs in proportion to the
-# non-zeros of its factor. `course.benchmark.dense_vs_sparse` solves the same Gauss-Newton
+# non-zeros of its factor. `course.app.benchmark.dense_vs_sparse` solves the same Gauss-Newton
 # system (at the start) both ways with the implementation's `sparse_solve`, checks that the
 # two steps agree, and returns the median times. Both run on one thread here (the sparse
 # solver is single-threaded, and a multithreaded BLAS on a shared machine gives erratic

@@ -35,8 +35,8 @@ if str(root) not in sys.path:
 
 from IPython.display import Image, Markdown, display
 
-from course import compare, plot
-from course.notebook_helpers import load
+from course.app import compare, plot
+from course.notebook_helpers.common import load
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);
 # by default this tree's own: "exercises" where there is no solutions/ folder
@@ -48,14 +48,14 @@ REPEAT = int(os.environ.get("COURSE_NOTEBOOK_REPEAT", "5"))
 SMALL = os.environ.get("COURSE_NOTEBOOK_SMALL", "0") == "1"
 
 # %% [markdown] id="helpers-md"
-# The helpers of this chapter, in `course/notebook_helpers.py`: a figure of chi2 against wall
-# time (`course.plot` has the one against the iteration) and the table. The factorization
+# The helpers of this chapter, in `course/notebook_helpers/common.py`: a figure of chi2 against wall
+# time (`course.app.plot` has the one against the iteration) and the table. The factorization
 # count is exact for our solvers; for the peers it is what the library reports, marked `*` (Ceres'
 # `num_linear_solves`, g2o's count of Levenberg damping attempts) or `n/a` where it
 # reports none (GTSAM, scipy, g2o's dogleg, Ceres on the curve).
 
 # %% id="helpers"
-from course.notebook_helpers import (
+from course.notebook_helpers.common import (
     chi2_against_time,
     method_table,
     not_run_note,

@@ -47,9 +47,9 @@ if str(root) not in sys.path:
 
 from IPython.display import Image, Markdown, display
 
-from course import compare, datasets, plot
-from course.initialisation import INITIALISERS, initialise
-from course.notebook_helpers import (
+from course.app import compare, plot
+from course.app.starts import INITIALISERS, initialise
+from course.notebook_helpers.common import (
     basin_figure,
     initialiser_table,
     load,
@@ -57,6 +57,7 @@ from course.notebook_helpers import (
     outcome,
     time_to_solution_table,
 )
+from course.problems.posegraph import dataset as datasets
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);
 # by default this tree's own: "exercises" where there is no solutions/ folder

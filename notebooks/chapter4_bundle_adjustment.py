@@ -2,7 +2,7 @@
 # # Chapter 4: bundle adjustment
 #
 # Bundle adjustment refines $C$ cameras and $P$ points from $K$ observations of the points
-# in the images. In the BAL convention (`course/bal.py`) camera $c$ has 9 unknowns (the
+# in the images. In the BAL convention (`course/problems/bal/dataset.py`) camera $c$ has 9 unknowns (the
 # angle-axis vector $w$, the translation $t$, the focal length $f$ and the radial distortion
 # $k_1, k_2$), point $p$ has 3, and observation $k$ of point $p_k$ by camera $c_k$ gives the
 # residual (pixels)
@@ -59,9 +59,8 @@ if str(root) not in sys.path:
 
 from IPython.display import Image, display
 
-from course import benchmark_bal, compare, outliers, parallel_speedup, plot
-from course.bal import load_bal
-from course.notebook_bal import (
+from course.app import benchmark_bal, compare, parallel_speedup, plot
+from course.notebook_helpers.bal import (
     behind_camera_detail,
     cost_figure,
     dense_vs_schur,
@@ -82,6 +81,8 @@ from course.notebook_bal import (
     sparsity_counts,
     sparsity_figure,
 )
+from course.problems.bal import outliers
+from course.problems.bal.dataset import load_bal
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);
 # by default this tree's own: "exercises" where there is no solutions/ folder
@@ -137,7 +138,7 @@ for problem in (ring, path, load("ladybug-49")):
 # ladybug-49 (49 cameras, 7776 points, 31843 observations, start cost 850912.46) look for
 # where each curve flattens, and which solvers end close to each other. An LM with the
 # Schur complement on the all-observations cost reaches about 13344.24 (13344.2407 after
-# 500 iterations, `course.benchmark_bal.MINIMA`): the last line says when ours is within
+# 500 iterations, `course.app.benchmark_bal.MINIMA`): the last line says when ours is within
 # 1e-6 of it. (Quick setting: the synthetic problem only.)
 
 # %% id="costs"
@@ -159,7 +160,7 @@ for name in (["bal-synthetic:10:300"] if SMALL else ["bal-synthetic:30:3000", "l
 #
 # The figure's seconds come from one run each. Here each back end runs 10 iterations (scipy:
 # 2 evaluations) from the start, `min(REPEAT, 3)` times, interleaved, and the table keeps the
-# median time per iteration (`course.benchmark_bal.per_iteration`), on ladybug-49 (quick
+# median time per iteration (`course.app.benchmark_bal.per_iteration`), on ladybug-49 (quick
 # setting: 5 iterations on the synthetic problem). Ours evaluates the Jacobians and assembles U, V, W in
 # numpy and forms and factors S with scipy; Ceres does all of it in C++ (one thread); GTSAM
 # linearizes one factor at a time and eliminates with its own ordering; scipy differentiates
@@ -277,7 +278,7 @@ display(Image(plot.to_png(dense_vs_schur_figure(steps, 10))))
 display(Image(plot.to_png(kernel_figure(outliers.DEFAULT_LOSSES, IMPL))))
 
 # %% [markdown] id="outliers-md"
-# The experiment (`course.outliers`): a synthetic problem (12 cameras, 300 points, 1-pixel
+# The experiment (`course.problems.bal.outliers`): a synthetic problem (12 cameras, 300 points, 1-pixel
 # noise) with 10% of its observations moved by a further $N(0, 50^2)$ pixels, solved by
 # our LM (the gauge fixed, at most 100 iterations) with each loss; the figure of merit is
 # the RMS reprojection error of the *inliers* at the solution, against the same problem
@@ -296,7 +297,7 @@ print(outliers.table(reference, rows))
 #
 # The source's table (one solve on EuRoC MH_05, C++ with OpenMP in the assembly of the
 # normal equations) says that threads helped Levenberg-Marquardt and hurt the dogleg. Below
-# it, ours (`course.parallel_speedup`, your `parallel_assembly.normal_equations_parallel`):
+# it, ours (`course.app.parallel_speedup`, your `parallel_assembly.normal_equations_parallel`):
 # first the assembly alone, serial against threads (`Nw`: N workers) and against forked
 # processes (`Np`), then whole step attempts with the serial and the parallel assembly,
 # where the column `2w/serial` is the quantity of the source's `speed-up` column, with the

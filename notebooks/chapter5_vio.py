@@ -5,9 +5,9 @@
 # position and velocity in the world frame and the biases of the gyroscope and the
 # accelerometer. It moves by 15 tangent coordinates
 # $\delta x_i = (\delta\phi, \delta p, \delta v, \delta b_g, \delta b_a)$, the rotation on the
-# right, $R_i \leftarrow R_i \operatorname{Exp}(\delta\phi)$ (`course/problems/vio.py`); a
+# right, $R_i \leftarrow R_i \operatorname{Exp}(\delta\phi)$ (`course/problems/vio/problem.py`); a
 # landmark is a point $X_l \in \mathbb{R}^3$. The keyframes are every 5th camera frame of the
-# simulation (`course/vio_sim.py`: 0.25 s apart); the window holds the last 10 of them and
+# simulation (`course/problems/vio/sim.py`: 0.25 s apart); the window holds the last 10 of them and
 # the landmarks that two of them see, and its cost is
 #
 # $$\chi^2(x) = \lVert e_0 + J\,(x \boxminus \bar x)\rVert^2
@@ -34,12 +34,12 @@
 # $H_{km} H_{mm}^{-1} H_{mk}$ couples every two kept variables that shared a factor with a
 # removed one: the fill-in. The prior carries only what the removed variables' factors said,
 # so it is built from those factors alone (the others stay in the window as factors). Two
-# more points (`course/vio_window.py`):
+# more points (`course/problems/vio/window.py`):
 #
 # * the prior is linear about $\bar x$, while the factors are relinearised at each new
 #   estimate; the factors on the prior's keyframes take their Jacobians at $\bar x$ too
 #   (first estimates), so that prior and factors agree on what the data cannot see;
-# * the data cannot see 4 directions (`course.problems.vio.gauge_directions`): a translation
+# * the data cannot see 4 directions (`course.problems.vio.problem.gauge_directions`): a translation
 #   of everything, and a rotation of everything about gravity (yaw); roll and pitch are seen
 #   through gravity, the scale through the accelerometer. Each new prior is projected off
 #   these 4 directions, and the window is held by an anchor on its oldest keyframe's
@@ -52,7 +52,7 @@
 #
 # 1. the estimators: the window with the prior, the window without, the batch (every
 #    keyframe in one problem, the same factors, no marginalisation), and, where gtsam is
-#    installed, GTSAM's batch and its fixed-lag smoother (`course/backends/gtsam_vio.py`);
+#    installed, GTSAM's batch and its fixed-lag smoother (`course/backends/vio/gtsam.py`);
 # 2. the fill-in of H before and after a marginalisation;
 # 3. the window's cost and the prior's size over time;
 # 4. the absolute pose error (APE) over time, and the table of errors and times;
@@ -79,8 +79,8 @@ if str(root) not in sys.path:
 
 from IPython.display import Image, display
 
-from course import plot
-from course.notebook_vio import (
+from course.app import plot
+from course.notebook_helpers.vio import (
     ape_curves,
     ape_figure,
     ape_table,
@@ -101,7 +101,7 @@ IMPL = os.environ.get("COURSE_IMPL") or (
     "solutions" if (root / "solutions" / "__init__.py").is_file() else "exercises")
 # 1: the quick setting (a 4-second simulation; the tests run it, --small sets it); else the full one
 SMALL = os.environ.get("COURSE_NOTEBOOK_SMALL", "0") == "1"
-# the simulation: "vio-sim:SECONDS:SEED" (course.vio_sim)
+# the simulation: "vio-sim:SECONDS:SEED" (course.problems.vio.sim)
 NAME = "vio-sim:4:0" if SMALL else "vio-sim:12:0"
 # keyframes in the window
 WINDOW = 10
@@ -116,7 +116,7 @@ FILL_AT = WINDOW - 2
 # solve `FILL_AT` for section 2), our window without a prior, our batch started from the
 # first window's estimate, GTSAM's batch (Levenberg-Marquardt from its own IMU propagation
 # of the true start) and GTSAM's `BatchFixedLagSmoother` holding the same window of 10
-# keyframes. Ours use the dogleg (`course.solvers.minimize`); a solve is one call of the
+# keyframes. Ours use the dogleg (`course.solver.minimize`); a solve is one call of the
 # minimizer on one window. The last column is each run's wall time, everything included
 # (the windows' preintegration, triangulation and marginalisation).
 
@@ -177,7 +177,7 @@ else:
 # ## 4. The absolute pose error over time
 #
 # Left, per keyframe, the position error after aligning the whole estimate with the ground
-# truth by one rotation and one translation (`course.ape.ape`, SE(3), Umeyama's method):
+# truth by one rotation and one translation (`course.problems.vio.ape.ape`, SE(3), Umeyama's method):
 # $e_i = \lVert p^{\mathrm{true}}_i - (R\,p_i + t)\rVert$. Every estimate starts from the true
 # first keyframe (its prior), so without alignment (right) the error is the drift from the
 # start. A window's estimate of a keyframe is the one it had when it left the window (a

@@ -20,20 +20,13 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from course.errors import SingularSystemError
+from course.core.errors import SingularSystemError
+from course.geometry.so3 import skew
 
 #: below this |w| the coefficients of Rodrigues' formula use their Taylor series
 SMALL_ANGLE = 1e-4
 #: the reduced camera system is solved densely up to this size (9 C), sparsely beyond
 DENSE_LIMIT = 1000
-
-
-def _skew(v):
-    """``[v]_x`` (K, 3, 3) for v (K, 3): ``[v]_x u = v x u``."""
-    S = np.zeros((len(v), 3, 3))
-    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
-    return S
 
 
 def reprojection_residuals_and_jacobians(cameras, points, camera_index, point_index, observations):
@@ -71,7 +64,7 @@ def reprojection_residuals_and_jacobians(cameras, points, camera_index, point_in
     a = np.where(small, 1.0 - t2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
     c = np.where(small, 1.0 / 6.0 - t2 / 120.0, (safe - np.sin(safe)) / safe**3)
-    Wx = _skew(w)
+    Wx = skew(w)
     Wx2 = np.matmul(Wx, Wx)
     eye = np.eye(3)
     R = (eye + a[:, None, None] * Wx + b[:, None, None] * Wx2)[camera_index]
@@ -95,7 +88,7 @@ def reprojection_residuals_and_jacobians(cameras, points, camera_index, point_in
     A = np.matmul(dpred_dp, dp_dP)
     AR = np.matmul(A, R)  # d predicted / d X
     J_cam = np.empty((K, 2, 9))
-    J_cam[:, :, :3] = -np.matmul(AR, np.matmul(_skew(X), Jr))  # A d(RX)/dw, d(RX)/dw = -R [X]_x J_r
+    J_cam[:, :, :3] = -np.matmul(AR, np.matmul(skew(X), Jr))  # A d(RX)/dw, d(RX)/dw = -R [X]_x J_r
     J_cam[:, :, 3:6] = A
     J_cam[:, :, 6] = d[:, None] * p
     J_cam[:, :, 7] = (f * n)[:, None] * p
@@ -130,7 +123,7 @@ def normal_equations(r, J_cam, J_point, camera_index, point_index, num_cameras, 
         return np.bincount(flat, weights=blocks.ravel(), minlength=count * size).reshape((count, *blocks.shape[1:]))
 
     # U_c = J_c^T J_c, J_c camera c's rows stacked (2 K_c, 9): one product per camera (C is small);
-    # np.dot lets other threads run during the product (course.parallel_speedup.gil_table)
+    # np.dot lets other threads run during the product (course.app.parallel_speedup.gil_table)
     order = np.argsort(ci, kind="stable")
     bounds = 2 * np.concatenate([[0], np.cumsum(np.bincount(ci, minlength=num_cameras))])
     rows = J_cam[order].reshape(-1, 9)
@@ -156,7 +149,7 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
         dx_point_p = V_p^-1 (-g_point_p - sum over p's observations of W_k^T dx_cam_{c_k})
 
     Solve S by a dense Cholesky factorization when 9C <= ``DENSE_LIMIT``, else sparse
-    (``scipy.sparse.linalg.splu``). Raise ``course.errors.SingularSystemError`` naming the
+    (``scipy.sparse.linalg.splu``). Raise ``course.core.errors.SingularSystemError`` naming the
     block when some damped V_p or S is not positive definite.
 
     Hint: with ``Y_k = W_k V_{p_k}^-1`` (K, 9, 3), the sum over pairs is ``Ys @ Ws^T`` where Ys

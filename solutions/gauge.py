@@ -14,16 +14,10 @@ addition); a direction is a tangent vector of x.
 
 import numpy as np
 
+from course.geometry.so3 import skew
+
 #: below this |w| the coefficient of J_r(w)^-1 uses its Taylor series
 SMALL_ANGLE = 1e-4
-
-
-def _skew(v):
-    """``[v]_x`` (K, 3, 3) for v (K, 3)."""
-    S = np.zeros((len(v), 3, 3))
-    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
-    return S
 
 
 def gauge_directions(cameras, points):
@@ -58,7 +52,7 @@ def gauge_directions(cameras, points):
     b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
     c = np.where(small, 1.0 / 12.0 + t2 / 720.0,
                  1.0 / safe**2 - (1.0 + np.cos(safe)) / (2.0 * safe * np.sin(safe)))
-    W = _skew(w)
+    W = skew(w)
     W2 = np.matmul(W, W)
     eye = np.eye(3)
     R = eye + a[:, None, None] * W + b[:, None, None] * W2

@@ -140,7 +140,7 @@ def spanning_tree_poses(num_poses, edges_i, edges_j, measurements, anchor_pose, 
     Hints: ``scipy.sparse.csgraph.shortest_path(adjacency, unweighted=True,
     directed=False, indices=anchor)`` gives the hop distances; ``np.lexsort`` then
     ``np.unique(..., return_index=True)`` picks the lowest edge index per vertex;
-    ``course.geometry.compose`` and ``wrap_angle`` compose and wrap.
+    ``course.geometry.se2.compose`` and ``wrap_angle`` compose and wrap.
     """
     num_poses, edges_i, edges_j, measurements, _, anchor = check_inputs(
         num_poses, edges_i, edges_j, measurements, None, anchor)

@@ -21,7 +21,7 @@ Why threads (``concurrent.futures.ThreadPoolExecutor``), not processes or numba:
   more than a few hundred entries: a pure-Python thread keeps running during ``np.matmul``,
   ``np.einsum``, ``np.add.at`` and fancy indexing, and during about three quarters of an
   ``np.bincount`` (its pass over the indices keeps the GIL), but not during one product of
-  2-D arrays, ``A.T @ B`` (``np.dot(A.T, B)`` releases it); ``course.parallel_speedup.gil_table``
+  2-D arrays, ``A.T @ B`` (``np.dot(A.T, B)`` releases it); ``course.app.parallel_speedup.gil_table``
   measures it. The Python glue between the calls, microseconds per chunk, holds it too;
 - threads share the Jacobians: nothing is copied. Processes must pickle each chunk's
   Jacobians to a worker and its blocks back, which on ladybug-49 costs more than the whole
@@ -31,10 +31,10 @@ Why threads (``concurrent.futures.ThreadPoolExecutor``), not processes or numba:
   numba and llvmlite to what grading installs, and compiles at the first call in every
   fresh process (every autograder check runs in one); the lesson here is about numpy.
 
-Each thread keeps the course's one BLAS thread (``course/threads.py``): the parallelism is
+Each thread keeps the course's one BLAS thread (``course/core/threads.py``): the parallelism is
 over chunks, not inside a product.
 
-When does it pay? Measured by ``python -m course benchmark`` (``course/parallel_speedup.py``,
+When does it pay? Measured by ``python -m course benchmark`` (``course/app/parallel_speedup.py``,
 whose docstring explains the figures), on 2 cores shared with other jobs: not on ladybug-49
 (31843 observations: two threads 0.85 times the serial speed, four 1.1 times), where the
 work is memory-bound and the parallel version pays for the partial sums; 1.5 times with four

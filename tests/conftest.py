@@ -5,8 +5,8 @@ import pytest
 
 @pytest.fixture
 def data_folder():
-    """The shared data folder (``course.datasets.data_dir()``); skip when it is absent."""
-    from course.datasets import data_dir
+    """The shared data folder (``course.core.data.data_dir()``); skip when it is absent."""
+    from course.core.data import data_dir
 
     folder = data_dir()
     if not folder.is_dir():
@@ -19,7 +19,7 @@ def needs(*libraries):
 
     The peers (pyceres, g2opy, gtsam) come with the ``peers`` extra and only where they
     have wheels, qdldl not on every Python: a core-only install skips these tests."""
-    from course import peers
+    from course.core import peers
 
     missing = [name for name in libraries if not peers.installed(name)]
     reason = f"{', '.join(missing)} not installed here (the peers extra, where it has wheels)"

@@ -1,11 +1,13 @@
-"""course.ape and course.trajectory_io: readers, association, Umeyama, APE against evo on EuRoC MH_05."""
+"""course.problems.vio.ape and course.problems.vio.trajectory_io: readers, association, Umeyama, APE against evo
+on EuRoC MH_05."""
 
 import json
 
 import numpy as np
 import pytest
 
-from course.ape import (
+from course.app.cli import main
+from course.problems.vio.ape import (
     AlignmentError,
     Similarity,
     ape,
@@ -14,8 +16,7 @@ from course.ape import (
     statistics,
     umeyama,
 )
-from course.cli import main
-from course.trajectory_io import QUATERNION_NORM_TOL, Trajectory, TrajectoryError, read_euroc_csv, read_tum
+from course.problems.vio.trajectory_io import QUATERNION_NORM_TOL, Trajectory, TrajectoryError, read_euroc_csv, read_tum
 
 #: our APE statistics against evo's on the same files
 EVO_TOL = 1e-9

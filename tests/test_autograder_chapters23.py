@@ -154,9 +154,9 @@ def test_the_mistakes_are_distinct_and_name_real_checks():
 def test_the_reference_dogleg_never_refactorizes_between_a_rejection_and_the_retry(data_folder):
     """intel-g2o from its start rejects dogleg steps; each retry reuses the factorization."""
     from autograder.tasks import minimize_pose_graph
-    from course.datasets import load_dataset
-    from course.problems.posegraph import PoseGraphProblem
-    from course.solvers import minimize
+    from course.problems.posegraph.dataset import load_dataset
+    from course.problems.posegraph.problem import PoseGraphProblem
+    from course.solver import minimize
 
     graph = load_dataset("intel-g2o")
     result = minimize(PoseGraphProblem(graph), "dogleg")
@@ -184,6 +184,6 @@ def test_the_dogleg_case_and_stop_reason_come_back_as_numbers():
 
 
 def _solutions():
-    from course import impl as impl_loader
+    from course.core import impl as impl_loader
 
     return impl_loader.load("solutions")

@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_values_round_trip_exactly():
-    from course.damping import DampingState
+    from course.solver.damping import DampingState
 
     value = {"a": (np.array([0.1, np.nan, -np.inf, 1e-300]), np.arange(6, dtype=np.int64).reshape(2, 3)),
              "s": DampingState(lam=1e-7 / 3, nu=4.0), "x": [1, 2.5, "text", None, True]}

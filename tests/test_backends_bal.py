@@ -7,10 +7,13 @@ import numpy as np
 import pytest
 from conftest import needs
 
-from course import compare, peers, registry
-from course.backends import bal_common, scipy_bal
-from course.bal import behind_camera, cost, load_bal, residuals, synthetic, write_bal
-from course.cli import main as course_main
+from course.app import compare
+from course.app.cli import main as course_main
+from course.backends import registry
+from course.backends.bal import common as bal_common
+from course.backends.bal import scipy as scipy_bal
+from course.core import peers
+from course.problems.bal.dataset import behind_camera, cost, load_bal, residuals, synthetic, write_bal
 
 #: scipy with its tolerances far below the recipe's ftol = 1e-4
 TIGHT = {"ftol": 1e-15, "xtol": 1e-15, "gtol": 1e-15}
@@ -24,7 +27,7 @@ def noiseless():
 
 
 def ladybug():
-    from course.datasets import data_dir
+    from course.core.data import data_dir
 
     folder = data_dir()
     if not (folder / "bal_ladybug").is_dir():
@@ -90,7 +93,7 @@ def test_scipy_max_iterations_and_bad_arguments():
 
 @needs("pycolmap")
 def test_colmap_conversion_projects_as_bal():
-    from course.backends import colmap_bal
+    from course.backends.bal import colmap as colmap_bal
 
     problem = synthetic(4, 25, seed=5)
     reconstruction, point_ids = colmap_bal.to_reconstruction(problem)
@@ -109,7 +112,7 @@ def test_colmap_conversion_projects_as_bal():
 @needs("pycolmap")
 @pytest.mark.parametrize("method", ["levenberg-marquardt", "dogleg"])
 def test_colmap_reaches_zero_on_noiseless_data(method):
-    from course.backends import colmap_bal
+    from course.backends.bal import colmap as colmap_bal
 
     problem = noiseless()
     result = colmap_bal.solve(problem, method, max_iterations=100)
@@ -124,7 +127,7 @@ def test_colmap_reaches_zero_on_noiseless_data(method):
 
 @needs("pycolmap")
 def test_colmap_table_parser():
-    from course.backends import colmap_bal
+    from course.backends.bal import colmap as colmap_bal
 
     text = ("iter      cost      cost_change  |gradient|   |step|    tr_ratio  tr_radius  ls_iter  iter_time  "
             "total_time\n"
@@ -143,7 +146,7 @@ def test_colmap_table_parser():
 
 @needs("pycolmap")
 def test_colmap_on_ladybug_removes_the_points_behind_the_cameras():
-    from course.backends import colmap_bal
+    from course.backends.bal import colmap as colmap_bal
 
     problem = ladybug()
     result = colmap_bal.solve(problem, max_iterations=2)
@@ -161,7 +164,7 @@ def test_colmap_on_ladybug_removes_the_points_behind_the_cameras():
 
 @needs("gtsam")
 def test_gtsam_start_is_the_bal_start_and_scores_like_ours():
-    from course.backends import gtsam_bal
+    from course.backends.bal import gtsam as gtsam_bal
 
     problem = noiseless()
     for gauge in gtsam_bal.GAUGES:
@@ -176,7 +179,7 @@ def test_gtsam_start_is_the_bal_start_and_scores_like_ours():
 
 @needs("gtsam")
 def test_gtsam_reaches_zero_on_noiseless_data_without_priors():
-    from course.backends import gtsam_bal
+    from course.backends.bal import gtsam as gtsam_bal
 
     problem = noiseless()
     result = gtsam_bal.solve(problem, max_iterations=100, gauge="none")
@@ -193,8 +196,8 @@ def test_gtsam_reaches_zero_on_noiseless_data_without_priors():
 def test_gtsam_on_ladybug_scores_the_observations_behind_the_cameras_zero():
     import gtsam
 
-    from course.backends import gtsam_bal
-    from course.datasets import data_dir
+    from course.backends.bal import gtsam as gtsam_bal
+    from course.core.data import data_dir
 
     problem = ladybug()
     graph, values = gtsam_bal.to_gtsam(problem)

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from conftest import needs
 
-from course import registry
-from course.backends import scipy_curve
-from course.problems.curve import CurveProblem, generate
-from course.solvers import minimize
+from course.backends import registry
+from course.backends.curve import scipy as scipy_curve
+from course.problems.curve.problem import CurveProblem, generate
+from course.solver import minimize
 
 RTOL = 1e-6
 NEEDS_CERES = needs("pyceres")

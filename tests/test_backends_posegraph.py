@@ -6,20 +6,26 @@ import pytest
 for _library in ("pyceres", "g2opy", "gtsam"):  # the peers extra, where they have wheels
     pytest.importorskip(_library, reason=f"{_library} is not installed here (the peers extra, where it has wheels)")
 
-from course import datasets, geometry, registry  # noqa: E402 - after the skips above
-from course.backends import ceres_posegraph, g2o_posegraph, gtsam_posegraph  # noqa: E402
-from course.graph import PoseGraph  # noqa: E402
+from course.backends import registry  # noqa: E402
+from course.backends.posegraph import ceres as ceres_posegraph  # noqa: E402
+from course.backends.posegraph import g2o as g2o_posegraph  # noqa: E402
+from course.backends.posegraph import gtsam as gtsam_posegraph  # noqa: E402
+from course.core.backend_names import OURS  # noqa: E402
+from course.core.data import data_dir  # noqa: E402
+from course.geometry import se2 as geometry  # noqa: E402
+from course.problems.posegraph import dataset as datasets  # noqa: E402
+from course.problems.posegraph.graph import PoseGraph  # noqa: E402
 from solutions.ceres_edge_cost import SE2EdgeCost  # noqa: E402
 
 RTOL = 1e-6
 INTEL_GN_CHI2 = 65.402048  # REFERENCES.md, "Measured here on the peers"
-RUNS = [(backend, method) for backend, method in registry.pairs("posegraph") if backend != registry.OURS]
+RUNS = [(backend, method) for backend, method in registry.pairs("posegraph") if backend != OURS]
 
 
 @pytest.fixture(scope="module")
 def intel():
-    if not datasets.data_dir().is_dir():
-        pytest.skip(f"data folder {datasets.data_dir()} not found (set COURSE_DATA)")
+    if not data_dir().is_dir():
+        pytest.skip(f"data folder {data_dir()} not found (set COURSE_DATA)")
     return datasets.load_dataset("intel")
 
 

@@ -1,7 +1,7 @@
 """The chapter-4 benchmark runs every back end from the same start and prints ratios over Ceres."""
 
-from course import benchmark_bal
-from course.bal import load_bal
+from course.app import benchmark_bal
+from course.problems.bal.dataset import load_bal
 
 
 def test_per_iteration_times_every_back_end_on_a_synthetic_problem():

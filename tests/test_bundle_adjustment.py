@@ -4,12 +4,22 @@
 import numpy as np
 import pytest
 
-from course.bal import BALProblem, behind_camera, cost, load_bal, read_bal, residuals, rotate, synthetic, write_bal
-from course.datasets import DatasetError, gtsam_data_dir
-from course.errors import SingularSystemError
-from course.problems.bal import BundleAdjustmentProblem
-from course.solvers import minimize
-from course.solvers.options import SolverOptions
+from course.core.data import gtsam_data_dir
+from course.core.errors import DatasetError, SingularSystemError
+from course.problems.bal.dataset import (
+    BALProblem,
+    behind_camera,
+    cost,
+    load_bal,
+    read_bal,
+    residuals,
+    rotate,
+    synthetic,
+    write_bal,
+)
+from course.problems.bal.problem import BundleAdjustmentProblem
+from course.solver import minimize
+from course.solver.options import SolverOptions
 from solutions import bundle_adjustment as ba
 
 #: ladybug-49's BAL cost at its start and after a converged LM (REFERENCES.md)
@@ -284,7 +294,7 @@ def test_ladybug_lm_reaches_the_reference_cost(data_folder):
 
 
 def test_a_singular_damped_system_raises_lambda_tenfold_and_solves_again():
-    from course.solvers.strategies import SINGULAR_RETRIES
+    from course.solver.strategies import SINGULAR_RETRIES
 
     class Fragile(BundleAdjustmentProblem):
         """Singular whenever the damping's smallest entry is below ``floor``."""

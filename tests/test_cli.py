@@ -7,14 +7,14 @@ import sys
 import pytest
 from conftest import needs
 
-from course.cli import main
-from course.impl import REPO_ROOT
-from course.registry import BACKENDS
+from course.app.cli import main
+from course.core.backend_names import BACKENDS
+from course.core.impl import REPO_ROOT
 
 
 def test_import_is_cheap():
     heavy = "('numpy', 'scipy', 'pyceres', 'matplotlib')"
-    code = f"import sys, course.cli; print(sorted(m for m in {heavy} if sys.modules.get(m) is not None))"
+    code = f"import sys, course.app.cli; print(sorted(m for m in {heavy} if sys.modules.get(m) is not None))"
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 

@@ -5,11 +5,11 @@ import shutil
 import numpy as np
 import pytest
 
-from course import compare
-from course.errors import NonFiniteError, ShapeError
-from course.impl import REPO_ROOT
-from course.problems.curve import TRUTH, CurveProblem, generate
-from course.solvers import minimize
+from course.app import compare
+from course.core.errors import NonFiniteError, ShapeError
+from course.core.impl import REPO_ROOT
+from course.problems.curve.problem import TRUTH, CurveProblem, generate
+from course.solver import minimize
 
 RTOL = 1e-6
 LM_TYPES = ("lm-type1", "lm-type2", "lm-type3")

@@ -1,4 +1,4 @@
-"""Tests for course.datasets: readers, writers, named datasets, the Manhattan generator."""
+"""Tests for course.problems.posegraph.dataset: readers, writers, named datasets, the Manhattan generator."""
 
 import logging
 import shutil
@@ -6,9 +6,13 @@ import shutil
 import numpy as np
 import pytest
 
-from course import datasets, geometry
-from course.datasets import DatasetError, load_dataset, read_graph, write_g2o, write_toro
-from course.graph import PoseGraph
+from course.app.datasets import list_other_data
+from course.core.data import data_dir, gtsam_data_dir
+from course.core.errors import DatasetError
+from course.geometry import se2 as geometry
+from course.problems.posegraph import dataset as datasets
+from course.problems.posegraph.dataset import load_dataset, read_graph, write_g2o, write_toro
+from course.problems.posegraph.graph import PoseGraph
 
 ARRAYS = ("poses", "edges_i", "edges_j", "measurements", "information", "ids")
 
@@ -95,14 +99,14 @@ def test_round_trip_real_data(tmp_path, data_folder):
 
 @pytest.fixture
 def gtsam_data():
-    folder = datasets.gtsam_data_dir()
+    folder = gtsam_data_dir()
     if folder is None or not (folder / "w100.graph").is_file():
         pytest.skip("gtsam (with its Data folder) is not installed")
     return folder
 
 
 def test_gtsam_graphs(gtsam_data, caplog):
-    with caplog.at_level(logging.INFO, logger="course.datasets"):
+    with caplog.at_level(logging.INFO, logger="course.problems.posegraph.dataset"):
         w100 = load_dataset("w100")
         w10000 = load_dataset("w10000")
     assert (w100.num_poses, w100.num_edges) == (100, 300)
@@ -155,7 +159,7 @@ def test_ids_fix_comments_equiv(tmp_path, caplog):
         "# a comment\n\nVERTEX_SE2 7 0 0 0\nVERTEX_SE2 3 1 -0.000000 0\n"
         "VERTEX_SE2 9 2 0 0\nEQUIV 9 7\nEDGE_SE2 9 3 -1 0 0 1 0 0 1 0 1\nFIX 3 9\n"
     )
-    with caplog.at_level(logging.INFO, logger="course.datasets"):
+    with caplog.at_level(logging.INFO, logger="course.problems.posegraph.dataset"):
         graph = read_graph(path)
     np.testing.assert_array_equal(graph.ids, [7, 3, 9])
     assert (graph.edges_i[0], graph.edges_j[0]) == (2, 1)
@@ -261,7 +265,7 @@ def test_unknown_name_lists_known_names():
 def test_course_data_override(tmp_path, monkeypatch, data_folder):
     shutil.copytree(data_folder / "test_quadrat", tmp_path / "test_quadrat")
     monkeypatch.setenv("COURSE_DATA", str(tmp_path))
-    assert datasets.data_dir() == tmp_path
+    assert data_dir() == tmp_path
     graph = load_dataset("test_quadrat")
     assert graph.num_poses == 4 and str(tmp_path) in graph.source
     with pytest.raises(DatasetError, match="intel_toro/intel") as err:
@@ -283,11 +287,11 @@ def test_missing_data_folder(tmp_path, monkeypatch):
 
 
 def test_the_other_chapters_data_are_listed_and_missing_ones_say_why(tmp_path, monkeypatch):
-    rows = {name: (size, where, reason) for name, size, where, reason in datasets.list_other_data()}
+    rows = {name: (size, where, reason) for name, size, where, reason in list_other_data()}
     assert {"ladybug-49", "dubrovnik-3-7", "bal-synthetic:C:P[:seed]", "euroc-mh05",
             "vio-sim[:seconds[:seed]]"} <= set(rows)
     assert rows["ladybug-49"][0] == "49 cameras, 7776 points, 31843 obs"
     monkeypatch.setenv("COURSE_DATA", str(tmp_path / "absent"))
-    rows = {name: reason for name, _, _, reason in datasets.list_other_data()}
+    rows = {name: reason for name, _, _, reason in list_other_data()}
     assert "not found" in rows["ladybug-49"] and "COURSE_DATA" in rows["euroc-mh05"]
     assert rows["vio-sim[:seconds[:seed]]"] == ""

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from course import datasets
-from course.problems import curve
-from course.problems.posegraph import PoseGraphProblem
-from course.solvers import minimize
+from course.problems.curve import problem as curve
+from course.problems.posegraph import dataset as datasets
+from course.problems.posegraph.problem import PoseGraphProblem
+from course.solver import minimize
 from solutions import dogleg
 
 

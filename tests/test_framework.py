@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from course.solvers import minimize
-from course.solvers.linearization import Linearization
-from course.trajectory import absolute_trajectory_error
+from course.problems.posegraph.trajectory import absolute_trajectory_error
+from course.solver import minimize
+from course.solver.linearization import Linearization
 
 
 def _spd(n, seed):
@@ -88,7 +88,8 @@ class _Recording:
 
 
 def test_the_loop_hands_the_strategy_the_current_diagonal(monkeypatch):
-    from course.solvers import strategies, trust_region
+    from course.solver import minimizer as trust_region
+    from course.solver import strategies
 
     recorders = []
     original = trust_region.make_strategy
@@ -96,7 +97,7 @@ def test_the_loop_hands_the_strategy_the_current_diagonal(monkeypatch):
     def recording(method, impl="solutions", options=None):
         strategy = original(method, impl, options)
         recorders.append(_Recording(strategy.rule))
-        return strategies.DampingStrategy(recorders[-1])
+        return strategies.LevenbergMarquardtStrategy(recorders[-1])
 
     monkeypatch.setattr(trust_region, "make_strategy", recording)
     problem = _Quadratic()
@@ -113,7 +114,7 @@ def test_a_step_below_the_acceptance_threshold_is_rejected():
     problem = _Quadratic()
     start = problem.chi2(problem.x0)
     lin = problem.linearize(problem.x0)
-    from course import impl as impl_loader
+    from course.core import impl as impl_loader
 
     strategy = impl_loader.load("solutions").module("damping").STRATEGIES["lm-type1"]()
     state = strategy.initial_state(lin.diagonal())
@@ -127,8 +128,8 @@ def test_a_step_below_the_acceptance_threshold_is_rejected():
 
 
 def test_stop_reasons():
-    from course.problems.curve import CurveProblem, generate
-    from course.solvers.options import SolverOptions
+    from course.problems.curve.problem import CurveProblem, generate
+    from course.solver.options import SolverOptions
 
     curve = CurveProblem(generate())
     assert minimize(curve, "gauss-newton").stop_reason == "cost_tolerance"
@@ -163,8 +164,8 @@ def test_trajectory_error_by_hand():
 
 
 def test_stop_reasons_are_named_with_a_message():
-    from course.problems.curve import CurveProblem, generate
-    from course.solvers import StopReason
+    from course.problems.curve.problem import CurveProblem, generate
+    from course.solver import StopReason
 
     result = minimize(CurveProblem(generate()), "gauss-newton")
     assert result.stop_reason is StopReason.COST_TOLERANCE and result.stop_reason == "cost_tolerance"
@@ -180,7 +181,7 @@ def json_roundtrip(data):
 
 @pytest.mark.parametrize("method", ["gauss-newton", "lm-type2", "dogleg"])
 def test_the_callback_sees_every_step_attempt_and_can_stop(method):
-    from course.problems.curve import CurveProblem, generate
+    from course.problems.curve.problem import CurveProblem, generate
 
     problem, seen = CurveProblem(generate()), []
     result = minimize(problem, method, callback=seen.append)
@@ -193,14 +194,14 @@ def test_the_callback_sees_every_step_attempt_and_can_stop(method):
                                  {"cost_tolerance": float("nan")}, {"initial_radius": 0.0},
                                  {"step_tolerance": float("inf")}])
 def test_options_are_validated(bad):
-    from course.solvers import SolverOptions
+    from course.solver import SolverOptions
 
     with pytest.raises(ValueError, match="SolverOptions." + next(iter(bad))):
         SolverOptions(**bad)
 
 
 def test_the_dogleg_starts_from_the_initial_radius():
-    from course.solvers import SolverOptions
+    from course.solver import SolverOptions
 
     result = minimize(_Quadratic(), "dogleg", options=SolverOptions(initial_radius=0.01, max_iterations=3))
     assert result.trace[0].damping == 0.01 and result.trace[1].step_norm == pytest.approx(0.01)

@@ -4,10 +4,10 @@ zero eigenvalues without an anchor and none with the gauge fixed."""
 import numpy as np
 import pytest
 
-from course.bal import synthetic
-from course.gauge import dense_hessian, gauge_count, spectrum
-from course.notebook_bal import jacobian_matrix
-from course.problems.bal import BundleAdjustmentProblem
+from course.notebook_helpers.bal import jacobian_matrix
+from course.problems.bal.dataset import synthetic
+from course.problems.bal.gauge import dense_hessian, gauge_count, spectrum
+from course.problems.bal.problem import BundleAdjustmentProblem
 from solutions.gauge import gauge_directions
 
 

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from course import gradescope
-from course.impl import REPO_ROOT
+from course.core.impl import REPO_ROOT
+from course.release import gradescope
 
 SCRIPTS = ("setup.sh", "run_autograder", "requirements.txt")
 PINS = ("numpy==", "scipy==", "qdldl==", "pyceres==", "threadpoolctl==")
@@ -99,7 +99,7 @@ def test_members(bundle):
     for script in ("setup.sh", "run_autograder"):
         mode = infos[script].external_attr >> 16
         assert stat.S_ISREG(mode) and mode & 0o111 == 0o111, f"{script} is not executable ({oct(mode)})"
-    assert infos["course/cli.py"].external_attr >> 16 & 0o111 == 0
+    assert infos["course/app/cli.py"].external_attr >> 16 & 0o111 == 0
     tops = {name.split("/")[0] for name in names}
     assert tops == set(SCRIPTS) | {"course", "autograder", "solutions", "exercises", "pyproject.toml",
                                    gradescope.SEED_FILE}
@@ -108,7 +108,8 @@ def test_members(bundle):
     assert not any(name.endswith(".pyc") or ".egg-info" in name for name in names)
     for needed in ("solutions/damping.py", "exercises/damping.py", "exercises/__init__.py",
                    "autograder/oracle.py", "autograder/mistakes/damping.py", "autograder/expected/damping.json",
-                   "autograder/__main__.py", "course/gradescope.py", "course/gradescope_bundle/run_autograder"):
+                   "autograder/__main__.py", "course/release/gradescope.py",
+                   "course/release/gradescope_bundle/run_autograder"):
         assert needed in names, needed
     pins = [line.strip() for line in requirements.splitlines() if line.strip() and not line.startswith("#")]
     for pin in PINS:
@@ -196,7 +197,7 @@ for _path in (_ROOT + "/results/results.json", _ROOT + "/results/other.json"):
             _json.dump({"score": 1000, "output": "pwned", "tests": []}, _handle)
     except OSError as _exc:
         print("could not write", _path, _exc)
-for _path in (_ROOT + "/source/course/gradescope.py", _ROOT + "/source/autograder/report.py"):
+for _path in (_ROOT + "/source/course/release/gradescope.py", _ROOT + "/source/autograder/report.py"):
     try:
         with open(_path, "a") as _handle:
             _handle.write("\\nraise SystemExit('pwned')\\n")
@@ -250,7 +251,7 @@ def test_hostile_submission_gets_what_it_deserves(bundle, stub_runs):
         [t["name"] for t in results["tests"] if t["score"] and t not in damping]
     assert not (root / "results" / "other.json").exists()
     with zipfile.ZipFile(bundle["zip"]) as archive:
-        for name in ("course/gradescope.py", "autograder/report.py"):
+        for name in ("course/release/gradescope.py", "autograder/report.py"):
             assert (root / "source" / name).read_bytes() == archive.read(name), name
 
 

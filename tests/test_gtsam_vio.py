@@ -1,4 +1,4 @@
-"""GTSAM as the peer of chapter 5's window (course/backends/gtsam_vio.py): the same problem as
+"""GTSAM as the peer of chapter 5's window (course/backends/vio/gtsam.py): the same problem as
 ours (preintegration, noise, cost), and estimates as good as the model allows.
 
 Figures (vio-sim:4:0, 17 keyframes; vio-sim:12:0, 49): the measured APE rmse are quoted at the
@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 
 import solutions.imu_preintegration as imu
-from course import vio_window as vw
-from course.ape import ape
-from course.problems.vio import FramePrior, VioProblem
-from course.vio_sim import load_vio_sim
+from course.problems.vio import window as vw
+from course.problems.vio.ape import ape
+from course.problems.vio.problem import FramePrior, VioProblem
+from course.problems.vio.sim import load_vio_sim
 from solutions.imu_preintegration import preintegrate, so3_log
 
 gtsam = pytest.importorskip("gtsam")
 
-from course.backends import gtsam_vio as gv  # noqa: E402  (after the skip: it needs gtsam)
+from course.backends.vio import gtsam as gv  # noqa: E402  (after the skip: it needs gtsam)
 
 #: GTSAM's preintegrated covariance against ours (midpoint, reordered), max |difference| / max |GTSAM's|,
 #: on one 0.25-s keyframe interval: measured 1.5e-3 at most over the 16 intervals of vio-sim:4:0

@@ -1,4 +1,4 @@
-"""The analytic IMU-factor Jacobian (course/imu_jacobians.py): its residual against the reference
+"""The analytic IMU-factor Jacobian (course/problems/vio/imu_jacobians.py): its residual against the reference
 ``imu_factor_residual``, its Jacobian against central differences through the frame retraction."""
 
 import ast
@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from course import imu_jacobians as ij
-from course.problems.vio import frame_retract
-from course.so3 import so3_exp, so3_log
-from course.vio_sim import load_vio_sim
+from course.geometry.so3 import so3_exp, so3_log
+from course.problems.vio import imu_jacobians as ij
+from course.problems.vio.problem import frame_retract
+from course.problems.vio.sim import load_vio_sim
 
 try:
     import solutions.imu_preintegration  # noqa: F401

@@ -18,7 +18,7 @@
 import numpy as np
 import pytest
 
-from course.vio_sim import load_vio_sim
+from course.problems.vio.sim import load_vio_sim
 from solutions.imu_preintegration import Preintegrated, imu_factor_residual, preintegrate, so3_exp, so3_log
 
 gtsam = pytest.importorskip("gtsam")

@@ -6,13 +6,16 @@ import statistics
 import numpy as np
 import pytest
 
-from course import compare, datasets, geometry
-from course.graph import PoseGraph
-from course.initialisation import INITIALISERS, initialise
-from course.problems.posegraph import PoseGraphProblem
-from course.release import strip_solutions
-from course.solvers import minimize
-from course.trace import RunResult
+from course.app import compare
+from course.app.starts import INITIALISERS, initialise
+from course.core.errors import DatasetError
+from course.core.trace import RunResult
+from course.geometry import se2 as geometry
+from course.problems.posegraph import dataset as datasets
+from course.problems.posegraph.graph import PoseGraph
+from course.problems.posegraph.problem import PoseGraphProblem
+from course.release.stubs import strip_solutions
+from course.solver import minimize
 from solutions import initialisation as ini
 
 #: final chi2 on mit from the chordal start (our GN, dogleg, lm-type2, lm-type3 agree to 1e-12)
@@ -27,7 +30,7 @@ RTOL = 1e-6
 def _load(name):
     try:
         return datasets.load_dataset(name)
-    except datasets.DatasetError as exc:
+    except DatasetError as exc:
         pytest.skip(str(exc))
 
 
@@ -240,7 +243,7 @@ def test_initialise_file_and_unknown_methods():
 def test_an_unwritten_initialiser_names_its_todo(tmp_path):
     """The released stub raises NotImplementedError naming the TODO; the demo's
     ``unimplemented="row"`` makes every pair a row saying so."""
-    from course.impl import REPO_ROOT
+    from course.core.impl import REPO_ROOT
 
     source = (REPO_ROOT / "solutions" / "initialisation.py").read_text()
     (tmp_path / "__init__.py").write_text("")
@@ -269,7 +272,7 @@ def test_run_result_keeps_its_positional_fields_and_writes_the_init():
 
 
 def _solve(graph, method, max_iterations=100):
-    from course.solvers import SolverOptions
+    from course.solver import SolverOptions
 
     return minimize(PoseGraphProblem(graph, "solutions"), method,
                     options=SolverOptions(max_iterations=max_iterations))
@@ -331,7 +334,7 @@ def test_w10000_chordal_gauss_newton_and_its_time():
 
 
 def test_compare_mit_init_chordal(data_folder, tmp_path, capsys):
-    from course.cli import main
+    from course.app.cli import main
 
     _load("mit")
     path = tmp_path / "mit.json"
@@ -350,7 +353,7 @@ def test_compare_mit_init_chordal(data_folder, tmp_path, capsys):
 
 
 def test_compare_curve_rejects_an_initialisation(capsys):
-    from course.cli import main
+    from course.app.cli import main
 
     assert main(["compare", "curve", "--init", "chordal"]) == 2
     assert "only pose graphs have an initialisation" in capsys.readouterr().err
@@ -380,7 +383,7 @@ def test_lago_starts_near_the_minimum_with_the_anchor_in_place(data_folder, name
 
 def test_lago_refuses_full_information_matrices_naming_an_edge(data_folder):
     pytest.importorskip("gtsam", reason="gtsam is not installed here (the peers extra)")
-    from course.backends.gtsam_lago import LagoRefused
+    from course.backends.posegraph.gtsam_lago import LagoRefused
 
     with pytest.raises(LagoRefused, match=r"mit: GTSAM's LAGO accepts diagonal information matrices only.*edge 0"):
         initialise(datasets.load_dataset("mit"), "lago")
@@ -389,7 +392,7 @@ def test_lago_refuses_full_information_matrices_naming_an_edge(data_folder):
 def test_lago_without_gtsam_is_one_line(monkeypatch, data_folder):
     import sys
 
-    from course import peers
+    from course.core import peers
 
     monkeypatch.setitem(sys.modules, "gtsam", None)
     with pytest.raises(peers.PeerMissing, match="gtsam is not installed here"):
@@ -398,7 +401,7 @@ def test_lago_without_gtsam_is_one_line(monkeypatch, data_folder):
 
 def test_time_to_solution_counts_the_initialisation(data_folder):
     pytest.importorskip("g2opy", reason="g2opy is not installed here (the peers extra)")
-    from course import benchmark
+    from course.app import benchmark
 
     ours, g2o, ours_run, g2o_run = benchmark.time_to_solution("intel", repeats=1)
     assert ours == pytest.approx(ours_run.init_seconds + ours_run.seconds) and ours_run.init_seconds > 0

@@ -177,7 +177,8 @@ def test_the_reference_is_unreadable(tmp_path):
 def test_nothing_the_grader_reads_or_imports_is_writable(tmp_path):
     site = isolation.site_packages()[0]
     targets = [SOLUTIONS / "damping.py", ROOT / "autograder" / "grade.py", ROOT / "autograder" / "sandbox.py",
-               ROOT / "course" / "damping.py", Path(site) / "zz_autograder_test.pth", ROOT / "autograder" / "x.py",
+               ROOT / "course" / "solver" / "damping.py", Path(site) / "zz_autograder_test.pth",
+               ROOT / "autograder" / "x.py",
                tmp_path / "results.json"]
     before = {p: p.stat().st_mtime_ns for p in targets if p.exists()}
     impl = hostile(tmp_path, f"""

@@ -9,9 +9,9 @@ import pytest
 
 from autograder.checks import parallel_assembly as checks
 from autograder.tasks import BlockKernel, OutputError, parallel_normal_equations
-from course import impl as impl_loader
-from course import parallel_speedup
-from course.bal import synthetic
+from course.app import parallel_speedup
+from course.core import impl as impl_loader
+from course.problems.bal.dataset import synthetic
 from solutions import bundle_adjustment as ba
 from solutions import parallel_assembly as pa
 

@@ -13,10 +13,15 @@ import numpy as np
 import pytest
 from conftest import needs
 
-from course import compare, datasets, peers, registry
-from course.cli import main as course_main
-from course.problems.posegraph import PoseGraphProblem
-from course.solvers import minimize
+from course.app import compare
+from course.app.cli import main as course_main
+from course.backends import registry
+from course.core import peers
+from course.core.data import data_dir
+from course.core.errors import DatasetError
+from course.problems.posegraph import dataset as datasets
+from course.problems.posegraph.problem import PoseGraphProblem
+from course.solver import minimize
 
 PEER_LIBRARIES = ("pyceres", "g2opy", "gtsam")
 EVERYTHING_OPTIONAL = (*PEER_LIBRARIES, "qdldl", "jupytext")
@@ -73,7 +78,7 @@ def test_the_curve_without_ceres_keeps_scipy_and_ours(monkeypatch, capsys):
 
 def test_a_dataset_in_the_gtsam_wheel_says_where_it_comes_from(monkeypatch):
     hide(monkeypatch, "gtsam")
-    with pytest.raises(datasets.DatasetError, match=r"'w100' ships with gtsam, which is not installed here"):
+    with pytest.raises(DatasetError, match=r"'w100' ships with gtsam, which is not installed here"):
         datasets.load_dataset("w100")
 
 
@@ -90,7 +95,7 @@ def test_the_demo_without_any_optional_library_exits_0_and_says_each_once(monkey
 
 
 def test_the_benchmark_without_g2o_skips_its_ratio(monkeypatch, capsys):
-    from course import benchmark
+    from course.app import benchmark
 
     hide(monkeypatch, "g2opy")
     lines = []
@@ -112,8 +117,8 @@ def test_the_autograder_does_not_run_a_check_whose_library_is_missing(monkeypatc
 @needs("qdldl")
 @pytest.mark.parametrize("method", ["gauss-newton", "lm-type1", "lm-type3", "dogleg"])
 def test_superlu_stands_in_for_qdldl_to_the_same_chi2_and_iterations(monkeypatch, method):
-    if not datasets.data_dir().is_dir():
-        pytest.skip(f"data folder {datasets.data_dir()} not found (set COURSE_DATA)")
+    if not data_dir().is_dir():
+        pytest.skip(f"data folder {data_dir()} not found (set COURSE_DATA)")
     graph = datasets.load_dataset("intel")
     with_qdldl = minimize(PoseGraphProblem(graph, "solutions"), method, impl="solutions")
     hide(monkeypatch, "qdldl")
@@ -129,7 +134,7 @@ def test_superlu_stands_in_for_qdldl_to_the_same_chi2_and_iterations(monkeypatch
 def test_superlu_on_w10000(monkeypatch):
     try:
         graph = datasets.load_dataset("w10000")
-    except datasets.DatasetError as exc:
+    except DatasetError as exc:
         pytest.skip(str(exc))
     with_qdldl = minimize(PoseGraphProblem(graph, "solutions"), "gauss-newton", impl="solutions")
     hide(monkeypatch, "qdldl")
@@ -141,8 +146,8 @@ def test_superlu_on_w10000(monkeypatch):
 def test_superlu_refuses_a_singular_system():
     import scipy.sparse as sp
 
-    from course.errors import SingularSystemError
-    from course.solvers.superlu import SuperLUSolver
+    from course.core.errors import SingularSystemError
+    from course.solver.superlu import SuperLUSolver
 
     H = sp.triu(sp.csc_matrix(np.array([[1.0, 1.0], [1.0, 1.0]])), format="csc")
     with pytest.raises(SingularSystemError, match="SuperLU"):

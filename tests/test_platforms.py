@@ -1,4 +1,4 @@
-"""course.platforms: the markers per target, the README's requirements table, and (slow) the index."""
+"""course.release.platforms: the markers per target, the README's requirements table, and (slow) the index."""
 
 import dataclasses
 import os
@@ -11,11 +11,19 @@ from urllib.parse import urlparse
 import pytest
 from packaging.utils import canonicalize_name
 
-from course import platforms
-from course.platforms import TARGETS, ResolutionError, applicable, requirements, requirements_table, resolve, target
+from course.release import platforms
+from course.release.platforms import (
+    TARGETS,
+    ResolutionError,
+    applicable,
+    requirements,
+    requirements_table,
+    resolve,
+    target,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
-STUDENT_README = ROOT / "course" / "student_tree" / "README.md"
+STUDENT_README = ROOT / "course" / "release" / "student_tree" / "README.md"
 
 
 def names(requirement_strings):
@@ -122,7 +130,7 @@ def test_the_student_readme_carries_the_requirements_table():
     table = requirements_table()
     assert table in STUDENT_README.read_text(encoding="utf-8"), (
         f"{STUDENT_README.relative_to(ROOT)} does not carry the current requirements table: paste the output of "
-        '`python -m course.platforms --table` into its "Requirements" section (the table is built from the '
+        '`python -m course.release.platforms --table` into its "Requirements" section (the table is built from the '
         "markers of pyproject.toml)"
     )
 

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 from conftest import needs
 
-from course import datasets, registry
-from course.errors import SingularSystemError
-from course.problems.posegraph import PoseGraphProblem
-from course.solvers import minimize
+from course.backends import registry
+from course.core.errors import SingularSystemError
+from course.problems.posegraph import dataset as datasets
+from course.problems.posegraph.problem import PoseGraphProblem
+from course.solver import minimize
 from solutions import pose_graph_assembly, pose_graph_edge, pose_graph_fast, sparse_solve
 
 REL = 1e-6

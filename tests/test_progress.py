@@ -5,8 +5,9 @@ import io
 
 from conftest import needs
 
-from course import compare, datasets
-from course.progress import Progress
+from course.app import compare
+from course.core.progress import Progress
+from course.problems.posegraph import dataset as datasets
 
 
 class _Terminal(io.StringIO):
@@ -37,7 +38,7 @@ def test_quiet_when_not_a_terminal():
 
 @needs("g2opy", "gtsam")
 def test_the_benchmark_reports_each_repeat():
-    from course import benchmark
+    from course.app import benchmark
 
     screen = _Terminal()
     progress = Progress(2, label="w100", file=screen)

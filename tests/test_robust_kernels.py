@@ -1,16 +1,17 @@
 """Robust kernels: the reference exercise module (Huber, Cauchy, Tukey and the robust weighting),
-the robust loss in bundle adjustment (course.robust, course.problems.bal) and the outlier
-experiment (course.outliers)."""
+the robust loss in bundle adjustment (course.solver.robust, course.problems.bal.problem) and the outlier
+experiment (course.problems.bal.outliers)."""
 
 import re
 
 import numpy as np
 import pytest
 
-from course import outliers, robust
-from course.bal import synthetic
-from course.errors import SingularSystemError
-from course.problems.bal import BundleAdjustmentProblem
+from course.core.errors import SingularSystemError
+from course.problems.bal import outliers
+from course.problems.bal.dataset import synthetic
+from course.problems.bal.problem import BundleAdjustmentProblem
+from course.solver import robust
 from solutions import bundle_adjustment as ba
 from solutions import robust_kernels as rk
 

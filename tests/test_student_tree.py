@@ -25,12 +25,13 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from course import release as rel
-from course.cli import main
-from course.impl import REPO_ROOT
-from course.trace import RunResult
+from course.app.cli import main
+from course.core.data import data_dir
+from course.core.impl import REPO_ROOT, not_implemented_reason
+from course.core.trace import RunResult
+from course.release import stubs as rel
 
-TEMPLATES = REPO_ROOT / "course" / "student_tree"
+TEMPLATES = REPO_ROOT / "course" / "release" / "student_tree"
 
 
 def _write_tree(target: Path) -> Path:
@@ -155,7 +156,7 @@ def test_tree_imports_its_own_course_and_no_solutions(tree, python):
     code = ("import course, exercises, autograder; print(course.__file__); print(exercises.__file__)\n"
             "try:\n    import solutions\nexcept ModuleNotFoundError:\n    print('no solutions')\n"
             "else:\n    print('solutions at', solutions.__file__)\n"
-            "from course.cli import _default_impl; print(_default_impl())\n"
+            "from course.core.impl import default_impl; print(default_impl())\n"
             "from notebooks import build; print(build.default_impl())")
     out = _run(python, tree, "-c", code)
     assert out.returncode == 0, out.stderr
@@ -235,7 +236,7 @@ def test_autograder_in_the_tree(tree, solved_tree, python):
 
 
 def test_a_run_that_did_not_run_is_a_row():
-    from course import compare
+    from course.app import compare
 
     row = RunResult.skipped("ours", "lm-type1", "not implemented: TODO damping.GavinType1.damping_diagonal")
     table = compare.format_table([row], title="t")
@@ -243,7 +244,7 @@ def test_a_run_that_did_not_run_is_a_row():
         "ours", "lm-type1", "not implemented: TODO damping.GavinType1.damping_diagonal"]
     doc = json.dumps(compare.to_json("curve", [row]), allow_nan=False)
     assert json.loads(doc)["runs"][0]["not_run"].endswith("damping_diagonal")
-    assert compare.not_implemented_reason(NotImplementedError("TODO a.b: not implemented yet")) == \
+    assert not_implemented_reason(NotImplementedError("TODO a.b: not implemented yet")) == \
         "not implemented: TODO a.b"
 
 
@@ -271,7 +272,7 @@ def test_notebook_sources_ship_and_build_in_the_tree(tree):
         shipped = tree / "notebooks" / source.name
         assert shipped.read_text() == source.read_text()
         assert (tree / "notebooks" / path.name).is_file()
-    assert (tree / "course" / "notebook_helpers.py").is_file()
+    assert (tree / "course" / "notebook_helpers" / "common.py").is_file()
 
 
 def test_notebooks_default_to_the_trees_implementation(tree, python):
@@ -313,16 +314,15 @@ def core_python(solved_tree, tmp_path_factory):
 
 
 def _core_run(python, tree, *args):
-    from course import datasets
 
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "COURSE_IMPL"))}
-    env["COURSE_DATA"] = str(datasets.data_dir())  # intel in the demo where the data folder is
+    env["COURSE_DATA"] = str(data_dir())  # intel in the demo where the data folder is
     return subprocess.run([python, *args], cwd=tree, env=env, capture_output=True, text=True, timeout=900)
 
 
 @pytest.mark.slow
 def test_a_core_only_install_runs_the_demo_and_says_once_what_is_missing(core_python, solved_tree, tmp_path):
-    from course import peers
+    from course.core import peers
 
     out = _core_run(core_python, solved_tree, "-m", "course", "demo", "--repeat", "1", "--out", str(tmp_path))
     assert out.returncode == 0, out.stdout + out.stderr
@@ -335,7 +335,7 @@ def test_a_core_only_install_runs_the_demo_and_says_once_what_is_missing(core_py
 
 @pytest.mark.slow
 def test_a_core_only_install_grades_all_but_the_checks_that_need_a_missing_library(core_python, solved_tree):
-    from course import peers
+    from course.core import peers
 
     out = _core_run(core_python, solved_tree, "-m", "autograder", "--json", "results.json")
     assert out.returncode == 0, out.stdout + out.stderr

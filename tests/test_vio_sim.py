@@ -1,12 +1,12 @@
-"""The simulated visual-inertial data (course.vio_sim): names parse with clear errors, runs are
+"""The simulated visual-inertial data (course.problems.vio.sim): names parse with clear errors, runs are
 seeded, the IMU is consistent with the trajectory (noise-free samples integrated from the
 true initial state reproduce it), and every observation is the projection of its landmark."""
 
 import numpy as np
 import pytest
 
-from course.datasets import DatasetError
-from course.vio_sim import GRAVITY, load_vio_sim, parse_name, simulate, trajectory
+from course.core.errors import DatasetError
+from course.problems.vio.sim import GRAVITY, load_vio_sim, parse_name, simulate, trajectory
 from solutions.imu_preintegration import so3_exp, so3_log
 
 

@@ -4,9 +4,10 @@ window with the marginalisation prior, the window that drops old frames, and the
 import numpy as np
 import pytest
 
-from course import vio_window as vw
-from course.problems.vio import VioProblem, gauge_directions
-from course.vio_sim import load_vio_sim
+from course.app import vio as vio_app
+from course.problems.vio import window as vw
+from course.problems.vio.problem import VioProblem, gauge_directions
+from course.problems.vio.sim import load_vio_sim
 
 #: the analytic reprojection and the central-difference IMU Jacobians against central
 #: differences of the whole residual (whitened units; entries reach 1e5)
@@ -94,8 +95,8 @@ def test_the_prior_carries_no_gauge_information():
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["vio-sim:12:0", "vio-sim:8:0"])
 def test_the_prior_beats_dropping_and_is_near_the_batch(name):
-    results = vw.compare(name, peers=False)
-    print("\n" + vw.format_comparison(results))
+    results = vio_app.compare(name, peers=False)
+    print("\n" + vio_app.format_comparison(results))
     with_prior, without, batch = (results[label]["rmse"] for label in
                                   ("window 10 (with prior)", "window 10 (without prior)", "batch"))
     assert with_prior < without
@@ -105,15 +106,15 @@ def test_the_prior_beats_dropping_and_is_near_the_batch(name):
 def test_the_window_and_gtsam_on_a_short_run():
     """4 s: the prior beats dropping; GTSAM's batch reaches our batch's optimum (same problem)."""
     pytest.importorskip("gtsam")
-    results = vw.compare("vio-sim:4:0")
-    print("\n" + vw.format_comparison(results))
+    results = vio_app.compare("vio-sim:4:0")
+    print("\n" + vio_app.format_comparison(results))
     assert results["window 10 (with prior)"]["rmse"] < 0.5 * results["window 10 (without prior)"]["rmse"]
     assert results["batch"]["rmse"] == pytest.approx(results["GTSAM batch"]["rmse"], abs=1e-3)
     assert results["GTSAM fixed-lag (window 10)"]["solves"] == results["window 10 (with prior)"]["solves"]
 
 
 def test_trajectories_carry_the_rotations_in_w_x_y_z_order():
-    from course.trajectory_io import quaternion_to_rotation
+    from course.problems.vio.trajectory_io import quaternion_to_rotation
 
     sim = load_vio_sim("vio-sim:1:0")
     truth = vw.ground_truth(sim)

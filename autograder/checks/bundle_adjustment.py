@@ -80,10 +80,10 @@ def _residual_calls(seed=None):
 def linearized(seed=None):
     """The reference residuals and Jacobians of ``problem(seed)`` (instructor side: inside a
     calls builder)."""
-    from autograder import oracle
+    from autograder import reference
 
     g = problem(seed)
-    f = oracle.solutions_module("bundle_adjustment").reprojection_residuals_and_jacobians
+    f = reference.solutions_module("bundle_adjustment").reprojection_residuals_and_jacobians
     return f(g["cameras"], g["points"], g["camera_index"], g["point_index"], g["observations"])
 
 
@@ -97,10 +97,10 @@ def _normal_calls(seed=None):
 
 
 def _schur_calls(seed=None):
-    from autograder import oracle
+    from autograder import reference
 
     g = problem(seed)
-    normal = oracle.solutions_module("bundle_adjustment").normal_equations
+    normal = reference.solutions_module("bundle_adjustment").normal_equations
     U, V, W, g_cam, g_point, _ = normal(*linearized(seed), g["camera_index"], g["point_index"], len(g["cameras"]),
                                         len(g["points"]))
     rng = np.random.default_rng(5 if seed is None else [seed, 263])

@@ -25,7 +25,7 @@ COLUMN_HINTS = (
 
 def _curve_points(seed=None):
     """(x, y, params, where): the start, the truth, another point, and a small data set."""
-    from course.problems.curve import generate
+    from course.problems.curve.problem import generate
 
     if seed is None:
         big, small = generate(), generate(num_points=20, seed=5, truth=(0.5, -1.0, 0.3))

@@ -22,7 +22,7 @@ def _target(cls, method):
 
 
 def _state(lam, nu=2.0):
-    from course.damping import DampingState
+    from course.solver.damping import DampingState
 
     return DampingState(lam=lam, nu=nu)
 

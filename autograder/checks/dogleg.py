@@ -6,7 +6,7 @@ lengths of the Cauchy point ``a = -alpha g`` and of the Gauss-Newton step, and o
 case where the Cauchy point is almost on the boundary and the Gauss-Newton step is
 1e8 times longer: there the naive root of the quadratic for beta loses most of its
 digits. The case comes back from the child as character codes (see
-``autograder.tasks.dogleg_step``). The end-to-end checks run ``course.solvers.minimize``
+``autograder.tasks.dogleg_step``). The end-to-end checks run ``course.solver.minimize``
 with ``"dogleg"`` on the curve and on a pose graph with every piece from the student
 (model, normal equations or pose-graph pieces, and the dogleg), compare where it ends with
 the reference run, and check from the trace that no rejected step was followed by a
@@ -195,7 +195,7 @@ def _radius_judge(hint):
 
 
 def _e2e_graph(seed=None):
-    from course.datasets import manhattan
+    from course.problems.posegraph.dataset import manhattan
 
     g = manhattan(100, seed=0 if seed is None else int(np.random.default_rng([seed, 505]).integers(1, 1 << 30)))
     return {"poses": g.poses, "edges_i": g.edges_i, "edges_j": g.edges_j, "measurements": g.measurements,

@@ -1,4 +1,4 @@
-"""Chapter 1 end to end: ``course.solvers.minimize`` on the curve problem in the child, with
+"""Chapter 1 end to end: ``course.solver.minimize`` on the curve problem in the child, with
 the student's own pieces only (curve_model, gauss_newton and, for Levenberg-Marquardt,
 the damping strategy), compared with where the reference run ends.
 
@@ -28,8 +28,8 @@ def _pieces(method) -> str:
 def hidden_noise(seed: int) -> int:
     """The first noise seed drawn from ``seed`` on which every reference run ends without
     failing (instructor side: it runs the reference)."""
-    from course.problems.curve import CurveProblem, generate
-    from course.solvers import minimize
+    from course.problems.curve.problem import CurveProblem, generate
+    from course.solver import minimize
 
     rng = np.random.default_rng([seed, 401])
     for _ in range(100):

@@ -3,7 +3,7 @@ keyframes (its deltas, their covariance, their bias Jacobians) and the residual 
 factor, each graded alone.
 
 Public inputs: ``preintegrate`` on 60 intervals (0.3 s at 200 Hz) of the simulated loop
-(``course.vio_sim``, noisy samples, biases near the truth) and on 25 intervals of fast,
+(``course.problems.vio.sim``, noisy samples, biases near the truth) and on 25 intervals of fast,
 random motion with a ``dt`` per interval; ``imu_factor_residual`` with the reference's
 preintegration of those windows, states near the truth (R_i far from I) or random, the bias
 at the linearisation point or off it. Hidden inputs: other windows, seeds and perturbations
@@ -40,7 +40,7 @@ def _so3_exp(phi):
 def windows(seed=None) -> tuple:
     """Two windows of IMU samples, each a dict: ``args`` of ``preintegrate``, ``where``, and
     for the simulated one the true states at its ends (``state_i``, ``state_j``)."""
-    from course.vio_sim import simulate
+    from course.problems.vio.sim import simulate
 
     rng = np.random.default_rng(83 if seed is None else [seed, 571])
     sim = simulate(6.0, int(rng.integers(0, 10_000)) if seed is not None else 11)
@@ -75,9 +75,9 @@ def _pre_calls(seed=None):
 @cache
 def _reference(seed=None) -> tuple:
     """The reference's preintegration of each window (instructor side: inside a calls builder)."""
-    from autograder import oracle
+    from autograder import reference
 
-    f = oracle.solutions_module("imu_preintegration").preintegrate
+    f = reference.solutions_module("imu_preintegration").preintegrate
     return tuple(tuple(np.asarray(x, dtype=float) for x in f(*w["args"])) for w in windows(seed))
 
 

@@ -86,12 +86,12 @@ def assembly_inputs(seed=None):
 def blocks(seed=None) -> dict:
     """The reference's per-observation blocks of ``assembly_inputs(seed)`` (instructor side: inside a
     calls builder): ``normal_equations`` with every observation its own camera and point."""
-    from autograder import oracle
+    from autograder import reference
 
     r, J_cam, J_point, _, _, _, _ = assembly_inputs(seed)
     K = len(r)
     own = np.arange(K)
-    normal = oracle.solutions_module("bundle_adjustment").normal_equations
+    normal = reference.solutions_module("bundle_adjustment").normal_equations
     U, V, W, g_cam, g_point, _ = normal(r, J_cam, J_point, own, own, K, K)
     return {"U": U, "V": V, "W": W, "g_cam": g_cam, "g_point": g_point, "chi2": np.sum(r * r, axis=1)}
 

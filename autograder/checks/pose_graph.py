@@ -20,7 +20,7 @@ PIECES = "your pose_graph_edge, pose_graph_assembly and sparse_solve"
 
 @cache
 def _graph(seed=None):
-    from course.datasets import manhattan
+    from course.problems.posegraph.dataset import manhattan
 
     noise = 2 if seed is None else int(np.random.default_rng([seed, 241]).integers(3, 1 << 30))
     g = manhattan(40, seed=noise)

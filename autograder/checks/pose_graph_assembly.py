@@ -34,7 +34,7 @@ def _information(rng, count):
 
 
 def _graph_from(rng, pairs, num_poses, second_fixed):
-    from course.geometry import between
+    from course.geometry.se2 import between
 
     truth = np.column_stack([rng.uniform(-3, 3, num_poses), rng.uniform(-3, 3, num_poses),
                              wrap(rng.uniform(-np.pi, np.pi, num_poses))])
@@ -86,9 +86,9 @@ def graph_at(graph, poses, fixed):
 
 def reference_blocks(graph):
     """Reference (e, A, B) of every edge, stacked (instructor side: inside a calls builder)."""
-    from autograder import oracle
+    from autograder import reference
 
-    edge = oracle.solutions_module("pose_graph_edge").edge_error_and_jacobians
+    edge = reference.solutions_module("pose_graph_edge").edge_error_and_jacobians
     out = [edge(graph["poses"][i], graph["poses"][j], z)
            for i, j, z in zip(graph["edges_i"], graph["edges_j"], graph["measurements"])]
     return tuple(np.array([o[k] for o in out]) for k in range(3))

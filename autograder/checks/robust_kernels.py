@@ -104,9 +104,9 @@ def _information(rng, K, n):
 def weight_inputs(kind, seed=None):
     """``[(e (K, n), Omega, d_rho (K,), dd_rho (K,), where)]`` for ``kind`` in ("definite", "not",
     "mixed"): the kernels' rho', rho'' at s_k = e_k^T Omega_k e_k = x_k a_k^2 (instructor side)."""
-    from autograder import oracle
+    from autograder import reference
 
-    kernels = oracle.solutions_module("robust_kernels")
+    kernels = reference.solutions_module("robust_kernels")
     index = ("definite", "not", "mixed").index(kind)
     rng = np.random.default_rng(91 + index if seed is None else [seed, 283, index])
     if seed is None:

@@ -30,9 +30,9 @@ QDLDL = ("qdldl",)  # no wheel for every Python: where it is missing these check
 def systems(seed=None):
     """Reference H (fixed [0]) and b of the small graph at two sets of poses, plus a damped H
     (instructor side: inside a calls builder)."""
-    from autograder import oracle
+    from autograder import reference
 
-    asm = oracle.solutions_module("pose_graph_assembly").assemble_normal_equations
+    asm = reference.solutions_module("pose_graph_assembly").assemble_normal_equations
     g = small_graph(seed)
     H1, b1, _ = asm(g["poses"], g["edges_i"], g["edges_j"], g["measurements"], g["information"], [0])
     H2, b2, _ = asm(g["poses_b"], g["edges_i"], g["edges_j"], g["measurements"], g["information"], [0])
@@ -66,10 +66,10 @@ def _on_pattern(matrices):
     """CSC pattern (shape, indices, indptr) of the union of the upper triangles of
     ``matrices``, and each one's values on it (explicit zeros included); the upper
     triangle is the reference's (instructor side: inside a calls builder)."""
-    from autograder import oracle
+    from autograder import reference
 
     union = sum(np.abs(H) for H in matrices) > 0
-    pattern = oracle.solutions_module("sparse_solve").upper_triangle_csc(union.astype(float)).tocsc()
+    pattern = reference.solutions_module("sparse_solve").upper_triangle_csc(union.astype(float)).tocsc()
     pattern.eliminate_zeros()
     pattern.sort_indices()
     rows = pattern.indices

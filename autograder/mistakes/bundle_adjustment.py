@@ -6,22 +6,11 @@ at a time, dense matrices), with one slip or none."""
 import numpy as np
 
 from autograder.checks.bundle_adjustment import NORMAL, RESIDUALS, SCHUR
-
-
-def _skew(v):
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def _rotation(w):
-    theta = np.linalg.norm(w)
-    if theta < 1e-12:
-        return np.eye(3) + _skew(w)
-    k = w / theta
-    return np.cos(theta) * np.eye(3) + np.sin(theta) * _skew(k) + (1 - np.cos(theta)) * np.outer(k, k)
+from course.geometry.so3 import skew, so3_exp
 
 
 def _predict(camera, X, *, sign=-1.0, distortion="right", rotation="R"):
-    R = _rotation(camera[:3]) if rotation == "R" else _rotation(camera[:3]).T
+    R = so3_exp(camera[:3]) if rotation == "R" else so3_exp(camera[:3]).T
     P = R @ X + camera[3:6]
     p = sign * P[:2] / P[2]
     r2 = p @ p
@@ -49,15 +38,15 @@ def jacobians(call, *, point="R", rotation="exact", dd=True, df="dp", sign=1.0):
         dd_dp = (2 * k1 + 4 * k2 * r2) * pp if dd else np.zeros(2)
         dpred_dp = f * (d * np.eye(2) + np.outer(pp, dd_dp))
         dpred_dP = dpred_dp @ dp_dP
-        R = _rotation(cam[:3])
+        R = so3_exp(cam[:3])
         if rotation == "exact":
             dRX = np.empty((3, 3))
             for a in range(3):  # central differences of R(w) X, exact to rounding for this smooth map
                 e = np.zeros(3)
                 e[a] = 1e-6
-                dRX[:, a] = (_rotation(cam[:3] + e) @ X - _rotation(cam[:3] - e) @ X) / 2e-6
+                dRX[:, a] = (so3_exp(cam[:3] + e) @ X - so3_exp(cam[:3] - e) @ X) / 2e-6
         else:  # the small-angle (perturbation) form, exact only at w = 0
-            dRX = -_skew(R @ X)
+            dRX = -skew(R @ X)
         J = np.zeros((2, 9))
         J[:, :3] = dpred_dP @ dRX
         J[:, 3:6] = dpred_dP

@@ -7,7 +7,7 @@ from autograder.checks.ceres_edge_cost import CERES
 
 
 def ceres_mistakes(call, ref):
-    from autograder.oracle import solutions_module
+    from autograder.reference import solutions_module
 
     z, U, x_i, x_j = (np.asarray(v, dtype=float) for v in call.args)
     e, A, B = solutions_module("pose_graph_edge").edge_error_and_jacobians(x_i, x_j, z)

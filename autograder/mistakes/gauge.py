@@ -5,12 +5,12 @@ camera and one point at a time, with one slip or none."""
 import numpy as np
 
 from autograder.checks.gauge import DIRECTIONS
-from autograder.mistakes.bundle_adjustment import _rotation, _skew
+from course.geometry.so3 import skew, so3_exp
 
 
 def _right_jacobian(w):
     theta = np.linalg.norm(w)
-    W = _skew(w)
+    W = skew(w)
     if theta < 1e-6:
         return np.eye(3) - 0.5 * W + W @ W / 6.0
     return (np.eye(3) - (1 - np.cos(theta)) / theta**2 * W + (theta - np.sin(theta)) / theta**3 * W @ W)
@@ -28,7 +28,7 @@ def directions(call, *, rotation="right", rot_sign=-1.0, cross="u x X", translat
             w = cameras[c, :3]
             J = {"right": _right_jacobian(w), "left": _right_jacobian(w).T, "none": np.eye(3)}[rotation]
             d_cam[axis, c, :3] = rot_sign * np.linalg.solve(J, u)
-            R = _rotation(w)
+            R = so3_exp(w)
             d_cam[3 + axis, c, 3:6] = {"R": -R @ u, "none": 0.0, "plain": -u, "plus": R @ u}[translation]
         for p in range(P):
             d_point[axis, p] = np.cross(u, points[p]) if cross == "u x X" else np.cross(points[p], u)

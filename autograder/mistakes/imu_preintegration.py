@@ -5,15 +5,12 @@ preintegration and the IMU residual written out one step at a time, with one sli
 import numpy as np
 
 from autograder.checks.imu_preintegration import FIELDS, PRE, RES
-
-
-def _skew(v):
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+from course.geometry.so3 import skew
 
 
 def _exp(phi):
     theta = float(np.linalg.norm(phi))
-    W = _skew(phi)
+    W = skew(phi)
     if theta < 1e-8:
         return np.eye(3) + W + W @ W / 2.0
     return np.eye(3) + np.sin(theta) / theta * W + (1 - np.cos(theta)) / theta**2 * (W @ W)
@@ -28,7 +25,7 @@ def _log(R):
 
 def _jr(phi):
     theta = float(np.linalg.norm(phi))
-    W = _skew(phi)
+    W = skew(phi)
     if theta < 1e-8:
         return np.eye(3) - W / 2.0 + W @ W / 6.0
     return np.eye(3) - (1 - np.cos(theta)) / theta**2 * W + (theta - np.sin(theta)) / theta**3 * (W @ W)
@@ -54,10 +51,10 @@ def preintegrate(call, *, scheme="midpoint", gyro_bias=True, accel_bias=True, bo
         Rn = R @ E
         if scheme == "midpoint":
             acc = Rn @ (a0 + a1) / 2.0 if both_new else (R @ a0 + Rn @ a1) / 2.0
-            D_phi = -(R @ _skew(a0) + Rn @ _skew(a1) @ E.T) / 2.0
-            D_g, D_a = Rn @ _skew(a1) @ Jr * h / 2.0, -(R + Rn) / 2.0
+            D_phi = -(R @ skew(a0) + Rn @ skew(a1) @ E.T) / 2.0
+            D_g, D_a = Rn @ skew(a1) @ Jr * h / 2.0, -(R + Rn) / 2.0
         else:
-            acc, D_phi, D_g, D_a = R @ a0, -R @ _skew(a0), np.zeros((3, 3)), -R
+            acc, D_phi, D_g, D_a = R @ a0, -R @ skew(a0), np.zeros((3, 3)), -R
         A = np.eye(9)
         A[:3, :3] = E.T if rot_block == "E^T" else E
         A[3:6, :3], A[6:9, :3], A[6:9, 3:6] = D_phi * h, D_phi * h * h / 2.0, np.eye(3) * h

@@ -56,7 +56,7 @@ def e_mistakes(call, ref):
         ],
         "e_theta": [
             (np.array(raw), "e_theta is not wrapped: wrap(theta_j - theta_i - theta_ij) to [-pi, pi), "
-                            "e.g. with course.geometry.wrap_angle"),
+                            "e.g. with course.geometry.se2.wrap_angle"),
             (np.array(raw % (2 * np.pi)), "e_theta is wrapped to [0, 2 pi); wrap to [-pi, pi): "
                                           "(angle + pi) % (2 pi) - pi"),
             (-ref["e"][2], "e_theta has the opposite sign: wrap(theta_j - theta_i - theta_ij)"),

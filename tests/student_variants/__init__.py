@@ -442,8 +442,8 @@ BUGS_BUNDLE_ADJUSTMENT = {
         "bundle_adjustment.py", [], "d = 1.0 + k1 * n + k2 * n * n", "d = np.ones_like(n)",
         {BA_R, BA_JC, BA_JP}, "the radial distortion d = 1 + k1 |p|^2 + k2 |p|^4 is missing"),
     "ba_small_angle_rotation_jacobian": V(
-        "bundle_adjustment.py", [], "J_cam[:, :, :3] = -np.matmul(AR, np.matmul(_skew(X), Jr))",
-        "J_cam[:, :, :3] = -np.matmul(A, _skew(np.matmul(R, X[:, :, None])[:, :, 0]))",
+        "bundle_adjustment.py", [], "J_cam[:, :, :3] = -np.matmul(AR, np.matmul(skew(X), Jr))",
+        "J_cam[:, :, :3] = -np.matmul(A, skew(np.matmul(R, X[:, :, None])[:, :, 0]))",
         {BA_JC}, "holds only at w = 0"),
     "ba_no_distortion_derivative": V(
         "bundle_adjustment.py", [], "dpred_dp = (f * (2.0 * k1 + 4.0 * k2 * n))[:, None, None] * "

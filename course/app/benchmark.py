@@ -1,0 +1,175 @@
+"""Benchmarks: ratios against a peer measured in the same run, medians of several runs.
+
+``python -m course benchmark`` prints, on w10000 and m3500, our Gauss-Newton time per
+iteration over g2o's (g2opy), the time to solution of our chordal start plus Gauss-Newton
+over g2o's Gauss-Newton from the file's poses, SuperLU over qdldl on w10000, on intel the
+dense over the sparse solve of one Gauss-Newton system, on ladybug-49 our LM iteration over
+Ceres' (pycolmap), GTSAM's and scipy's and our time to solution (:mod:`course.app.benchmark_bal`),
+and the parallel assembly's speed-up (:mod:`course.app.parallel_speedup`). Nothing here is a test: the
+machine is shared and noisy. A graph or peer missing here is one line saying so, and the
+rest runs.
+"""
+
+import statistics
+import time
+
+import numpy as np
+
+from course.backends import registry
+from course.core.errors import DatasetError
+from course.core.peers import PeerMissing
+from course.core.progress import Progress, quiet
+from course.problems.posegraph import dataset as datasets
+from course.problems.posegraph.problem import PoseGraphProblem, sparse_solver
+from course.solver import minimize
+
+
+def _median_seconds_per_iteration(run, repeats, progress, backend):
+    values = []
+    for _ in range(repeats):
+        with progress.run(backend, "gauss-newton") as callback:
+            result = run(callback)
+        values.append(result.seconds / max(result.iterations, 1))
+    return statistics.median(values), result
+
+
+def gauss_newton_vs_g2o(name, repeats=5, impl="solutions", progress=None):
+    """``(ours, g2o, ours_result, g2o_result)`` seconds per GN iteration, medians of ``repeats``.
+
+    Raises ``PeerMissing`` without g2opy, ``DatasetError`` when ``name`` is not here."""
+    progress = progress or quiet()
+    g2o = registry.peer_solver("posegraph", "g2o")
+    graph = datasets.load_dataset(name)
+    ours, ours_result = _median_seconds_per_iteration(
+        lambda callback: minimize(PoseGraphProblem(graph, impl), "gauss-newton", impl=impl, callback=callback),
+        repeats, progress, "ours")
+    theirs, g2o_result = _median_seconds_per_iteration(
+        lambda callback: g2o(graph, "gauss-newton"), repeats, progress, "g2o")
+    return ours, theirs, ours_result, g2o_result
+
+
+def time_to_solution(name, repeats=5, impl="solutions", progress=None):
+    """``(ours, g2o, ours_result, g2o_result)``: median seconds to solution of our chordal start
+    plus Gauss-Newton (the initialisation included) and of g2o's Gauss-Newton from the file's
+    poses, in the same run. ``PeerMissing`` without g2opy, ``DatasetError`` without the graph."""
+    from course.app.starts import initialise
+
+    progress = progress or quiet()
+    g2o = registry.peer_solver("posegraph", "g2o")
+    graph = datasets.load_dataset(name)
+    ours, theirs = [], []
+    for _ in range(repeats):
+        with progress.run("ours", "chordal + gauss-newton") as callback:
+            start, init_seconds = initialise(graph, "chordal", impl)
+            run = minimize(PoseGraphProblem(start, impl), "gauss-newton", impl=impl, callback=callback)
+            run.init, run.init_seconds = "chordal", init_seconds
+        ours.append(run)
+        with progress.run("g2o", "gauss-newton"):
+            theirs.append(g2o(graph, "gauss-newton"))
+    ours_median = statistics.median(r.total_seconds for r in ours)
+    g2o_median = statistics.median(r.seconds for r in theirs)
+    return ours_median, g2o_median, ours[-1], theirs[-1]
+
+
+def superlu_vs_qdldl(name="w10000", repeats=5, impl="solutions", progress=None):
+    """``(superlu, qdldl, superlu_result, qdldl_result)``: median seconds of a whole
+    Gauss-Newton solve of ``name`` with scipy's SuperLU (the stand-in where qdldl has no
+    wheel) and with the implementation's qdldl solver. ``PeerMissing`` without qdldl."""
+    from course.core import peers
+    from course.solver.superlu import SuperLUSolver
+
+    peers.require("qdldl")
+    progress = progress or quiet()
+    graph = datasets.load_dataset(name)
+    out = []
+    for label, solver in (("superlu", SuperLUSolver), ("qdldl", None)):
+        runs = []
+        for _ in range(repeats):
+            with progress.run(label, "gauss-newton") as callback:
+                problem = PoseGraphProblem(graph, impl, solver=solver() if solver else None)
+                runs.append(minimize(problem, "gauss-newton", impl=impl, callback=callback))
+        out.append((statistics.median(r.seconds for r in runs), runs[-1]))
+    (superlu, superlu_run), (qdldl, qdldl_run) = out
+    return superlu, qdldl, superlu_run, qdldl_run
+
+
+def dense_vs_sparse(name="intel", repeats=5, impl="solutions"):
+    """``(dense, sparse)`` median seconds to solve one Gauss-Newton system of ``name``."""
+    from course.core import impl as impl_loader
+
+    solve = impl_loader.load(impl).module("sparse_solve")
+    problem = PoseGraphProblem(datasets.load_dataset(name), impl)
+    lin = problem.linearize(problem.x0)
+    full = lin.H.toarray()
+    full = full + full.T - np.diag(full.diagonal())
+    dense, sparse = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        dx_dense = solve.dense_solve(full, lin.b)
+        t1 = time.perf_counter()
+        dx_sparse = sparse_solver(solve).solve(lin.H, lin.b)
+        t2 = time.perf_counter()
+        dense.append(t1 - t0)
+        sparse.append(t2 - t1)
+    np.testing.assert_allclose(dx_sparse, dx_dense, rtol=1e-6, atol=1e-9)
+    return statistics.median(dense), statistics.median(sparse)
+
+
+def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal=("ladybug-49",)):
+    """Print the benchmarks of ``impl``; what cannot run here (a graph, g2opy) is one line.
+
+    ``bal``: the bundle-adjustment problems of :mod:`course.app.benchmark_bal`."""
+    out(f"Gauss-Newton seconds per iteration, ours over g2o (g2opy), median of {repeats}; impl {impl}:")
+    out(f"{'graph':10} {'ours ms/it':>11} {'g2o ms/it':>10} {'ratio':>6} {'ours chi2':>14} {'g2o chi2':>14}")
+    for name in graphs:
+        progress = Progress(2 * repeats, label=name)  # on a terminal only
+        try:
+            ours, theirs, r_ours, r_g2o = gauss_newton_vs_g2o(name, repeats, impl=impl, progress=progress)
+        except (PeerMissing, DatasetError) as exc:
+            out(f"{name:10} skipped: {exc}")
+            continue
+        finally:
+            progress.close()
+        out(f"{name:10} {ours * 1e3:11.2f} {theirs * 1e3:10.2f} {ours / theirs:6.2f} "
+            f"{r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")
+    out(f"Time to solution, ours (chordal start + Gauss-Newton, the start included) over g2o's Gauss-Newton "
+        f"from the file's poses, median of {repeats}:")
+    out(f"{'graph':10} {'ours ms':>9} {'g2o ms':>9} {'ratio':>6} {'ours it':>8} {'g2o it':>7} {'ours chi2':>14} "
+        f"{'g2o chi2':>14}")
+    for name in graphs:
+        progress = Progress(2 * repeats, label=f"{name} time to solution")
+        try:
+            ours, theirs, r_ours, r_g2o = time_to_solution(name, repeats, impl=impl, progress=progress)
+        except (PeerMissing, DatasetError) as exc:
+            out(f"{name:10} skipped: {exc}")
+            continue
+        finally:
+            progress.close()
+        out(f"{name:10} {ours * 1e3:9.1f} {theirs * 1e3:9.1f} {ours / theirs:6.2f} {r_ours.iterations:8d} "
+            f"{r_g2o.iterations:7d} {r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")
+    progress = Progress(2 * repeats, label="w10000 sparse solvers")
+    try:
+        superlu, qdldl, r_superlu, r_qdldl = superlu_vs_qdldl("w10000", repeats, impl=impl, progress=progress)
+    except (PeerMissing, DatasetError) as exc:
+        out(f"w10000 SuperLU vs qdldl skipped: {exc}")
+    else:
+        out(f"w10000 Gauss-Newton solve: SuperLU {superlu:.2f} s ({r_superlu.iterations} it, chi2 "
+            f"{r_superlu.final_chi2:.6f}), qdldl {qdldl:.2f} s ({r_qdldl.iterations} it, chi2 "
+            f"{r_qdldl.final_chi2:.6f}), SuperLU/qdldl = {superlu / qdldl:.2f} (median of {repeats})")
+    finally:
+        progress.close()
+    try:
+        dense, sparse = dense_vs_sparse("intel", repeats, impl=impl)
+    except DatasetError as exc:
+        out(f"intel dense vs sparse skipped: {exc}")
+    else:
+        out(f"intel: dense solve {dense * 1e3:.1f} ms, sparse {sparse * 1e3:.2f} ms, "
+            f"dense/sparse = {dense / sparse:.0f}x (median of {repeats})")
+    # chapter 4: one LM iteration of bundle adjustment against the peers', and our time to solution
+    from course.app import benchmark_bal
+
+    benchmark_bal.main(names=bal, repeats=repeats, impl=impl, out=out)
+    # chapter 4: the parallel assembly against the serial one, alone and in whole LM / dogleg iterations
+    from course.app import parallel_speedup
+
+    parallel_speedup.section(repeats=2 * repeats - 1, impl=impl, out=out, iteration_repeats=max(1, (repeats + 1) // 2))

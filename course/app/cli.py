@@ -1,0 +1,446 @@
+"""Command line: ``python -m course {demo,compare,datasets,benchmark,release,ape,vio} ...``.
+
+``main(argv=None) -> int`` is cheap to import: every subcommand imports what it needs
+(numpy, pyceres, matplotlib, ...) when it runs. Exit codes: 0 success, 1 a failed
+check or a solver/implementation error, 2 a usage error (unknown dataset, method, ...).
+"""
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from course.app.starts import INITIALISERS, PEER_INITIALISERS
+from course.core.backend_names import BACKENDS
+from course.core.data import data_dir
+from course.core.errors import DatasetError
+from course.core.impl import default_impl
+
+
+def _names(text):
+    return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
+
+
+def _write_json(name: str, content) -> None:
+    """Write ``content`` as JSON to the file ``name`` (its folders made) and say so."""
+    path = Path(name)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(content, indent=1))
+    print(f"wrote {path}")
+
+
+def _add_run_arguments(parser):
+    parser.add_argument("--impl", default=None,
+                        help="solutions, exercises or a directory laid out like exercises/ "
+                             "(default: solutions when present, else exercises)")
+    parser.add_argument("--methods", default=None, help="comma-separated method names (default: all)")
+    parser.add_argument("--backends", default=None,
+                        help=f"comma-separated back ends among {', '.join(BACKENDS)} (default: all)")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="solve each pair this many times and keep the median-time run")
+    parser.add_argument("--init", default="file", choices=INITIALISERS + PEER_INITIALISERS,
+                        help="pose graphs: where every solver starts: the file's poses, a breadth-first "
+                             "spanning tree or the chordal relaxation (computed by the implementation), "
+                             "or GTSAM's LAGO (diagonal information only) (default: file)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m course",
+        description="SLAM back ends from the inside: run our solvers and the peers (Ceres, scipy, g2o, GTSAM).",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    demo = sub.add_parser("demo", help="chapter 1: every method and peer on generated curve data, with plots")
+    _add_run_arguments(demo)
+    demo.add_argument("--out", default="out", help="folder for the PNG plots and the JSON (default: out)")
+    demo.add_argument("--points", type=int, default=100, help="number of samples (default 100)")
+    demo.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    demo.add_argument("--curve-only", action="store_true", help="skip the pose graphs (w10000, intel)")
+    demo.set_defaults(func=cmd_demo, repeat=3)
+
+    compare = sub.add_parser("compare", help="one dataset through our methods and the peers")
+    compare.add_argument("dataset", help="'curve' (generated data), a named pose graph "
+                         "(see `python -m course datasets`), manhattan:N, or a TORO/g2o file; "
+                         "a BAL problem: ladybug-49, dubrovnik-3-7, bal-synthetic:CAMS:POINTS[:seed] or a BAL file")
+    _add_run_arguments(compare)
+    compare.add_argument("--json", metavar="FILE", help="write {dataset, runs[]} as JSON")
+    compare.add_argument("--plot", metavar="FILE",
+                         help="write a PNG: chi2 per iteration (curve) or the graph before and after (pose graphs)")
+    compare.add_argument("--max-iterations", type=int, default=100, help="for every solver (default 100)")
+    compare.set_defaults(func=cmd_compare)
+
+    listing = sub.add_parser("datasets", help="list the named datasets, their sizes and where each comes from")
+    listing.set_defaults(func=cmd_datasets)
+
+    release = sub.add_parser("release", help="regenerate exercises/ from solutions/")
+    release.add_argument("--check", action="store_true",
+                         help="only check: exit 1 and list the stale files when exercises/ is out of date")
+    release.add_argument("--student", metavar="DIR", help="also write a student tree (no solutions/) to DIR")
+    release.add_argument("--root", metavar="DIR", default=None,
+                         help="repository holding solutions/ and exercises/ (default: this checkout)")
+    release.add_argument("--gradescope", metavar="FILE.zip", default=None,
+                         help="also write the Gradescope autograder zip (setup.sh, run_autograder, the grader "
+                              "and the reference) to FILE.zip; with --check, only when nothing is stale")
+    release.add_argument("--hidden-seed", type=int, default=None,
+                         help="seed of the hidden checks' inputs in the Gradescope zip (default: a random one)")
+    release.set_defaults(func=cmd_release)
+
+    bench = sub.add_parser("benchmark", help="our time per iteration against the peers' on pose graphs and bundle "
+                                             "adjustment, medians (course.app.benchmark)")
+    bench.add_argument("--repeats", type=int, default=5)
+    bench.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
+    bench.set_defaults(func=cmd_benchmark)
+
+    ape = sub.add_parser("ape", help="chapter 5: absolute pose error of a trajectory against ground truth "
+                                     "(TUM files, EuRoC CSVs), after SE(3)/Sim(3) alignment (course.problems.vio.ape)")
+    ape.add_argument("reference", metavar="GT",
+                     help="ground truth: a TUM file or a EuRoC CSV; or 'euroc-mh05' (the source's evaluation on "
+                          "the shipped MH_05 files, beside the source's LM row)")
+    ape.add_argument("estimate", metavar="EST", nargs="?", help="the estimated trajectory (TUM file or EuRoC CSV)")
+    ape.add_argument("--align", default="se3", choices=["se3", "sim3", "none"],
+                     help="Umeyama alignment of the estimate: se3, sim3 (monocular: also the scale) or none "
+                          "(default se3)")
+    ape.add_argument("--max-diff", type=float, default=0.01,
+                     help="largest time difference of an associated pair, seconds (default 0.01, as evo)")
+    ape.add_argument("--json", metavar="FILE", help="write {rmse, median, mean, std, max, min, pairs} (metres)")
+    ape.set_defaults(func=cmd_ape)
+
+    vio = sub.add_parser("vio", help="chapter 5: the sliding window with and without the marginalisation prior, "
+                                     "the batch, and GTSAM's, on simulated visual-inertial data (APE, time per solve)")
+    vio.add_argument("name", nargs="?", default="vio-sim:12:0", help="vio-sim[:seconds[:seed]] (default vio-sim:12:0)")
+    vio.add_argument("--window", type=int, default=10, help="keyframes in the window (default 10)")
+    vio.add_argument("--no-peers", action="store_true", help="ours only (no GTSAM rows)")
+    vio.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
+    vio.add_argument("--json", metavar="FILE", help="write {label: {rmse, max, scale, mean_solve_seconds, ...}}")
+    vio.set_defaults(func=cmd_vio)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from course.core.errors import CourseError
+
+    try:
+        return int(args.func(args) or 0)
+    except (CourseError, NotImplementedError, ArithmeticError) as exc:
+        from course.app.compare import UnknownDatasetError
+
+        print(f"error: {exc}", file=sys.stderr)
+        return 2 if isinstance(exc, UnknownDatasetError) else 1
+    except ValueError as exc:  # unknown method, backend, implementation path
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+# ---------------------------------------------------------------- subcommands
+
+
+def _ran(runs) -> list:
+    """The runs that ran (a pair stopped at an unwritten TODO is a row, not a curve)."""
+    return [r for r in runs if not r.not_run]
+
+
+def _todo(runs) -> list:
+    """The runs that stopped at an unwritten TODO (not those of a peer missing here)."""
+    return [r for r in runs if r.not_run.startswith("not implemented")]
+
+
+def cmd_demo(args) -> int:
+    """Chapter 1's experiment: the table on the terminal, the plots in ``args.out``.
+
+    A pair of ours that stops at an unwritten TODO is a row naming it
+    (``not implemented: TODO module.function``), not the end of the demo: a student tree
+    runs the peers and whatever is written so far, and exits 0."""
+    from course.app import compare, plot
+    from course.core import peers
+    from course.problems.curve.problem import generate
+
+    impl = args.impl or default_impl()
+    peers.announce_missing(("pyceres", "g2opy", "gtsam", "pycolmap", "qdldl"))  # up front, once, whatever runs
+    data = generate(num_points=args.points, seed=args.seed)
+    methods, backends = _names(args.methods), _names(args.backends)
+    progress = _progress("curve", methods, backends, "curve")
+    runs = compare.run_curve(impl=impl, methods=methods, backends=backends, data=data, repeat=args.repeat,
+                             unimplemented="row", progress=progress)
+    progress.close()
+    title = (f"Curve fit y = exp(a x^2 + b x + c), {args.points} points, sigma {data.sigma:g}, seed {args.seed}, "
+             f"start {tuple(data.start.tolist())}, truth {tuple(data.truth.tolist())}; impl {impl}; "
+             f"median of {args.repeat} runs")
+    print(compare.format_table(runs, title=title))
+    out = Path(args.out)
+    lm_runs = [r for r in _ran(runs) if r.backend == "ours" and r.method.startswith("lm-type")]
+    written = [out / "curve_chi2.png", out / "curve_lambda.png", out / "curve_fit.png"]
+    plot.chi2_per_iteration(_ran(runs), written[0])
+    plot.damping_per_iteration(lm_runs, written[1], title="lambda per iteration, Gavin's damping types 1-3")
+    plot.curve_fit(data, _ran(runs), written[2])
+    json_path = out / "curve.json"
+    out.mkdir(parents=True, exist_ok=True)
+    json_path.write_text(json.dumps(compare.to_json("curve", runs), indent=1))
+    written.append(json_path)
+    todo = _todo(runs)
+    if not args.curve_only:
+        pose_written, pose_todo = _demo_pose_graphs(impl, out, args.init)
+        written += pose_written
+        todo += pose_todo
+        bal_written, bal_todo = _demo_bundle_adjustment(impl, out)
+        written += bal_written
+        todo += bal_todo
+    print("\nwrote " + ", ".join(str(p) for p in written))
+    if todo:
+        names = sorted({r.not_run.split("TODO ", 1)[-1].split(" ")[0].rstrip(":") for r in todo})
+        print(f"\n{len(todo)} run(s) stopped at a TODO of impl {impl} ({', '.join(names)}); "
+              "write them, and `python -m autograder --only NAME` checks each piece")
+    return 0
+
+
+#: w10000 in the demo: Gauss-Newton and dogleg of every back end but Ceres, whose
+#: Python cost takes about 0.5 s per iteration there (see `compare w10000` for all)
+DEMO_W10000 = {"methods": ["gauss-newton", "dogleg"], "backends": ["ours", "g2o", "gtsam"]}
+
+
+def _demo_pose_graphs(impl, out, init="file") -> tuple:
+    """w10000 (ships with gtsam) and, when the data folder is there, intel, from ``init``.
+
+    Returns (paths written, the runs that stopped at a TODO)."""
+    from course.app import compare, plot
+    from course.problems.posegraph import dataset as datasets
+
+    written, todo = [], []
+    plans = []
+    for name, plan in (("intel", {}), ("w10000", DEMO_W10000)):
+        try:
+            plans.append((name, datasets.load_dataset(name), plan))
+        except DatasetError as exc:
+            print(f"\n{name} skipped: {exc}")
+    for name, graph, plan in plans:
+        progress = _progress("posegraph", plan.get("methods"), plan.get("backends"), name)
+        runs = compare.run_posegraph(graph, impl=impl, unimplemented="row", progress=progress, init=init, **plan)
+        progress.close()
+        todo += _todo(runs)
+        note = "" if not plan else (f"; methods {', '.join(plan['methods'])}, back ends "
+                                    f"{', '.join(plan['backends'])} (Ceres' Python cost is slow here: "
+                                    f"`python -m course compare {name}` runs everything)")
+        print("\n" + compare.format_table(
+            runs, title=f"{name}: {graph.num_poses} poses, {graph.num_edges} edges; impl {impl}; init {init}{note}"))
+        (out / f"{name}.json").write_text(json.dumps(compare.to_json(name, runs)))
+        ran = _ran(runs)
+        if ran:  # the first run that ran: ours when written, else a peer
+            path = out / f"{name}.png"
+            plot.pose_graph_before_after(_start(graph, init, impl), ran[0], path)
+            written.append(path)
+        written.append(out / f"{name}.json")
+    return written, todo
+
+
+#: chapter 4's demo problem: generated (no download), every back end in a few seconds
+DEMO_BAL = "bal-synthetic:10:200"
+
+
+def _demo_bundle_adjustment(impl, out) -> tuple:
+    """Every method and peer on ``DEMO_BAL``; returns (paths written, the runs that stopped at a TODO)."""
+    from course.app import compare, plot
+    from course.problems.bal.dataset import load_bal
+
+    problem = load_bal(DEMO_BAL)
+    progress = _progress("bal", None, None, DEMO_BAL)
+    runs = compare.run_bal(problem, impl=impl, unimplemented="row", progress=progress)
+    progress.close()
+    print("\n" + compare.format_table(runs, title=f"{DEMO_BAL}: {problem.num_cameras} cameras, {problem.num_points} "
+                                                  f"points, {problem.num_observations} observations; impl {impl}; "
+                                                  "ours with the gauge fixed"))
+    if compare.format_bal(runs):
+        print("\n" + compare.format_bal(runs))
+    name = DEMO_BAL.replace(":", "_")
+    json_path, png = out / f"{name}.json", out / f"{name}.png"
+    json_path.write_text(json.dumps(compare.to_json(DEMO_BAL, runs)))
+    written = [json_path]
+    if _ran(runs):
+        plot.chi2_per_iteration(_ran(runs), png, title=f"{DEMO_BAL}: chi2 per iteration")
+        written.insert(0, png)
+    return written, _todo(runs)
+
+
+def _start(graph, init, impl):
+    """``graph`` with the poses the solvers started from (``init``), for the plots."""
+    from course.app.starts import initialise
+
+    return initialise(graph, init, impl)[0]
+
+
+def _progress(kind, methods, backends, label):
+    """A progress line over the runs of one comparison (on a terminal only)."""
+    from course.app import compare
+    from course.core.progress import Progress
+
+    plan = {"curve": compare.curve_plan, "bal": compare.bal_plan}.get(kind, compare.posegraph_plan)(methods, backends)
+    return Progress(len(plan), label=label)
+
+
+def cmd_compare(args) -> int:
+    from course.app import compare
+
+    runner = compare.find_runner(args.dataset)  # fails early and clearly on unknown names
+    impl = args.impl or default_impl()
+    methods, backends = _names(args.methods), _names(args.backends)
+    init = {}
+    if runner.kind == "posegraph":
+        init = {"init": args.init}
+    elif args.init != "file":
+        raise ValueError(f"--init {args.init}: only pose graphs have an initialisation; "
+                         f"{args.dataset} starts from its own given start (use --init file)")
+    progress = _progress(runner.kind, methods, backends, args.dataset)
+    runs = runner.run(args.dataset, impl=impl, methods=methods, backends=backends, repeat=args.repeat,
+                      max_iterations=args.max_iterations, progress=progress, **init)
+    progress.close()
+    where = f"impl {impl}; init {args.init}" if init else f"impl {impl}"
+    print(compare.format_table(runs, title=f"{args.dataset} ({where})"))
+    if runner.kind == "posegraph":
+        ate = compare.format_ate(runs)
+        if ate:
+            print("\n" + ate)
+    if runner.kind == "bal" and compare.format_bal(runs):
+        print("\n" + compare.format_bal(runs))
+    if args.json:
+        path = Path(args.json)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(compare.to_json(args.dataset, runs), indent=1))
+        print(f"wrote {path}")
+    if args.plot:
+        from course.app import plot
+
+        if runner.kind == "posegraph":
+            from course.problems.posegraph import dataset as datasets
+
+            best = min(_ran(runs), key=lambda r: (r.backend != "ours", r.final_chi2))
+            plot.pose_graph_before_after(_start(datasets.load_dataset(args.dataset), args.init, impl), best, args.plot)
+        else:
+            plot.chi2_per_iteration(_ran(runs), args.plot, title=f"{args.dataset}: chi2 per iteration")
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def cmd_datasets(args) -> int:
+    from course.problems.posegraph import dataset as datasets
+
+    print(f"data folder: {data_dir()} (override with COURSE_DATA)")
+    print(f"{'name':18} {'poses':>6} {'edges':>6}  {'format':9}  where")
+    for info in datasets.list_datasets():
+        poses = "?" if info.poses is None else info.poses
+        edges = "?" if info.edges is None else info.edges
+        where = info.origin if info.available else f"{info.origin} (missing: {info.reason})"
+        print(f"{info.name:18} {poses:>6} {edges:>6}  {info.format:9}  {where}")
+    print(f"\n{'name':28} {'size':36} where")
+    from course.app.datasets import list_other_data
+
+    for name, size, where, reason in list_other_data():
+        print(f"{name:28} {size:36} {where}{f' (missing: {reason})' if reason else ''}")
+    return 0
+
+
+def cmd_release(args) -> int:
+    from course.core.impl import REPO_ROOT
+    from course.release.stubs import release
+
+    root = Path(args.root) if args.root else REPO_ROOT
+    if not (root / "solutions").is_dir():
+        print(f"error: {root} has no solutions/ folder to release from", file=sys.stderr)
+        return 2
+    data_stale = []
+    if root.resolve() == REPO_ROOT.resolve():  # the public checks' data, before a student tree copies it
+        from autograder.oracle import release_expected
+
+        data_stale = [f"autograder/{rel}" for rel in release_expected(check=args.check)]
+    stale = release(check=args.check, student_dir=args.student, root=root)
+    if args.check:
+        if data_stale:
+            print("the public checks' data is out of date; run `python -m course release`. Stale files:")
+            print("\n".join(f"  {rel}" for rel in data_stale))
+        if stale:
+            print("exercises/ is out of date with solutions/; run `python -m course release`. Stale files:")
+            for rel in stale:
+                print(f"  exercises/{rel}")
+            return 1
+        if data_stale:
+            return 1
+        print("exercises/ is up to date")
+        return _write_gradescope(args.gradescope, root, args.hidden_seed)
+    print("rewrote exercises/: " + ", ".join(stale) if stale else "exercises/ was already up to date")
+    if data_stale:
+        print("rewrote the public checks' data: " + ", ".join(data_stale))
+    if args.student:
+        print(f"wrote the student tree to {args.student}")
+    return _write_gradescope(args.gradescope, root, args.hidden_seed)
+
+
+def _write_gradescope(target, root, hidden_seed=None) -> int:
+    """``release --gradescope FILE.zip``: the autograder bundle (course.release.gradescope)."""
+    if not target:
+        return 0
+    from course.release.gradescope import BundleError, build_bundle
+
+    try:
+        bundle = build_bundle(target, root, hidden_seed)
+    except BundleError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote the Gradescope autograder to {bundle.path} ({bundle.size / 2**20:.2f} MiB, "
+          f"{len(bundle.members)} files); upload it as the assignment's autograder zip")
+    return 0
+
+
+def cmd_benchmark(args) -> int:
+    from course.app import benchmark
+
+    benchmark.main(repeats=args.repeats, impl=args.impl or default_impl())
+    return 0
+
+
+def cmd_vio(args) -> int:
+    """``vio [NAME]``: :func:`course.app.vio.compare`'s table."""
+    from course.app import vio
+
+    results = vio.compare(args.name, window=args.window, impl=args.impl or default_impl(),
+                          peers=not args.no_peers)
+    print(f"{args.name}: keyframes every 0.25 s, window {args.window}; APE after SE(3) alignment, "
+          "scale from Sim(3)")
+    print(vio.format_comparison(results))
+    if args.json:
+        _write_json(args.json, results)
+    return 0
+
+
+def cmd_ape(args) -> int:
+    """``ape GT EST``: the APE table; ``ape euroc-mh05``: also the source's LM row and evo's."""
+    from course.problems.vio import ape
+    from course.problems.vio.trajectory_io import read_trajectory
+
+    source = args.reference == "euroc-mh05"
+    if source and args.estimate is None:
+        gt_path, est_path = ape.euroc_mh05_files()
+    elif args.estimate is None:
+        raise ValueError("ape: give GT and EST files, or 'euroc-mh05' alone")
+    else:
+        gt_path, est_path, source = Path(args.reference), Path(args.estimate), False
+    result = ape.ape(read_trajectory(gt_path), read_trajectory(est_path), align=args.align, max_diff=args.max_diff)
+    stats = result.stats
+    print(f"APE, translation part (m); alignment {args.align}; pairs within {args.max_diff:g} s")
+    print(f"  GT  {gt_path}\n  EST {est_path}")
+    if args.align == "sim3":
+        print(f"  Sim(3) scale {result.alignment.scale:.6f}")
+    print(ape.format_header())
+    print(ape.format_row("ours", stats))
+    if source:
+        if args.align == "se3":
+            print(ape.format_row("evo 1.38.1 (-a)", ape.EVO_SE3_ROW))
+        print(ape.format_row("source's LM run", ape.SOURCE_LM_ROW))
+        print("\n" + ape.compare_to_source(stats))
+        print("The source's row is its own LM run of its VIO back end, evaluated by the source with SE(3) "
+              "alignment. On the shipped files ours equals evo's (tests/test_ape.py: to 1e-9), and evo's is not "
+              "the source's row either: that row came from another run of its estimator (or another evaluation), "
+              "not from these files, so closeness, not equality, is what to expect.")
+    if args.json:
+        _write_json(args.json, stats)
+    return 0

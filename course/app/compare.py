@@ -1,0 +1,457 @@
+"""Run one dataset through our methods and the peers; format the table; write JSON.
+
+A *runner* turns a dataset name into ``list[RunResult]``; ``RUNNERS`` maps a dataset
+kind to its runner and ``run(dataset, ...)`` picks the first kind whose ``matches``
+accepts the name: ``curve`` (chapter 1, generated data), ``bal`` (chapter 4: ``ladybug-49``,
+``dubrovnik-3-7``, ``bal-synthetic:CAMS:POINTS[:seed]``, BAL files) and ``posegraph`` (chapter 2:
+named datasets such as ``intel`` or ``m3500``, ``manhattan:N`` and file paths).
+
+A runner is called as ``runner(dataset, impl=..., methods=..., backends=..., repeat=...,
+max_iterations=...)``
+(``python -m course compare`` passes exactly these, and ``init`` to pose graphs; ``repeat`` =
+solves per pair, the median-time run kept) and returns ``list[RunResult]`` with ``final_chi2`` evaluated by
+our own error, whatever the back end.
+
+``impl=None`` means this tree's own implementation: ``solutions`` where ``solutions/``
+exists, else ``exercises`` (a student tree). ``unimplemented="row"`` (the demo's choice)
+turns a pair that stops at an unwritten TODO (``NotImplementedError``) into a row saying
+so (``RunResult.not_run``) instead of stopping the whole comparison; the default
+``"raise"`` lets the error through. A peer whose library is not installed here is always
+a row (``not run: gtsam is not installed here``), said once on stderr (``course.core.peers``).
+"""
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+from course.backends import registry
+from course.core.errors import CourseError
+from course.core.impl import default_impl, not_implemented_reason
+from course.core.peers import PeerMissing
+from course.core.progress import quiet
+from course.core.trace import RunResult
+
+
+class UnknownDatasetError(CourseError, ValueError):
+    """No registered runner accepts the dataset name."""
+
+
+@dataclass
+class Runner:
+    kind: str
+    run: Callable
+    matches: Callable[[str], bool]
+    description: str = ""
+
+
+RUNNERS: dict = {}
+
+
+def register(kind: str, runner: Callable, matches: Callable[[str], bool] | None = None, description=""):
+    """Register ``runner`` for dataset ``kind``; ``matches(name)`` defaults to ``name == kind``."""
+    def same_name(name: str) -> bool:
+        return name == kind
+
+    RUNNERS[kind] = Runner(kind, runner, matches or same_name, description)
+
+
+def find_runner(dataset: str) -> Runner:
+    """The runner for ``dataset``, or ``UnknownDatasetError`` listing what is known."""
+    for runner in RUNNERS.values():
+        if runner.matches(dataset):
+            return runner
+    known = "; ".join(f"{r.kind}: {r.description}" if r.description else r.kind for r in RUNNERS.values())
+    raise UnknownDatasetError(f"unknown dataset {dataset!r}; known datasets: {known}")
+
+
+def run(dataset: str, impl=None, methods=None, backends=None, **options) -> list:
+    """Run ``dataset`` through every (backend, method) pair (filtered by ``methods``/``backends``)."""
+    return find_runner(dataset).run(dataset, impl=impl, methods=methods, backends=backends, **options)
+
+
+# ---------------------------------------------------------------- curve (chapter 1)
+
+
+def curve_plan(methods=None, backends=None) -> list:
+    """The ``(backend, method)`` pairs to run on the curve, filtered, in table order.
+
+    ``methods`` and ``backends`` are iterables of names (None = all); a method name
+    selects it in every backend that has it (``dogleg`` is ours and Ceres').
+    """
+    return filter_pairs(registry.pairs("curve"), methods, backends, "the curve")
+
+
+def filter_pairs(pairs, methods, backends, what: str) -> list:
+    """``pairs`` whose backend is in ``backends`` and method in ``methods`` (None = all).
+
+    A method name selects it in every backend that has it; unknown names raise
+    ``ValueError`` listing the valid ones for ``what``.
+    """
+    for names, index, kind in ((backends, 0, "backend"), (methods, 1, "method")):
+        if names is None:
+            continue
+        names = list(names)
+        valid = sorted({p[index] for p in pairs})
+        unknown = [n for n in names if n not in valid]
+        if unknown:
+            raise ValueError(f"unknown {kind}(s) {unknown} for {what}; choose from {valid}")
+        pairs = [p for p in pairs if p[index] in names]
+    if not pairs:
+        raise ValueError(f"no (backend, method) pair left for backends={backends} and methods={methods}")
+    return pairs
+
+
+def _tree_impl(impl):
+    """``impl``, or this tree's default (``solutions`` when present, else ``exercises``)."""
+    if impl is not None:
+        return impl
+    return default_impl()
+
+
+def _solve_or_row(solve, repeat, backend, method, unimplemented) -> RunResult:
+    """``_median_run(solve, repeat)``; with ``unimplemented="row"`` a ``NotImplementedError``
+    becomes a ``RunResult.skipped`` row naming the TODO; a missing peer library always does."""
+    if unimplemented not in ("raise", "row"):
+        raise ValueError(f"unimplemented must be 'raise' or 'row', got {unimplemented!r}")
+    try:
+        return _median_run(solve, repeat)
+    except PeerMissing as exc:
+        return RunResult.skipped(backend, method, f"not run: {exc.library} is not installed here")
+    except NotImplementedError as exc:
+        if unimplemented == "raise":
+            raise
+        return RunResult.skipped(backend, method, not_implemented_reason(exc))
+
+
+def _run_peer(kind, backend, *args, **kwargs) -> RunResult:
+    """One solve by a peer; ``PeerMissing`` when its library is not installed here."""
+    return registry.peer_solver(kind, backend)(*args, **kwargs)
+
+
+def _median_run(solve, repeat: int) -> RunResult:
+    """Run ``solve()`` ``repeat`` times and keep the run with the median time."""
+    runs = [solve() for _ in range(max(int(repeat), 1))]
+    return sorted(runs, key=lambda r: r.seconds)[len(runs) // 2]
+
+
+def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_iterations=100,
+              solver_options=None, unimplemented="raise", progress=None) -> list:
+    """The chapter 1 comparison: our methods and the peers on one ``CurveData``.
+
+    Args:
+        impl: ``solutions``, ``exercises`` or a path (whose pieces our solvers use);
+            None: this tree's own (see the module docstring).
+        methods, backends: filters, see ``curve_plan`` (None = everything).
+        data: a ``CurveData``; default ``course.problems.curve.problem.generate()``.
+        repeat: solve each pair ``repeat`` times and keep the median-time run.
+        max_iterations: for every solver (step attempts; scipy: ``max_nfev - 1``).
+        solver_options: a ``SolverOptions`` for our solvers (its ``max_iterations``
+            wins); default ``SolverOptions(max_iterations=max_iterations)``. The peers
+            keep their own tight tolerances.
+        unimplemented: ``"raise"`` or ``"row"`` (a pair stopped by a TODO becomes a
+            ``not_run`` row).
+        progress: a ``course.core.progress.Progress`` to report to (default: quiet).
+
+    Returns:
+        ``list[RunResult]`` in ``curve_plan`` order; an error other than a TODO (with
+        ``unimplemented="row"``) propagates.
+    """
+    from course.problems.curve.problem import CurveProblem, generate
+    from course.solver import SolverOptions, minimize
+
+    impl = _tree_impl(impl)
+    data = generate() if data is None else data
+    options = SolverOptions(max_iterations=max_iterations) if solver_options is None else solver_options
+    progress = progress or quiet()
+    results = []
+    for backend, method in curve_plan(methods, backends):
+        with progress.run(backend, method) as callback:
+            if backend == "ours":
+                solve = partial(lambda m, c: minimize(CurveProblem(data, impl=impl), m, impl=impl, options=options,
+                                                      callback=c), method, callback)
+            else:
+                solve = partial(_run_peer, "curve", backend, data, method, max_iterations=max_iterations)
+            results.append(_solve_or_row(solve, repeat, backend, method, unimplemented))
+    return results
+
+
+def _curve_runner(dataset, impl=None, methods=None, backends=None, **options):
+    return run_curve(impl=impl, methods=methods, backends=backends, **options)
+
+
+register("curve", _curve_runner, description="y = exp(a x^2 + b x + c), 100 generated points (chapter 1)")
+
+
+# ---------------------------------------------------------------- pose graphs (chapter 2)
+
+def posegraph_plan(methods=None, backends=None) -> list:
+    """The ``(backend, method)`` pairs to run on a pose graph, filtered, in table order."""
+    return filter_pairs(registry.pairs("posegraph"), methods, backends, "pose graphs")
+
+
+def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
+                  unimplemented="raise", progress=None, init="file") -> list:
+    """Every method and peer on one ``PoseGraph``, same start, same fixed poses.
+
+    Returns ``list[RunResult]`` (``params`` (N, 3) poses); where the graph has ground
+    truth each result carries ``ate`` (see ``course.problems.posegraph.trajectory``). ``impl`` and
+    ``unimplemented`` and ``progress`` as in ``run_curve`` (Ceres' cost is the
+    implementation's too). ``init`` (``course.app.starts.INITIALISERS``): the start,
+    computed once by the implementation's initialiser and shared by every back end; each
+    result records it in ``init`` and its time in ``init_seconds``. With
+    ``unimplemented="row"`` an unwritten initialiser makes every pair a row naming its TODO.
+    """
+    from course.app.starts import check_method, initialise
+    from course.problems.posegraph.problem import MAX_DENSE_POSES, PoseGraphProblem
+    from course.problems.posegraph.trajectory import absolute_trajectory_error
+    from course.solver import SolverOptions, minimize
+
+    impl = _tree_impl(impl)
+    options = SolverOptions(max_iterations=max_iterations)
+    plan = posegraph_plan(methods, backends)
+    check_method(init)
+    try:
+        graph, init_seconds = initialise(graph, init, impl)
+    except NotImplementedError as exc:
+        if unimplemented != "row":
+            raise
+        rows = [RunResult.skipped(backend, method, not_implemented_reason(exc)) for backend, method in plan]
+        for row in rows:
+            row.init = init
+        return rows
+
+    def problem():
+        try:
+            return PoseGraphProblem(graph, impl)
+        except ValueError as exc:  # too large for the per-edge loop while pose_graph_fast is a stub
+            if unimplemented == "row" and graph.num_poses > MAX_DENSE_POSES and "pose_graph_fast" in str(exc):
+                raise NotImplementedError(
+                    f"TODO pose_graph_fast (the per-edge loop's dense H stops at {MAX_DENSE_POSES} poses)") from exc
+            raise
+
+    def ours(method, callback):
+        result = minimize(problem(), method, impl=impl, options=options, callback=callback)
+        result.params = result.params.reshape(-1, 3)
+        return result
+
+    progress = progress or quiet()
+    results = []
+    for backend, method in plan:
+        with progress.run(backend, method) as callback:
+            if backend == "ours":
+                solve = partial(ours, method, callback)
+            else:
+                kwargs = {"impl": impl} if backend == "ceres" else {}
+                solve = partial(_run_peer, "posegraph", backend, graph, method, max_iterations, **kwargs)
+            result = _solve_or_row(solve, repeat, backend, method, unimplemented)
+        if graph.ground_truth is not None and not result.not_run:
+            result.ate = absolute_trajectory_error(result.params, graph.ground_truth)
+        result.init, result.init_seconds = init, init_seconds
+        results.append(result)
+    return results
+
+
+def is_posegraph_name(name: str) -> bool:
+    from course.problems.posegraph import dataset as datasets
+
+    return name in datasets.dataset_names() or name.startswith("manhattan:") or Path(name).exists() \
+        or Path(name + "-v.dat").exists()
+
+
+def _posegraph_runner(dataset, impl=None, methods=None, backends=None, **options):
+    from course.problems.posegraph import dataset as datasets
+
+    return run_posegraph(datasets.load_dataset(dataset), impl=impl, methods=methods,
+                         backends=backends, **options)
+
+
+register("posegraph", _posegraph_runner, matches=is_posegraph_name,
+         description="a named pose graph (python -m course datasets), manhattan:N, or a TORO/g2o file")
+
+
+def format_ate(runs) -> str:
+    """Absolute trajectory error per run (only runs that carry ``ate``)."""
+    rows = [r for r in runs if r.ate]
+    if not rows:
+        return ""
+    head = f"{'backend':8} {'method':22} " + " ".join(
+        f"{kind[:5]}-{stat:6}" for kind in ("translation", "rotation")
+        for stat in ("rmse", "median", "std", "max", "min"))
+    lines = ["absolute trajectory error (m, rad) after SE(2) alignment", head]
+    for r in rows:
+        cells = [f"{r.ate[kind][stat]:12.4g}" for kind in ("translation", "rotation")
+                 for stat in ("rmse", "median", "std", "max", "min")]
+        lines.append(f"{r.backend:8} {r.method:22} " + " ".join(cells))
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- bundle adjustment (chapter 4)
+
+def bal_plan(methods=None, backends=None) -> list:
+    """The ``(backend, method)`` pairs to run on a BAL problem, filtered, in table order."""
+    return filter_pairs(registry.pairs("bal"), methods, backends, "bundle adjustment")
+
+
+def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
+            unimplemented="raise", progress=None, fix_gauge=True) -> list:
+    """Every method and peer on one ``BALProblem`` (``course.problems.bal.dataset``), all from its own start.
+
+    Ours: ``minimize(BundleAdjustmentProblem(problem, impl, fix_gauge), method)``: by default
+    the gauge is fixed (camera 0's pose and one coordinate of camera 1), as every peer fixes it
+    (pycolmap by itself, GTSAM with priors); ``fix_gauge=False`` shows what the free gauge does
+    (Gauss-Newton then fails, and LM with lambda I converges slowly);
+    the peers: ``course.backends.bal.colmap`` (Ceres), ``gtsam_bal``, ``scipy_bal``. Returns
+    ``list[BALRunResult]`` (``course.backends.bal.common``: ``params`` the flat state,
+    ``final_chi2`` our ``sum |r|^2`` over all observations, and each peer's own cost beside
+    it). A run that stops on a singular system (undamped Gauss-Newton meets bundle
+    adjustment's 7-dimensional gauge freedom) is a row ``failed: ...``. ``impl``,
+    ``unimplemented``, ``progress`` as in ``run_curve``.
+    """
+    from course.backends.bal.common import BALRunResult
+    from course.core.errors import SingularSystemError
+    from course.problems.bal.problem import BundleAdjustmentProblem
+    from course.solver import SolverOptions, minimize
+
+    impl = _tree_impl(impl)
+    options = SolverOptions(max_iterations=max_iterations)
+    plan = bal_plan(methods, backends)
+
+    def ours(method, callback):
+        result = minimize(BundleAdjustmentProblem(problem, impl, fix_gauge=fix_gauge), method, impl=impl,
+                          options=options, callback=callback)
+        return BALRunResult.from_run(result, problem, peer_cost="ours: 0.5 sum |r|^2 over all observations")
+
+    progress = progress or quiet()
+    results = []
+    for backend, method in plan:
+        with progress.run(backend, method) as callback:
+            if backend == "ours":
+                solve = partial(ours, method, callback)
+            else:
+                solve = partial(_run_peer, "bal", backend, problem, method, max_iterations)
+            try:
+                results.append(_solve_or_row(solve, repeat, backend, method, unimplemented))
+            except SingularSystemError as exc:
+                results.append(RunResult.skipped(backend, method, f"failed: {exc}"))
+    return results
+
+
+def is_bal_name(name: str) -> bool:
+    """A named BAL problem, ``bal-synthetic:CAMS:POINTS[:seed]``, or a file whose first line is a
+    BAL header (three integers)."""
+    from course.problems.bal.dataset import bal_names
+
+    if name in bal_names() or name.startswith("bal-synthetic:"):
+        return True
+    path = Path(name)
+    try:
+        with path.open(encoding="utf-8", errors="replace") as file:
+            first = file.readline().split()
+    except OSError:  # not a file, or unreadable: not ours to claim
+        return False
+    return len(first) == 3 and all(token.isdigit() for token in first)
+
+
+def _bal_runner(dataset, impl=None, methods=None, backends=None, **options):
+    from course.problems.bal.dataset import load_bal
+
+    return run_bal(load_bal(dataset), impl=impl, methods=methods, backends=backends, **options)
+
+
+register("bal", _bal_runner, matches=is_bal_name,
+         description="a BAL problem: ladybug-49, dubrovnik-3-7, bal-synthetic:CAMS:POINTS[:seed] or a BAL file")
+RUNNERS["posegraph"] = RUNNERS.pop("posegraph")  # after "bal": its matcher takes any existing path
+
+
+def format_bal(runs) -> str:
+    """Per bundle-adjustment run: our final cost, the peer's own, and how it treated the observations
+    behind a camera (only runs that carry the BAL fields)."""
+    rows = [r for r in runs if not r.not_run and hasattr(r, "peer_final_cost")]
+    if not rows:
+        return ""
+    lines = ["costs: ours = 0.5 sum |r|^2 over all observations (half the chi2 above); the peer's own as it reports it",
+             f"{'backend':8} {'method':22} {'final cost (ours)':>18} {'peer final cost':>16}  "
+             "behind camera start->final  removed by the peer"]
+    for r in rows:
+        removed = f"{r.removed_points} points, {r.removed_observations} observations" \
+            if r.removed_points or r.removed_observations else "-"
+        lines.append(f"{r.backend:8} {r.method:22} {r.final_cost:18.10g} {r.peer_final_cost:16.10g}  "
+                     f"{r.behind_camera_start:>12} -> {r.behind_camera_final:<11}  {removed}")
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- table and JSON
+
+
+def _params_text(params) -> str | None:
+    p = np.asarray(params, dtype=float)
+    if p.ndim != 1 or p.size > 6:
+        return None
+    return " ".join(f"{v:.6f}" for v in p)
+
+
+def format_table(runs, title: str = "") -> str:
+    """A plain-text table: backend, method, iterations, initial and final chi2, total
+    and per-iteration time (milliseconds), and the parameters when they are few (the curve).
+    A run that did not run (``not_run``) is a row with its backend, method and the reason.
+    Runs started from an initialisation (``RunResult.init`` other than ``file``) get a note
+    line under the table naming it and its time."""
+    header = ["backend", "method", "iters", "initial chi2", "final chi2", "total ms", "ms/iter"]
+    ran = [r for r in runs if not r.not_run]
+    params = [_params_text(r.params) for r in ran]
+    show_params = bool(ran) and all(p is not None for p in params)
+    if show_params:
+        header.append("params")
+    rows = []
+    for r, p in zip(ran, params):
+        row = [
+            r.backend,
+            r.method,
+            str(r.iterations),
+            f"{r.initial_chi2:.6g}",
+            f"{r.final_chi2:.10g}",
+            f"{1e3 * r.seconds:.3f}",
+            f"{1e3 * r.seconds_per_iteration:.4f}",
+        ]
+        if show_params:
+            row.append(p)
+        rows.append(row)
+    widths = [max(len(h), *(len(row[k]) for row in rows)) if rows else len(h) for k, h in enumerate(header)]
+    skipped = [[r.backend, r.method] for r in runs if r.not_run]
+    for k in (0, 1):
+        widths[k] = max([widths[k]] + [len(row[k]) for row in skipped])
+    numeric = {2, 3, 4, 5, 6}
+
+    def line(cells):
+        padded = (c.rjust(w) if k in numeric else c.ljust(w) for k, (c, w) in enumerate(zip(cells, widths)))
+        return "  ".join(padded).rstrip()
+
+    lines, done = {}, iter(rows)
+    for k, r in enumerate(runs):  # table order: ran and not-run rows where the plan put them
+        lines[k] = line(next(done)) if not r.not_run else \
+            f"{r.backend.ljust(widths[0])}  {r.method.ljust(widths[1])}  {r.not_run}"
+    out = [title] if title else []
+    out += [line(header), line(["-" * w for w in widths])]
+    out += [lines[k] for k in range(len(runs))]
+    out += _init_notes(runs)
+    return "\n".join(out)
+
+
+def _init_notes(runs) -> list:
+    """One line per initialisation other than the file's poses: its name and time."""
+    notes = []
+    for init in dict.fromkeys(r.init for r in runs if r.init != "file"):
+        ran = [r for r in runs if r.init == init and not r.not_run]
+        took = f"took {1e3 * ran[0].init_seconds:.3f} ms" if ran else "did not run"
+        notes.append(f"start: {init} initialisation (shared by every row), {took}; not in total ms "
+                     "(time to solution = initialisation + total ms)")
+    return notes
+
+
+def to_json(dataset: str, runs) -> dict:
+    """``{"dataset": dataset, "runs": [RunResult.to_json(), ...]}`` (JSON-ready)."""
+    return {"dataset": str(dataset), "runs": [r.to_json() for r in runs]}
+

@@ -1,0 +1,1 @@
+"""course.geometry.se2."""

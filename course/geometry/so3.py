@@ -1,0 +1,62 @@
+"""SO(3): the skew matrix, ``Exp``, ``Log`` and the right Jacobian, for the framework (the VIO
+problem, its analytic IMU Jacobians, the window, the GTSAM peer) and for the exercises that need
+them (chapter 5's preintegration, chapter 4's bundle adjustment and gauge): given, not graded.
+"""
+
+import numpy as np
+
+#: below this angle (rad) Exp, Log and J_r use their Taylor series
+SMALL_ANGLE = 1e-5
+
+
+def skew(v) -> np.ndarray:
+    """``[v]_x`` with ``[v]_x u = v x u``: (3, 3) for v (3,), (K, 3, 3) for v (K, 3)."""
+    v = np.asarray(v, dtype=float)
+    S = np.zeros(v.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2], S[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    S[..., 1, 0], S[..., 2, 0], S[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return S
+
+
+def so3_exp(phi) -> np.ndarray:
+    """``Exp(phi) = I + sin(t)/t [phi] + (1 - cos t)/t^2 [phi]^2`` (3, 3), ``t = |phi|``."""
+    phi = np.asarray(phi, dtype=float)
+    t2 = float(phi @ phi)
+    t = np.sqrt(t2)
+    if t < SMALL_ANGLE:
+        a, b = 1.0 - t2 / 6.0, 0.5 - t2 / 24.0
+    else:
+        a, b = np.sin(t) / t, (1.0 - np.cos(t)) / t2
+    W = skew(phi)
+    return np.eye(3) + a * W + b * (W @ W)
+
+
+def so3_log(R) -> np.ndarray:
+    """``Log(R)`` (3,), the angle in [0, pi] (stable near pi: from the symmetric part)."""
+    R = np.asarray(R, dtype=float)
+    cos_t = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0  # sin(t) u
+    t = float(np.arctan2(np.linalg.norm(w), cos_t))  # accurate at every angle, unlike arccos
+    if t < SMALL_ANGLE:
+        return w * (1.0 + t * t / 6.0)
+    if t < np.pi - 1e-3:
+        return w * (t / np.sin(t))
+    S = (R + R.T) / 2.0 - cos_t * np.eye(3)  # (1 - cos t) u u^T
+    k = int(np.argmax(np.diag(S)))
+    u = S[:, k] / np.sqrt((1.0 - cos_t) * S[k, k])  # S[:, k] = (1 - cos t) u_k u
+    if u @ w < 0:
+        u = -u
+    return t * u
+
+
+def right_jacobian(phi) -> np.ndarray:
+    """``J_r(phi) = I - (1 - cos t)/t^2 [phi] + (t - sin t)/t^3 [phi]^2`` (3, 3)."""
+    phi = np.asarray(phi, dtype=float)
+    t2 = float(phi @ phi)
+    t = np.sqrt(t2)
+    if t < SMALL_ANGLE:
+        b, c = 0.5 - t2 / 24.0, 1.0 / 6.0 - t2 / 120.0
+    else:
+        b, c = (1.0 - np.cos(t)) / t2, (t - np.sin(t)) / (t2 * t)
+    W = skew(phi)
+    return np.eye(3) - b * W + c * (W @ W)

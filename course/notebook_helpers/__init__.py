@@ -1,0 +1,1 @@
+"""course.notebook_helpers.common."""

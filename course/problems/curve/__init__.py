@@ -1,0 +1,1 @@
+"""course.problems.curve.problem."""

@@ -1,0 +1,70 @@
+"""The in-memory 2D pose graph shared by readers, problems and back ends."""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from course.geometry import se2 as geometry
+
+
+@dataclass
+class PoseGraph:
+    """A 2D pose graph.
+
+    Vertices are renumbered ``0..N-1`` in file order; ``ids`` keeps the file's ids.
+
+    Attributes:
+        poses: (N, 3) initial estimate ``(x, y, theta)``.
+        edges_i, edges_j: (M,) int vertex indices; measurement is ``x_i^-1 o x_j``.
+        measurements: (M, 3) ``(dx, dy, dtheta)``.
+        information: (M, 3, 3) symmetric positive-definite information matrices.
+        fixed: (K,) int indices of vertices held fixed (at least the first pose).
+        ids: (N,) int the file's vertex ids.
+        name: short name; source: where it came from (path or generator).
+        ground_truth: (N, 3) true poses when known (synthetic graphs), else None.
+    """
+
+    poses: np.ndarray
+    edges_i: np.ndarray
+    edges_j: np.ndarray
+    measurements: np.ndarray
+    information: np.ndarray
+    fixed: np.ndarray = field(default_factory=lambda: np.array([0]))
+    ids: np.ndarray | None = None
+    name: str = "graph"
+    source: str = ""
+    ground_truth: np.ndarray | None = None
+
+    def __post_init__(self):
+        self.poses = np.ascontiguousarray(self.poses, dtype=float)
+        self.edges_i = np.asarray(self.edges_i, dtype=np.int64)
+        self.edges_j = np.asarray(self.edges_j, dtype=np.int64)
+        self.measurements = np.ascontiguousarray(self.measurements, dtype=float)
+        self.information = np.ascontiguousarray(self.information, dtype=float)
+        self.fixed = np.asarray(self.fixed, dtype=np.int64).reshape(-1)
+        if self.ids is None:
+            self.ids = np.arange(len(self.poses))
+
+    @property
+    def num_poses(self) -> int:
+        return len(self.poses)
+
+    @property
+    def num_edges(self) -> int:
+        return len(self.edges_i)
+
+    def errors(self, poses=None) -> np.ndarray:
+        """Edge errors (M, 3) at ``poses`` (default: the initial estimate)."""
+        poses = self.poses if poses is None else poses
+        return geometry.edge_errors(poses, self.edges_i, self.edges_j, self.measurements)
+
+    def chi2(self, poses=None) -> float:
+        """``sum e^T Omega e`` at ``poses`` (default: the initial estimate)."""
+        return geometry.weighted_chi2(self.errors(poses), self.information)
+
+    def with_poses(self, poses) -> "PoseGraph":
+        """A copy of this graph whose initial estimate is ``poses``."""
+        return PoseGraph(
+            poses.copy(), self.edges_i, self.edges_j, self.measurements, self.information,
+            self.fixed, self.ids, self.name, self.source, self.ground_truth,
+        )

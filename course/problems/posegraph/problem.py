@@ -1,0 +1,104 @@
+"""Chapter 2 problem: a 2D pose graph as the loop sees it.
+
+The unknown is the flat vector ``x = poses.ravel()`` (3N,). Linearization uses the
+implementation's vectorized ``pose_graph_fast`` when it is written and falls back to
+its per-edge loop ``pose_graph_assembly`` (dense H) otherwise; the step comes from its
+``sparse_solve.SparseCholeskySolver`` on the upper triangle of H, or, where qdldl is not
+installed, from scipy's SuperLU (``course.solver.superlu``), said once.
+"""
+
+import numpy as np
+
+from course.core import impl as impl_loader
+from course.core import peers
+from course.core.errors import SingularSystemError, check_array
+from course.geometry.se2 import wrap_angle
+from course.problems.posegraph.graph import PoseGraph
+from course.solver.linearization import Linearization
+from course.solver.superlu import SuperLUSolver
+
+#: the per-edge loop assembles a dense (3N, 3N) H: refuse beyond this many poses
+MAX_DENSE_POSES = 4000
+
+
+def sparse_solver(sparse_module):
+    """The implementation's ``SparseCholeskySolver()``, or ``SuperLUSolver()`` without qdldl."""
+    if peers.installed("qdldl"):
+        return sparse_module.SparseCholeskySolver()
+    peers.announce("qdldl")
+    return SuperLUSolver()
+
+
+class PoseGraphProblem:
+    """``linearize`` / ``chi2`` / ``solve`` / ``retract`` for one pose graph and implementation."""
+
+    def __init__(self, graph: PoseGraph, impl="solutions", vectorized=None, solver=None):
+        """``solver``: an object with ``solve(H_upper, b) -> dx`` (default: :func:`sparse_solver`)."""
+        self.graph = graph
+        self.impl = impl_loader.load(impl)
+        self.x0 = graph.poses.ravel().copy()
+        self.num_poses = graph.num_poses
+        self._sparse = self.impl.module("sparse_solve")
+        self._solver = sparse_solver(self._sparse) if solver is None else solver
+        self._fixed_dof = (3 * graph.fixed[:, None] + np.arange(3)).ravel()
+        self._assembler = None
+        if vectorized is not False:
+            fast = self.impl.module("pose_graph_fast")
+            try:
+                self._assembler = fast.SparseAssembler(
+                    graph.num_poses, graph.edges_i, graph.edges_j, graph.fixed
+                )
+                self._fast = fast
+            except NotImplementedError:
+                if vectorized:
+                    raise
+        if self._assembler is None and graph.num_poses > MAX_DENSE_POSES:
+            raise ValueError(
+                f"{graph.name}: {graph.num_poses} poses is too many for the per-edge loop "
+                f"(a dense {3 * graph.num_poses}^2 H); implement pose_graph_fast first"
+            )
+
+    def poses(self, x):
+        return np.asarray(x).reshape(-1, 3)
+
+    def chi2(self, x) -> float:
+        return self.graph.chi2(self.poses(x))
+
+    def linearize(self, x) -> Linearization:
+        g = self.graph
+        n = 3 * g.num_poses
+        if self._assembler is not None:
+            e, A, B = self._fast.edge_errors_and_jacobians(
+                self.poses(x), g.edges_i, g.edges_j, g.measurements
+            )
+            H, b, chi2 = self._assembler.assemble(e, A, B, g.information)
+            return Linearization(H=H, b=check_array(b, (n,), "SparseAssembler.assemble", "b"),
+                                 chi2=float(chi2), upper=True,
+                                 diagonal_positions=getattr(self._assembler, "diagonal_positions", None))
+        H, b, chi2 = self.impl.module("pose_graph_assembly").assemble_normal_equations(
+            self.poses(x), g.edges_i, g.edges_j, g.measurements, g.information, g.fixed
+        )
+        where = "pose_graph_assembly.assemble_normal_equations"
+        H = check_array(H, (n, n), where, "H")
+        upper = self._sparse.upper_triangle_csc(H)
+        return Linearization(H=upper, b=check_array(b, (n,), where, "b"),
+                             chi2=float(chi2), upper=True)
+
+    def solve(self, lin: Linearization, damping=None):
+        """Step (3N,) of ``(H + diag(damping)) h = -b`` by the sparse solver."""
+        H = lin.with_diagonal_added(damping)
+        h = np.asarray(self._solver.solve(H, lin.b), dtype=float)
+        if h.shape != lin.b.shape or not np.all(np.isfinite(h)) or (h @ lin.b > 0):
+            raise SingularSystemError(
+                f"{self.graph.name}: the sparse solve gave "
+                + ("a non-finite step" if h.shape == lin.b.shape else f"shape {h.shape}")
+                + " or an ascent direction: H is not positive definite (is a pose fixed?)"
+            )
+        h[self._fixed_dof] = 0.0
+        return h
+
+    def retract(self, x, h):
+        """SE(2) update as in the source: add, then wrap the angles."""
+        poses = self.poses(x) + self.poses(h)
+        poses[:, 2] = wrap_angle(poses[:, 2])
+        return poses.ravel()

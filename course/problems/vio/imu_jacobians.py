@@ -1,0 +1,141 @@
+"""Chapter 5: the residual of an IMU factor and its analytic Jacobian in the frames' tangents.
+
+The VIO problem (``course.problems.vio.problem``) stores a keyframe as ``s = (phi, p, v, b_g, b_a)``
+(15,) with ``R = Exp(phi)`` and the tangent ``(dphi, dp, dv, db_g, db_a)``: ``R <- R Exp(dphi)``
+(a right perturbation), the rest added. :func:`imu_residual_jacobian` gives the residual of the
+IMU factor between frames i and j exactly as the chapter's ``imu_factor_residual`` defines it,
+and its Jacobian (9, 30) in the 30 tangent coordinates
+``(dphi_i, dp_i, dv_i, dbg_i, dba_i, dphi_j, dp_j, dv_j, dbg_j, dba_j)``. It needs no
+implementation module (it works in a student tree too): only the preintegrated values.
+
+The residual (Forster, Carlone, Dellaert, Scaramuzza, T-RO 2017, eq. 45, first-order bias
+correction). With ``delta b = (b_g,i - b^_g, b_a,i - b^_a)`` (``b^`` the biases the preintegration
+was computed at), ``theta = dR/dbg delta b_g``, ``dT = delta_t``::
+
+    Delta R' = Delta R Exp(theta)
+    Delta v' = Delta v + dv/dbg delta b_g + dv/dba delta b_a,    Delta p' likewise
+    u_v = R_i^T (v_j - v_i - g dT),    u_p = R_i^T (p_j - p_i - v_i dT - 1/2 g dT^2)
+    E   = Delta R'^T R_i^T R_j
+    r   = (r_R, r_v, r_p) = (Log(E), u_v - Delta v', u_p - Delta p')
+
+The Jacobian, with ``[x]`` the skew matrix, ``J_r`` the right Jacobian of SO(3) and
+``J_r^-1(e) = I + 1/2 [e] + (1/t^2 - cot(t/2) / (2 t)) [e]^2`` (``t = |e|``) its inverse,
+from ``Log(E Exp(x)) = Log(E) + J_r^-1(Log E) x + O(x^2)``, ``Exp(-x) = I - [x] + O(x^2)``,
+``Exp(theta + d) = Exp(theta) Exp(J_r(theta) d) + O(d^2)`` and ``Exp(x) R = R Exp(R^T x)``
+(every block not listed is zero; in particular the bias columns of frame j)::
+
+    d r_R / d dphi_i = -J_r^-1(r_R) R_j^T R_i         d r_R / d dphi_j = J_r^-1(r_R)
+    d r_R / d dbg_i  = -J_r^-1(r_R) E^T J_r(theta) dR/dbg
+
+    d r_v / d dphi_i = [u_v]       d r_v / d dv_i = -R_i^T      d r_v / d dv_j = R_i^T
+    d r_v / d dbg_i  = -dv/dbg     d r_v / d dba_i = -dv/dba
+
+    d r_p / d dphi_i = [u_p]       d r_p / d dp_i = -R_i^T      d r_p / d dp_j = R_i^T
+    d r_p / d dv_i   = -dT R_i^T   d r_p / d dbg_i = -dp/dbg    d r_p / d dba_i = -dp/dba
+
+How the rotation rows come about: perturbing R_i gives ``Delta R'^T Exp(-x) R_i^T R_j = E
+Exp(-R_j^T R_i x)``; perturbing R_j gives ``E Exp(x)``; a gyro-bias change ``d`` gives
+``Exp(-J_r(theta) dR/dbg d) E = E Exp(-E^T J_r(theta) dR/dbg d)``. The velocity and position
+rows: ``Exp(-x) R_i^T u = R_i^T u + [R_i^T u] x`` to first order. They differ from Forster's
+printed ones only because here the positions and velocities are perturbed additively in the
+world (Forster: ``p <- p + R dp``) and the residual is ordered (R, v, p).
+
+``J_r^-1(r_R)`` is finite for every ``|r_R| <= pi``, but the residual's ``Log`` jumps at
+``|r_R| = pi`` (where ``E`` is a half turn, ``Log`` picks one of two opposite axes), so at a
+half-turn rotation residual the derivative is as ill defined as the residual itself; a factor is
+never linearised there in practice (its rotation residual is of the order of the gyro noise).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from course.geometry.so3 import right_jacobian, skew, so3_exp, so3_log
+
+#: below this angle (rad) J_r^-1 uses its Taylor series
+SMALL_ANGLE = 1e-4
+#: the number of values of a preintegration (``Preintegrated``'s fields, in that order)
+PREINTEGRATED_LENGTH = 12
+FRAME_DOF = 15
+
+
+def right_jacobian_inverse(phi) -> np.ndarray:
+    """``J_r^-1(phi) = I + 1/2 [phi] + (1/t^2 - cot(t/2)/(2 t)) [phi]^2`` (3, 3), ``t = |phi|``
+    (``cot(t/2) = (1 + cos t)/sin t``, written so that it is finite at ``t = pi``; singular at
+    ``t = 2 pi``, never reached by a ``Log``)."""
+    phi = np.asarray(phi, dtype=float)
+    t2 = float(phi @ phi)
+    t = np.sqrt(t2)
+    if t < SMALL_ANGLE:
+        c = 1.0 / 12.0 + t2 / 720.0
+    else:
+        c = 1.0 / t2 - np.cos(t / 2.0) / (2.0 * t * np.sin(t / 2.0))
+    W = skew(phi)
+    return np.eye(3) + 0.5 * W + c * (W @ W)
+
+
+def _frame(s, name) -> np.ndarray:
+    s = np.asarray(s, dtype=float)
+    if s.shape != (FRAME_DOF,):
+        raise ValueError(f"{name} must be a frame state (phi, p, v, b_g, b_a) of shape (15,), got {s.shape}")
+    return s
+
+
+def imu_residual_jacobian(s_i, s_j, preintegrated, gravity) -> tuple[np.ndarray, np.ndarray]:
+    """The residual ``r`` (9,) of the IMU factor between frames i and j and ``J = dr/d(tangents)``
+    (9, 30) (the module docstring's formulas).
+
+    Args: ``s_i``, ``s_j`` (15,) frame states ``(phi, p, v, b_g, b_a)`` (the biases of j are not
+    used: their columns are zero); ``preintegrated``: the 12 values of a ``Preintegrated``
+    (``delta_R, delta_v, delta_p, delta_t, covariance, dR_dbg, dv_dbg, dv_dba, dp_dbg, dp_dba,
+    bias_gyro, bias_accel``; the covariance is not used); ``gravity`` (3,).
+
+    ``r`` is ``imu_factor_residual((R_i, v_i, p_i), (R_j, v_j, p_j), preintegrated, (b_g,i, b_a,i),
+    gravity)`` (rows r_R, r_v, r_p), not whitened; the columns of ``J`` are
+    ``(dphi_i, dp_i, dv_i, dbg_i, dba_i)`` then the same for j, as ``course.problems.vio.problem`` orders
+    a frame's tangent.
+    """
+    s_i, s_j = _frame(s_i, "s_i"), _frame(s_j, "s_j")
+    if len(preintegrated) != PREINTEGRATED_LENGTH:
+        raise ValueError(f"preintegrated must hold the {PREINTEGRATED_LENGTH} values of a Preintegrated, "
+                         f"got {len(preintegrated)}")
+    delta_R, delta_v, delta_p, delta_t, _, dR_dbg, dv_dbg, dv_dba, dp_dbg, dp_dba, bg_hat, ba_hat = (
+        np.asarray(value, dtype=float) for value in preintegrated)
+    g = np.asarray(gravity, dtype=float)
+    if g.shape != (3,):
+        raise ValueError(f"gravity must have shape (3,), got {g.shape}")
+    T = float(delta_t)
+    R_i, R_j = so3_exp(s_i[0:3]), so3_exp(s_j[0:3])
+    p_i, v_i, p_j, v_j = s_i[3:6], s_i[6:9], s_j[3:6], s_j[6:9]
+
+    # the residual, as imu_factor_residual computes it
+    dbg, dba = s_i[9:12] - bg_hat, s_i[12:15] - ba_hat
+    theta = dR_dbg @ dbg
+    dR = delta_R @ so3_exp(theta)
+    dv = delta_v + dv_dbg @ dbg + dv_dba @ dba
+    dp = delta_p + dp_dbg @ dbg + dp_dba @ dba
+    E = dR.T @ R_i.T @ R_j
+    r_R = so3_log(E)
+    Rt = R_i.T
+    u_v = Rt @ (v_j - v_i - g * T)
+    u_p = Rt @ (p_j - p_i - v_i * T - 0.5 * g * T * T)
+    r = np.concatenate([r_R, u_v - dv, u_p - dp])
+
+    # the Jacobian: rows (r_R, r_v, r_p); columns i: 0 dphi, 3 dp, 6 dv, 9 dbg, 12 dba; j: + 15
+    J = np.zeros((9, 2 * FRAME_DOF))
+    Jinv = right_jacobian_inverse(r_R)
+    J[0:3, 0:3] = -Jinv @ (R_j.T @ R_i)
+    J[0:3, 9:12] = -Jinv @ (E.T @ right_jacobian(theta) @ dR_dbg)
+    J[0:3, 15:18] = Jinv
+    J[3:6, 0:3] = skew(u_v)
+    J[3:6, 6:9] = -Rt
+    J[3:6, 9:12] = -dv_dbg
+    J[3:6, 12:15] = -dv_dba
+    J[3:6, 21:24] = Rt
+    J[6:9, 0:3] = skew(u_p)
+    J[6:9, 3:6] = -Rt
+    J[6:9, 6:9] = -T * Rt
+    J[6:9, 9:12] = -dp_dbg
+    J[6:9, 12:15] = -dp_dba
+    J[6:9, 18:21] = Rt
+    return r, J

@@ -1,0 +1,187 @@
+"""Generate ``exercises/`` from ``solutions/``.
+
+Code between ``# BEGIN SOLUTION`` and ``# END SOLUTION`` is replaced by a
+``raise NotImplementedError`` naming the TODO (``module.Class.method``); signatures,
+docstrings and hints stay. A file whose first lines hold ``# RELEASE: omit`` is kept
+out of the student tree (e.g. reference answers to written questions, the reference side
+of the autograder), wherever it is.
+
+``write_student_tree`` writes the tree a student receives: the repository without
+``solutions/``, ``tests/``, ``.ci/``, ``autograder/mistakes/``, omitted files and
+local clutter (``.git``, ``.venv``, ``out``, caches), with the student's ``README.md``
+and ``Makefile`` from ``course/release/student_tree/`` in place of the instructor's.
+"""
+
+import ast
+import shutil
+from pathlib import Path
+
+from course.core.impl import REPO_ROOT
+
+BEGIN, END, OMIT = "# BEGIN SOLUTION", "# END SOLUTION", "# RELEASE: omit"
+
+#: the student's README.md and Makefile, copied over the instructor's
+STUDENT_TEMPLATES = Path(__file__).resolve().parent / "student_tree"
+#: paths (relative to the repository) that are the instructor's alone
+INSTRUCTOR_ONLY = ("solutions", "tests", ".ci", "autograder/mistakes")
+#: names skipped at any depth: version control, environments, outputs, caches
+LOCAL_CLUTTER = (".git", ".venv", "out", "build", "__pycache__", ".pytest_cache", ".mypy_cache",
+                 ".ruff_cache", ".ipynb_checkpoints", "*.egg-info", "*.pyc")
+
+
+class ReleaseError(ValueError):
+    """Unbalanced or misplaced solution markers."""
+
+
+def _enclosing_functions(tree) -> dict:
+    """Map every line number to the qualified name of the innermost def around it."""
+    names = {}
+
+    def visit(node, prefix):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                qual = f"{prefix}{child.name}"
+                if not isinstance(child, ast.ClassDef):
+                    for line in range(child.lineno, child.end_lineno + 1):
+                        names[line] = qual
+                visit(child, qual + ".")
+            else:
+                visit(child, prefix)
+
+    visit(tree, "")
+    return names
+
+
+def strip_solutions(source: str, module: str, path="<source>") -> str:
+    """The student version of one solutions module's source text."""
+    lines = source.splitlines(keepends=True)
+    owners = _enclosing_functions(ast.parse(source, filename=str(path)))
+    out, inside = [], None
+    for number, line in enumerate(lines, start=1):
+        stripped = line.strip()
+        if stripped == BEGIN:
+            if inside is not None:
+                raise ReleaseError(f"{path}:{number}: {BEGIN} inside another solution block")
+            if number not in owners:
+                raise ReleaseError(f"{path}:{number}: {BEGIN} outside a function")
+            inside = number
+            indent = line[: len(line) - len(line.lstrip())]
+            todo = f"{module}.{owners[number]}"
+            out.append(f'{indent}raise NotImplementedError("TODO {todo}: not implemented yet")\n')
+        elif stripped == END:
+            if inside is None:
+                raise ReleaseError(f"{path}:{number}: {END} without {BEGIN}")
+            inside = None
+        elif inside is None:
+            out.append(line)
+    if inside is not None:
+        raise ReleaseError(f"{path}:{inside}: {BEGIN} never closed")
+    return "".join(out)
+
+
+def _omitted(text: str) -> bool:
+    return any(line.strip() == OMIT for line in text.splitlines()[:5])
+
+
+def render(solutions_dir: Path) -> dict:
+    """``{relative path: text}`` of the student tree for ``solutions_dir``."""
+    files = {}
+    for path in sorted(solutions_dir.rglob("*")):
+        if path.is_dir() or "__pycache__" in path.parts or path.suffix == ".pyc":
+            continue
+        rel = path.relative_to(solutions_dir)
+        text = path.read_text()
+        if _omitted(text):
+            continue
+        if path.suffix == ".py":
+            module = ".".join(rel.with_suffix("").parts)
+            text = strip_solutions(text, module, path)
+            if rel.name == "__init__.py":
+                text = text.replace("Reference implementations", "Your implementations", 1)
+        files[str(rel)] = text
+    return files
+
+
+def write(target: Path, files: dict) -> None:
+    """Replace ``target`` with exactly ``files``."""
+    if target.exists():
+        shutil.rmtree(target)
+    for rel, text in files.items():
+        dest = target / rel
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        dest.write_text(text)
+
+
+def stale_files(target: Path, files: dict) -> list:
+    """Paths whose content in ``target`` differs from ``files`` (missing or extra too)."""
+    present = {
+        str(p.relative_to(target))
+        for p in target.rglob("*")
+        if p.is_file() and "__pycache__" not in p.parts
+    } if target.exists() else set()
+    stale = [rel for rel, text in files.items() if rel not in present or (target / rel).read_text() != text]
+    return sorted(stale + sorted(present - set(files)))
+
+
+def release(check=False, student_dir=None, root: Path = REPO_ROOT) -> list:
+    """Regenerate ``exercises/`` (or only check it); optionally write a student tree.
+
+    Returns the list of stale paths (empty when up to date).
+    """
+    files = render(root / "solutions")
+    exercises = root / "exercises"
+    stale = stale_files(exercises, files)
+    if not check and stale:
+        write(exercises, files)
+    if student_dir is not None:
+        write_student_tree(Path(student_dir), files, root)
+    return stale
+
+
+def _file_omitted(path: Path) -> bool:
+    """True when one of the file's first five lines is ``# RELEASE: omit``."""
+    with open(path, "rb") as handle:
+        head = handle.read(4096).decode("utf-8", errors="replace")
+    return _omitted(head)
+
+
+def _student_ignore(root: Path):
+    """A ``shutil.copytree`` ignore function for the student tree of ``root``."""
+    clutter = shutil.ignore_patterns(*LOCAL_CLUTTER)
+
+    def ignore(directory, names):
+        where = Path(directory)
+        rel = where.relative_to(root)
+        skipped = set(clutter(directory, names))
+        for name in names:
+            if name in skipped:
+                continue
+            if (rel / name).as_posix() in INSTRUCTOR_ONLY:
+                skipped.add(name)
+            elif (where / name).is_file() and _file_omitted(where / name):
+                skipped.add(name)
+        return skipped
+
+    return ignore
+
+
+def write_student_tree(target: Path, exercise_files: dict, root: Path) -> None:
+    """A copy of the repository for students (see the module docstring).
+
+    No ``solutions/`` (no reference answers, no reference code), no ``tests/`` or
+    ``.ci/`` (they test the reference), no ``autograder/mistakes/`` and no file marked
+    ``# RELEASE: omit`` (e.g. ``autograder/oracle.py``, the reference side of grading).
+    ``exercises/`` is ``exercise_files``; ``README.md`` and ``Makefile`` are the student's.
+    Students grade the public checks themselves (``python -m autograder``, from the data
+    in ``autograder/expected/``); the hidden checks run on the course's side."""
+    target = Path(target)
+    root = Path(root).resolve()
+    if target.exists():
+        raise ReleaseError(f"{target} already exists; choose a new directory")
+    if target.resolve().is_relative_to(root):
+        raise ReleaseError(f"{target} is inside the repository {root}; choose a directory outside it")
+    shutil.copytree(root, target, ignore=_student_ignore(root))
+    write(target / "exercises", exercise_files)
+    for template in sorted(STUDENT_TEMPLATES.iterdir()):
+        if template.is_file() and template.name != "__init__.py":
+            shutil.copyfile(template, target / template.name)

@@ -1,0 +1,7 @@
+"""The minimizer (:mod:`course.solver.minimizer`) and its strategies."""
+
+from course.solver.minimizer import Problem, StopReason, minimize
+from course.solver.options import SolverOptions
+from course.solver.strategies import METHODS
+
+__all__ = ["METHODS", "Problem", "SolverOptions", "StopReason", "minimize"]
