@@ -51,7 +51,7 @@ ID_RANGE = 200
 #: RLIMIT_NPROC of a child's uid: its processes and threads (BLAS runs one thread)
 PROCESSES = 32
 #: what the child imports from the repository, staged for it
-AUTOGRADER_FILES = ("__init__.py", "child.py", "tasks.py")
+AUTOGRADER_FILES = ("__init__.py", "child.py", "forkserver.py", "tasks.py")
 OMIT_MARKER = "# RELEASE: omit"
 TEMP_DIRS = ("/tmp", "/var/tmp", "/dev/shm")
 LIBRARY_SKIP = {"site-packages", "dist-packages", "test", "idlelib", "turtledemo", "ensurepip",

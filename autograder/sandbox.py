@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from autograder import isolation
+from autograder import forkserver, isolation
 from autograder.records import ErrorInfo, Outcome
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -50,6 +50,11 @@ BOOTSTRAP = (
     "import os, sys; sys.path.insert(0, {root!r}); import site; "
     "[site.addsitedir(p) for p in {sites!r}]; from autograder.child import main; "
     "code = main(sys.argv[1:]); sys.stdout.flush(); sys.stderr.flush(); os._exit(code)"
+)
+#: the fork server (:mod:`autograder.forkserver`), started the same way
+SERVER_BOOTSTRAP = (
+    "import os, sys; sys.path.insert(0, {root!r}); import site; "
+    "[site.addsitedir(p) for p in {sites!r}]; from autograder.forkserver import serve; serve(); os._exit(0)"
 )
 THREAD_VARIABLES = (
     "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
@@ -143,25 +148,43 @@ class Session:
         self._slots: list = []
         self._free: queue.Queue = queue.Queue()
         self._watch = None
-        self._was_subreaper = None
+        self._was_subreaper: bool | None = None
         self._python = sys.executable
         self._sites: list = []
         self._env: dict = {}
         self._child_impl = self.impl
+        self._server: forkserver.ForkServer | None = None
+        self._stage: Path | None = None
 
     # ------------------------------------------------------------ set-up and tear-down
 
     def __enter__(self):
         self._start = time.monotonic()
-        if not self.isolate:
-            self.notice = NOT_ROOT_NOTICE
-            return self
         try:
-            self._set_up()
+            if self.isolate:
+                self._set_up()
+            else:
+                self.notice = NOT_ROOT_NOTICE
+            self._start_server()
         except BaseException:
             self._tear_down()
             raise
         return self
+
+    def _start_server(self) -> None:
+        """The fork server, on Linux where this process can adopt the children it forks
+        (``AUTOGRADER_FORKSERVER=0``: a new interpreter per check, as elsewhere)."""
+        if not sys.platform.startswith("linux") or os.environ.get("AUTOGRADER_FORKSERVER", "1") == "0":
+            return
+        if not self.isolate:
+            self._was_subreaper = isolation.set_subreaper(True)
+            if not _is_subreaper():
+                return
+        root = str(self._stage) if self.isolate else str(REPO_ROOT)
+        env = isolated_env(self._base, self._env) if self.isolate else child_env()
+        cwd = str(self._base) if self.isolate else tempfile.gettempdir()
+        self._server = forkserver.ForkServer(self._python, SERVER_BOOTSTRAP.format(root=root, sites=list(self._sites)),
+                                             env, cwd)
 
     def __exit__(self, *exc):
         self._tear_down()
@@ -210,6 +233,9 @@ class Session:
         self.notice = "; ".join(said)
 
     def _tear_down(self):
+        if self._server is not None:
+            self._server.close()
+            self._server = None
         if self._watch is not None:
             self._watch.stop()
             self._watch = None
@@ -265,6 +291,40 @@ class Session:
         start = time.perf_counter()
         token = secrets.token_hex(16)
         calls_path, out_path, progress_path = home / "calls.pkl", work / "out.npz", work / "progress"
+        self._write_spec(calls, timeout, calls_path, slot)
+        streams = home / "out" if slot is not None else home
+        if slot is not None:
+            slot.memory_exceeded = False
+            slot.memory_limit = int(self.memory_mb * 2**20) if self.memory_mb else None
+        status, proc = "ok", None
+        try:
+            try:
+                proc = self._spawn(token, [str(calls_path), str(out_path), str(progress_path)], work, streams, slot)
+            except OSError as exc:
+                error = ErrorInfo("Crash", f"the grader could not start the child process ({exc}): "
+                                           "tell your instructor")
+                return _all_failed(calls, -1, error, "", time.perf_counter() - start, "crashed", None)
+            isolation.TRACKED.add(proc.pid)
+            try:
+                proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                status = "timeout"
+            finally:
+                if slot is not None:
+                    slot.memory_limit = None
+                _kill_group(proc)
+                if slot is not None:
+                    isolation.kill_uid(slot.uid, slot.gid)
+                proc.wait()
+                isolation.TRACKED.discard(proc.pid)
+        finally:
+            if slot is not None:
+                slot.memory_limit = None
+        return self._outcome(calls, proc, status, by_budget, timeout, streams, out_path, progress_path, token, slot,
+                             time.perf_counter() - start)
+
+    def _write_spec(self, calls, timeout, calls_path: Path, slot) -> None:
+        """The child's instructions (a pickle only the grader and the child's group can read)."""
         spec = {
             "impl": self._child_impl,
             "calls": [call.payload() for call in calls],
@@ -278,54 +338,40 @@ class Session:
         fd = os.open(calls_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o600)
         with os.fdopen(fd, "wb") as f:
             pickle.dump(spec, f)
-        streams = home / "out" if slot is not None else home
-        root = str(self._stage) if slot is not None else str(REPO_ROOT)
-        command = [self._python, "-I", "-B", "-c", BOOTSTRAP.format(root=root, sites=list(self._sites)),
-                   str(calls_path), str(out_path), str(progress_path)]
-        options = {}
         if slot is not None:
             os.chown(calls_path, 0, slot.gid)
             os.chmod(calls_path, 0o640)
-            options = {"user": slot.uid, "group": slot.gid, "extra_groups": [],
-                       "env": isolated_env(work, self._env)}
-            slot.memory_exceeded = False
-            slot.memory_limit = int(self.memory_mb * 2**20) if self.memory_mb else None
-        else:
-            options = {"env": child_env()}
-        status, proc = "ok", None
+
+    def _spawn(self, token: str, argv: list, work: Path, streams: Path, slot):
+        """The check's child, forked by the fork server where there is one, else a new interpreter;
+        either way in a session of its own, as the slot's uid when isolating, with the token on stdin."""
+        env = isolated_env(work, self._env) if slot is not None else child_env()
+        if self._server is not None:
+            pid = self._server.spawn({
+                "argv": argv, "cwd": str(work), "env": env, "stdout": str(streams / "stdout"),
+                "stderr": str(streams / "stderr"), "token": token.encode(),
+                "uid": slot.uid if slot is not None else None, "gid": slot.gid if slot is not None else None})
+            if pid is not None:
+                return forkserver.Forked(pid)
+        root = str(self._stage) if slot is not None else str(REPO_ROOT)
+        command = [self._python, "-I", "-B", "-c", BOOTSTRAP.format(root=root, sites=list(self._sites)), *argv]
+        options: dict = {"env": env}
+        if slot is not None:
+            options.update({"user": slot.uid, "group": slot.gid, "extra_groups": []})
+        with open(streams / "stdout", "wb") as out, open(streams / "stderr", "wb") as err:
+            proc = subprocess.Popen(command, cwd=work, stdin=subprocess.PIPE, stdout=out, stderr=err,
+                                    start_new_session=True, **options)
         try:
-            with open(streams / "stdout", "wb") as out, open(streams / "stderr", "wb") as err:
-                try:
-                    proc = subprocess.Popen(command, cwd=work, stdin=subprocess.PIPE, stdout=out, stderr=err,
-                                            start_new_session=True, **options)
-                except OSError as exc:
-                    error = ErrorInfo("Crash", f"the grader could not start the child process ({exc}): "
-                                               "tell your instructor")
-                    return _all_failed(calls, -1, error, "", time.perf_counter() - start, "crashed", None)
-                isolation.TRACKED.add(proc.pid)
-                try:
-                    try:
-                        assert proc.stdin is not None  # started with stdin=PIPE
-                        proc.stdin.write(token.encode())
-                        proc.stdin.close()
-                    except OSError:
-                        pass
-                    try:
-                        proc.wait(timeout=timeout)
-                    except subprocess.TimeoutExpired:
-                        status = "timeout"
-                finally:
-                    if slot is not None:
-                        slot.memory_limit = None
-                    _kill_group(proc)
-                    if slot is not None:
-                        isolation.kill_uid(slot.uid, slot.gid)
-                    proc.wait()
-                    isolation.TRACKED.discard(proc.pid)
-        finally:
-            if slot is not None:
-                slot.memory_limit = None
-        seconds = time.perf_counter() - start
+            assert proc.stdin is not None  # started with stdin=PIPE
+            proc.stdin.write(token.encode())
+            proc.stdin.close()
+        except OSError:
+            pass
+        return proc
+
+    def _outcome(self, calls, proc, status, by_budget, timeout, streams, out_path, progress_path, token, slot,
+                 seconds) -> ChildRun:
+        """What the child left: its outputs, or why there are none (memory, time, a crash)."""
         printed = _printed(streams / "stdout", streams / "stderr")
         owner = slot.uid if slot is not None else None
         running = _progress(progress_path, owner)
@@ -344,30 +390,38 @@ class Session:
                                proc.returncode)
         outcomes, problem = _read(out_path, len(calls), token=token, owner=owner)
         if outcomes is None:
-            code = proc.returncode
-            if code is not None and code < 0:
-                try:
-                    name = signal.Signals(-code).name
-                except ValueError:
-                    name = str(-code)
-                how = f"was killed by signal {name}"
-                if -code == signal.SIGXCPU:
-                    how += " (CPU time limit)"
-                elif -code == signal.SIGXFSZ:
-                    how += " (it wrote more than the file size limit, e.g. printing in a loop)"
-            else:
-                how = f"exited with status {code}"
-            message = f"{how} before returning any result"
-            if problem:
-                message += f" ({problem})"
-            if code == 0:
-                message += ": does your code call os._exit(), sys.exit() or quit()?"
-            elif code is not None and code > 0:
-                message += (": does your code call os._exit() or sys.exit()? (if it printed a "
-                            "traceback below, the grader could not start: tell your instructor)")
-            return _all_failed(calls, running, ErrorInfo("Crash", message), printed, seconds,
-                               "crashed", code)
+            return _all_failed(calls, running, ErrorInfo("Crash", _crash_message(proc.returncode, problem)), printed,
+                               seconds, "crashed", proc.returncode)
         return ChildRun(outcomes, printed, seconds, "ok", returncode=proc.returncode)
+
+
+def _crash_message(code, problem: str) -> str:
+    """Why a child left no result, from its exit status."""
+    if code is not None and code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = str(-code)
+        how = f"was killed by signal {name}"
+        if -code == signal.SIGXCPU:
+            how += " (CPU time limit)"
+        elif -code == signal.SIGXFSZ:
+            how += " (it wrote more than the file size limit, e.g. printing in a loop)"
+    else:
+        how = f"exited with status {code}"
+    message = f"{how} before returning any result"
+    if problem:
+        message += f" ({problem})"
+    if code == 0:
+        message += ": does your code call os._exit(), sys.exit() or quit()?"
+    elif code is not None and code > 0:
+        message += (": does your code call os._exit() or sys.exit()? (if it printed a "
+                    "traceback below, the grader could not start: tell your instructor)")
+    return message
+
+def _is_subreaper() -> bool:
+    was = isolation.set_subreaper(True)
+    return was
 
 
 def _relative(path) -> str:

@@ -82,7 +82,14 @@ def run(impl, calls=None, timeout=3.0, memory_mb=sandbox.DEFAULT_MEMORY_MB, work
         base = session._base
         result = session.run(calls)
     assert base is None or not base.exists(), "the session's directory was left behind"
-    assert leftovers() == ([], []), "a process or file of the sandbox uids outlived its check"
+    left = leftovers()
+    info = []
+    for pid in left[0]:
+        try:
+            info.append(open(f"/proc/{pid}/stat").read()[:90])
+        except OSError as e:
+            info.append(str(e))
+    assert left == ([], []), f"outlived: {info} me={os.getpid()}"
     return result
 
 
