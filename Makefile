@@ -20,6 +20,7 @@ demo: $(STAMP)
 lint: $(STAMP)
 	$(PY) -m ruff check .
 	$(PY) -m mypy course autograder
+	$(VENV)/bin/lint-imports
 
 # everything: lint, type check and the whole suite (what CI runs)
 test: lint

@@ -13,7 +13,8 @@ import numpy as np
 
 from autograder.records import Verdict
 
-_TODO = re.compile(r"TODO ([A-Za-z_][\w.]*)")
+#: a TODO name in a stub's NotImplementedError message
+TODO_PATTERN = re.compile(r"TODO ([A-Za-z_][\w.]*)")
 
 
 def fmt(x) -> str:
@@ -30,7 +31,7 @@ def not_implemented_name(error, call=None):
     """The TODO name when ``error`` is the stub's NotImplementedError, else None."""
     if error is None or error.kind != "NotImplementedError":
         return None
-    match = _TODO.search(error.message)
+    match = TODO_PATTERN.search(error.message)
     if match:
         return match.group(1)
     if call is not None and not call.target.startswith("@"):

@@ -45,8 +45,9 @@ from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 #: first uid/gid tried for the slots (Debian leaves 60000-64999 to packages that are
-#: rarely installed; ids that an account or group uses are skipped)
-FIRST_ID = 61700
+#: rarely installed; ids that an account or group uses are skipped); ``AUTOGRADER_FIRST_ID``
+#: moves the range, e.g. for graders on one machine that must not see each other's children
+FIRST_ID = int(os.environ.get("AUTOGRADER_FIRST_ID", "61700"))
 ID_RANGE = 200
 #: RLIMIT_NPROC of a child's uid: its processes and threads (BLAS runs one thread)
 PROCESSES = 32

@@ -1,6 +1,14 @@
 """Shared test fixtures."""
 
+import os
+
 import pytest
+
+# Under pytest-xdist each worker grades with uids of its own (autograder.isolation.FIRST_ID), so
+# that a test counting the processes left by its grading run never sees another worker's.
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+if _WORKER.startswith("gw") and _WORKER[2:].isdigit():
+    os.environ["AUTOGRADER_FIRST_ID"] = str(61700 + 200 * int(_WORKER[2:]))
 
 
 @pytest.fixture

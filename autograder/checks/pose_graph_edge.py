@@ -14,7 +14,7 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Check, Verdict
-from autograder.feedback import _TODO, call_fields, compare, first_error, fmt
+from autograder.feedback import TODO_PATTERN, call_fields, compare, first_error, fmt
 from autograder.feedback import values as _feedback_values
 
 MODULES = ("pose_graph_edge",)
@@ -42,7 +42,7 @@ def failed(ctx, hints=None):
     for outcome in ctx.student:
         if outcome.error is not None:
             loop = loop or LOOP_NOTE in outcome.error.message
-            for name in _TODO.findall(outcome.error.message):
+            for name in TODO_PATTERN.findall(outcome.error.message):
                 if name not in names:
                     names.append(name)
     message = verdict.message
