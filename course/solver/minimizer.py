@@ -36,7 +36,7 @@ class StopReason(str, Enum):
 _MESSAGES = {
     StopReason.MAX_ITERATIONS: "the maximum number of step attempts was reached",
     StopReason.GRADIENT_TOLERANCE: "max |b| fell below gradient_tolerance (b = J^T W r)",
-    StopReason.COST_TOLERANCE: "an accepted step changed chi2 by less than cost_tolerance, relative",
+    StopReason.COST_TOLERANCE: "a step changed chi2 by less than cost_tolerance, relative",
     StopReason.STEP_TOLERANCE: "the step (or the trust radius) fell below step_tolerance (|x| + step_tolerance)",
     StopReason.CALLBACK: "the callback asked to stop",
 }
@@ -94,7 +94,10 @@ def minimize(problem: Problem, method="gauss-newton", impl="solutions", options:
                                  strategy.factorizations)
         trace.append(record)
         strategy.step_done(trial, lin, rho, accepted)
-        converged = False
+        # a step that changes chi2 by less than cost_tolerance, accepted or not, means the
+        # optimum is reached to rounding: rho is noise there, and a rejected step would only
+        # shrink lambda's or the radius' inverse until the step tolerance (as Ceres stops)
+        converged = abs(lin.chi2 - trial.chi2) <= options.cost_tolerance * lin.chi2
         if accepted:
             x, previous = trial.x, lin.chi2
             lin = trial.lin if trial.lin is not None else problem.linearize(x)

@@ -10,7 +10,7 @@ class SolverOptions:
     - ``gradient_tolerance``: ``max |b| <= gradient_tolerance`` (b = J^T W r).
     - ``step_tolerance``: ``|h| <= step_tolerance (|x| + step_tolerance)`` (dogleg: the
       radius instead of the step).
-    - ``cost_tolerance``: an accepted step with ``|dchi2| <= cost_tolerance chi2``.
+    - ``cost_tolerance``: a step, accepted or rejected, with ``|dchi2| <= cost_tolerance chi2``.
     - ``max_iterations``: step attempts, accepted or rejected.
     - ``initial_radius``: the dogleg's first trust region (Ceres' and g2o's default 1e4).
 
