@@ -12,8 +12,13 @@ The hidden seed comes from the environment variable ``AUTOGRADER_HIDDEN_SEED`` w
 (an instructor's own, e.g. baked into a Gradescope bundle), else :data:`DEFAULT_HIDDEN_SEED`.
 """
 
+import functools
+import hashlib
 import importlib
 import os
+import pickle
+import threading
+from collections import OrderedDict
 
 import numpy as np
 
@@ -44,6 +49,34 @@ def _mistake_catalogue(module: str) -> dict:
     return getattr(catalogue, "MISTAKES", {})
 
 
+#: outputs already computed, by what determines them (the calls' payloads): the last few only
+_MEMO: "OrderedDict[tuple, object]" = OrderedDict()
+_MEMO_SIZE = 64
+_MEMO_LOCK = threading.Lock()
+
+
+def _digest(value) -> bytes:
+    return hashlib.sha256(pickle.dumps(value, protocol=4)).digest()
+
+
+def _memo(key: tuple, make):
+    """``make()``, or what it returned before for the same ``key`` (the reference is deterministic)."""
+    with _MEMO_LOCK:
+        if key in _MEMO:
+            _MEMO.move_to_end(key)
+            return _MEMO[key]
+    value = make()
+    with _MEMO_LOCK:
+        _MEMO[key] = value
+        while len(_MEMO) > _MEMO_SIZE:
+            _MEMO.popitem(last=False)
+    return value
+
+
+def _mistake_outputs(known, call, want) -> dict:
+    return {key: [(np.asarray(v, dtype=float), why) for v, why in pairs] for key, pairs in known(call, want).items()}
+
+
 def compute(check, module: str, seed=None) -> Expected:
     """Calls, reference outputs and known mistakes of ``check`` (from ``checks/<module>.py``)."""
     from autograder.child import run_calls
@@ -51,8 +84,9 @@ def compute(check, module: str, seed=None) -> Expected:
 
     calls = check.calls(seed)
     solutions = reference_implementation()
+    payloads = [c.payload() for c in calls]
     with np.errstate(all="ignore"):
-        results = run_calls(solutions, [c.payload() for c in calls])
+        results = _memo(("reference", _digest(payloads)), lambda: run_calls(solutions, payloads))
     reference = []
     for call, result in zip(calls, results):
         if not isinstance(result, tuple):
@@ -69,8 +103,9 @@ def compute(check, module: str, seed=None) -> Expected:
         if problem:
             raise RuntimeError(f"the reference's output of {call.function} is malformed: {problem}")
         with np.errstate(all="ignore"):
-            mistakes.append({key: [(np.asarray(v, dtype=float), why) for v, why in pairs]
-                             for key, pairs in known(call, want).items()})
+            # the checks of one exercise often share their calls: each mistake is evaluated once per call
+            key = ("mistakes", known, _digest(call.payload()))  # the function itself: closures share names
+            mistakes.append(_memo(key, functools.partial(_mistake_outputs, known, call, want)))
     return Expected(calls, reference, mistakes)
 
 

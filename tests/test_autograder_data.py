@@ -116,11 +116,12 @@ def test_a_lookup_table_of_public_answers_loses_the_hidden_points(tmp_path):
 
 @needs("pyceres", "qdldl")
 @pytest.mark.slow
-def test_the_reference_answers_the_hidden_inputs_of_any_seed():
+@pytest.mark.parametrize("first", range(0, 100, 25))  # 100 seeds in four parts, for pytest-xdist
+def test_the_reference_answers_the_hidden_inputs_of_any_seed(first):
     """A Gradescope bundle draws its hidden seed at random: every check's hidden inputs must
     be ones the reference answers, whatever the seed (the curve's Gauss-Newton from (0, 0, 0)
     once failed on about 2% of the seeds)."""
     modules = module_of()
-    for seed in range(100):
+    for seed in range(first, first + 25):
         for check in all_checks():
             oracle.compute(check, modules[check.name], 10_000 + seed)

@@ -12,6 +12,8 @@ SMALL_ANGLE = 1e-5
 def skew(v) -> np.ndarray:
     """``[v]_x`` with ``[v]_x u = v x u``: (3, 3) for v (3,), (K, 3, 3) for v (K, 3)."""
     v = np.asarray(v, dtype=float)
+    if v.ndim == 1:  # the common case, built directly (several times faster than the general one)
+        return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
     S = np.zeros(v.shape[:-1] + (3, 3))
     S[..., 0, 1], S[..., 0, 2], S[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
     S[..., 1, 0], S[..., 2, 0], S[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
