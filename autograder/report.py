@@ -1,10 +1,8 @@
 """The results, for a terminal and for Gradescope (``results.json``)."""
 
-import json
-import os
 import shutil
-import tempfile
-from pathlib import Path
+
+from course.core import jsonio
 
 NAME_WIDTH = 44
 
@@ -96,10 +94,4 @@ def gradescope(results, seconds: float) -> dict:
 
 
 def write_json(path, data) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        json.dump(data, f, indent=2)
-        f.write("\n")
-    os.replace(tmp, path)
+    jsonio.write_json(path, data, indent=2, newline=True)

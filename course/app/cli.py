@@ -6,7 +6,6 @@ check or a solver/implementation error, 2 a usage error (unknown dataset, method
 """
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -15,18 +14,11 @@ from course.core.backend_names import BACKENDS
 from course.core.data import data_dir
 from course.core.errors import DatasetError
 from course.core.impl import default_impl
+from course.core.jsonio import write_json
 
 
 def _names(text):
     return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
-
-
-def _write_json(name: str, content) -> None:
-    """Write ``content`` as JSON to the file ``name`` (its folders made) and say so."""
-    path = Path(name)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(content, indent=1))
-    print(f"wrote {path}")
 
 
 def _add_run_arguments(parser):
@@ -176,10 +168,7 @@ def cmd_demo(args) -> int:
     plot.chi2_per_iteration(_ran(runs), written[0])
     plot.damping_per_iteration(lm_runs, written[1], title="lambda per iteration, Gavin's damping types 1-3")
     plot.curve_fit(data, _ran(runs), written[2])
-    json_path = out / "curve.json"
-    out.mkdir(parents=True, exist_ok=True)
-    json_path.write_text(json.dumps(compare.to_json("curve", runs), indent=1))
-    written.append(json_path)
+    written.append(write_json(out / "curve.json", compare.to_json("curve", runs), indent=1))
     todo = _todo(runs)
     if not args.curve_only:
         pose_written, pose_todo = _demo_pose_graphs(impl, out, args.init)
@@ -225,13 +214,13 @@ def _demo_pose_graphs(impl, out, init="file") -> tuple:
                                     f"`python -m course compare {name}` runs everything)")
         print("\n" + compare.format_table(
             runs, title=f"{name}: {graph.num_poses} poses, {graph.num_edges} edges; impl {impl}; init {init}{note}"))
-        (out / f"{name}.json").write_text(json.dumps(compare.to_json(name, runs)))
+        json_path = write_json(out / f"{name}.json", compare.to_json(name, runs))
         ran = _ran(runs)
         if ran:  # the first run that ran: ours when written, else a peer
             path = out / f"{name}.png"
             plot.pose_graph_before_after(_start(graph, init, impl), ran[0], path)
             written.append(path)
-        written.append(out / f"{name}.json")
+        written.append(json_path)
     return written, todo
 
 
@@ -255,7 +244,7 @@ def _demo_bundle_adjustment(impl, out) -> tuple:
         print("\n" + compare.format_bal(runs))
     name = DEMO_BAL.replace(":", "_")
     json_path, png = out / f"{name}.json", out / f"{name}.png"
-    json_path.write_text(json.dumps(compare.to_json(DEMO_BAL, runs)))
+    write_json(json_path, compare.to_json(DEMO_BAL, runs))
     written = [json_path]
     if _ran(runs):
         plot.chi2_per_iteration(_ran(runs), png, title=f"{DEMO_BAL}: chi2 per iteration")
@@ -304,10 +293,7 @@ def cmd_compare(args) -> int:
     if runner.kind == "bal" and compare.format_bal(runs):
         print("\n" + compare.format_bal(runs))
     if args.json:
-        path = Path(args.json)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(compare.to_json(args.dataset, runs), indent=1))
-        print(f"wrote {path}")
+        print(f"wrote {write_json(args.json, compare.to_json(args.dataset, runs), indent=1)}")
     if args.plot:
         from course.app import plot
 
@@ -408,7 +394,7 @@ def cmd_vio(args) -> int:
           "scale from Sim(3)")
     print(vio.format_comparison(results))
     if args.json:
-        _write_json(args.json, results)
+        print(f"wrote {write_json(args.json, results, indent=1)}")
     return 0
 
 
@@ -442,5 +428,5 @@ def cmd_ape(args) -> int:
               "the source's row either: that row came from another run of its estimator (or another evaluation), "
               "not from these files, so closeness, not equality, is what to expect.")
     if args.json:
-        _write_json(args.json, stats)
+        print(f"wrote {write_json(args.json, stats, indent=1)}")
     return 0

@@ -1,7 +1,7 @@
 """Run one dataset through our methods and the peers; format the table; write JSON.
 
-A *runner* turns a dataset name into ``list[RunResult]``; ``RUNNERS`` maps a dataset
-kind to its runner and ``run(dataset, ...)`` picks the first kind whose ``matches``
+A *runner* turns a dataset name into ``list[RunResult]``; ``RUNNERS`` lists them in the
+order ``find_runner`` tries them, and ``run(dataset, ...)`` takes the first whose ``matches``
 accepts the name: ``curve`` (chapter 1, generated data), ``bal`` (chapter 4: ``ladybug-49``,
 ``dubrovnik-3-7``, ``bal-synthetic:CAMS:POINTS[:seed]``, BAL files) and ``posegraph`` (chapter 2:
 named datasets such as ``intel`` or ``m3500``, ``manhattan:N`` and file paths).
@@ -36,34 +36,25 @@ from course.core.trace import RunResult
 
 
 class UnknownDatasetError(CourseError, ValueError):
-    """No registered runner accepts the dataset name."""
+    """No runner of ``RUNNERS`` accepts the dataset name."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class Runner:
+    """A dataset kind: ``matches(name)`` says whether ``run(name, ...)`` takes the name."""
+
     kind: str
-    run: Callable
     matches: Callable[[str], bool]
+    run: Callable
     description: str = ""
 
 
-RUNNERS: dict = {}
-
-
-def register(kind: str, runner: Callable, matches: Callable[[str], bool] | None = None, description=""):
-    """Register ``runner`` for dataset ``kind``; ``matches(name)`` defaults to ``name == kind``."""
-    def same_name(name: str) -> bool:
-        return name == kind
-
-    RUNNERS[kind] = Runner(kind, runner, matches or same_name, description)
-
-
 def find_runner(dataset: str) -> Runner:
-    """The runner for ``dataset``, or ``UnknownDatasetError`` listing what is known."""
-    for runner in RUNNERS.values():
+    """The first of ``RUNNERS`` that accepts ``dataset``, or ``UnknownDatasetError`` listing what is known."""
+    for runner in RUNNERS:
         if runner.matches(dataset):
             return runner
-    known = "; ".join(f"{r.kind}: {r.description}" if r.description else r.kind for r in RUNNERS.values())
+    known = "; ".join(f"{r.kind}: {r.description}" if r.description else r.kind for r in RUNNERS)
     raise UnknownDatasetError(f"unknown dataset {dataset!r}; known datasets: {known}")
 
 
@@ -137,6 +128,28 @@ def _median_run(solve, repeat: int) -> RunResult:
     return sorted(runs, key=lambda r: r.seconds)[len(runs) // 2]
 
 
+def _run_pairs(plan, ours, peer, repeat=1, unimplemented="raise", progress=None,
+               failures: type[Exception] | tuple[type[Exception], ...] = ()) -> list:
+    """One ``RunResult`` per ``(backend, method)`` of ``plan``, in its order: the run loop of every kind.
+
+    ``ours(method, callback)`` solves with our minimizer (``callback`` the progress line's, or
+    None); ``peer(backend, method)`` with a peer. Each pair runs ``repeat`` times (the
+    median-time run kept) or becomes a row (``_solve_or_row``); an exception among ``failures``
+    becomes a row ``failed: ...``.
+    """
+    progress = progress or quiet()
+    results = []
+    for backend, method in plan:
+        with progress.run(backend, method) as callback:
+            solve = partial(ours, method, callback) if backend == "ours" else partial(peer, backend, method)
+            try:
+                result = _solve_or_row(solve, repeat, backend, method, unimplemented)
+            except failures as exc:
+                result = RunResult.skipped(backend, method, f"failed: {exc}")
+        results.append(result)
+    return results
+
+
 def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_iterations=100,
               solver_options=None, unimplemented="raise", progress=None) -> list:
     """The chapter 1 comparison: our methods and the peers on one ``CurveData``.
@@ -165,24 +178,23 @@ def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_i
     impl = _tree_impl(impl)
     data = generate() if data is None else data
     options = SolverOptions(max_iterations=max_iterations) if solver_options is None else solver_options
-    progress = progress or quiet()
-    results = []
-    for backend, method in curve_plan(methods, backends):
-        with progress.run(backend, method) as callback:
-            if backend == "ours":
-                solve = partial(lambda m, c: minimize(CurveProblem(data, impl=impl), m, impl=impl, options=options,
-                                                      callback=c), method, callback)
-            else:
-                solve = partial(_run_peer, "curve", backend, data, method, max_iterations=max_iterations)
-            results.append(_solve_or_row(solve, repeat, backend, method, unimplemented))
-    return results
+
+    def ours(method, callback):
+        return minimize(CurveProblem(data, impl=impl), method, impl=impl, options=options, callback=callback)
+
+    def peer(backend, method):
+        return _run_peer("curve", backend, data, method, max_iterations=max_iterations)
+
+    return _run_pairs(curve_plan(methods, backends), ours, peer, repeat, unimplemented, progress)
+
+
+def is_curve_name(name: str) -> bool:
+    """Only ``curve``: the data are generated."""
+    return name == "curve"
 
 
 def _curve_runner(dataset, impl=None, methods=None, backends=None, **options):
     return run_curve(impl=impl, methods=methods, backends=backends, **options)
-
-
-register("curve", _curve_runner, description="y = exp(a x^2 + b x + c), 100 generated points (chapter 1)")
 
 
 # ---------------------------------------------------------------- pose graphs (chapter 2)
@@ -237,20 +249,15 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
         result.params = result.params.reshape(-1, 3)
         return result
 
-    progress = progress or quiet()
-    results = []
-    for backend, method in plan:
-        with progress.run(backend, method) as callback:
-            if backend == "ours":
-                solve = partial(ours, method, callback)
-            else:
-                kwargs = {"impl": impl} if backend == "ceres" else {}
-                solve = partial(_run_peer, "posegraph", backend, graph, method, max_iterations, **kwargs)
-            result = _solve_or_row(solve, repeat, backend, method, unimplemented)
+    def peer(backend, method):
+        kwargs = {"impl": impl} if backend == "ceres" else {}  # Ceres' edge cost is the implementation's
+        return _run_peer("posegraph", backend, graph, method, max_iterations, **kwargs)
+
+    results = _run_pairs(plan, ours, peer, repeat, unimplemented, progress)
+    for result in results:
         if graph.ground_truth is not None and not result.not_run:
             result.ate = absolute_trajectory_error(result.params, graph.ground_truth)
         result.init, result.init_seconds = init, init_seconds
-        results.append(result)
     return results
 
 
@@ -266,10 +273,6 @@ def _posegraph_runner(dataset, impl=None, methods=None, backends=None, **options
 
     return run_posegraph(datasets.load_dataset(dataset), impl=impl, methods=methods,
                          backends=backends, **options)
-
-
-register("posegraph", _posegraph_runner, matches=is_posegraph_name,
-         description="a named pose graph (python -m course datasets), manhattan:N, or a TORO/g2o file")
 
 
 def format_ate(runs) -> str:
@@ -324,19 +327,10 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
                           options=options, callback=callback)
         return BALRunResult.from_run(result, problem, peer_cost="ours: 0.5 sum |r|^2 over all observations")
 
-    progress = progress or quiet()
-    results = []
-    for backend, method in plan:
-        with progress.run(backend, method) as callback:
-            if backend == "ours":
-                solve = partial(ours, method, callback)
-            else:
-                solve = partial(_run_peer, "bal", backend, problem, method, max_iterations)
-            try:
-                results.append(_solve_or_row(solve, repeat, backend, method, unimplemented))
-            except SingularSystemError as exc:
-                results.append(RunResult.skipped(backend, method, f"failed: {exc}"))
-    return results
+    def peer(backend, method):
+        return _run_peer("bal", backend, problem, method, max_iterations)
+
+    return _run_pairs(plan, ours, peer, repeat, unimplemented, progress, failures=SingularSystemError)
 
 
 def is_bal_name(name: str) -> bool:
@@ -361,9 +355,17 @@ def _bal_runner(dataset, impl=None, methods=None, backends=None, **options):
     return run_bal(load_bal(dataset), impl=impl, methods=methods, backends=backends, **options)
 
 
-register("bal", _bal_runner, matches=is_bal_name,
-         description="a BAL problem: ladybug-49, dubrovnik-3-7, bal-synthetic:CAMS:POINTS[:seed] or a BAL file")
-RUNNERS["posegraph"] = RUNNERS.pop("posegraph")  # after "bal": its matcher takes any existing path
+# ---------------------------------------------------------------- the dataset kinds, in the order tried
+
+#: ``find_runner`` takes the first that matches: ``bal`` before ``posegraph``, whose matcher takes
+#: any existing path
+RUNNERS: tuple[Runner, ...] = (
+    Runner("curve", is_curve_name, _curve_runner, "y = exp(a x^2 + b x + c), 100 generated points (chapter 1)"),
+    Runner("bal", is_bal_name, _bal_runner,
+           "a BAL problem: ladybug-49, dubrovnik-3-7, bal-synthetic:CAMS:POINTS[:seed] or a BAL file"),
+    Runner("posegraph", is_posegraph_name, _posegraph_runner,
+           "a named pose graph (python -m course datasets), manhattan:N, or a TORO/g2o file"),
+)
 
 
 def format_bal(runs) -> str:

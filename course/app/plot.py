@@ -13,7 +13,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 
-def _figure(width=7.0, height=4.5) -> Figure:
+def figure(width=7.0, height=4.5) -> Figure:
+    """A constrained-layout figure of ``width`` x ``height`` inches on an Agg canvas (no pyplot)."""
     fig = Figure(figsize=(width, height), layout="constrained")
     FigureCanvasAgg(fig)
     return fig
@@ -54,7 +55,7 @@ def chi2_per_iteration(runs, path=None, title="chi2 per iteration") -> Figure:
     at 1000 times the largest start chi2; a run that climbs higher (undamped
     Gauss-Newton from a far start) is named with its peak in the corner.
     """
-    fig = _figure()
+    fig = figure()
     ax = fig.add_subplot()
     kept_all = []
     for run in runs:
@@ -94,7 +95,7 @@ def damping_per_iteration(runs, path=None, title="lambda per iteration") -> Figu
 
     Runs whose trace has no finite damping (Gauss-Newton, scipy) are left out.
     """
-    fig = _figure()
+    fig = figure()
     ax = fig.add_subplot()
     for run in runs:
         points = [(r.iteration, r.damping) for r in run.trace if np.isfinite(r.damping) and r.damping > 0]
@@ -116,7 +117,7 @@ def damping_per_iteration(runs, path=None, title="lambda per iteration") -> Figu
 
 def curve_fit(data, runs, path=None, title="data and fitted curves") -> Figure:
     """The samples, the true curve and each run's fitted curve ``exp(a x^2 + b x + c)``."""
-    fig = _figure()
+    fig = figure()
     ax = fig.add_subplot()
     ax.plot(data.x, data.y, "o", markersize=3, color="0.6", label=f"data (sigma {data.sigma:g}, seed {data.seed})")
     xs = np.linspace(float(np.min(data.x)), float(np.max(data.x)), 200)
@@ -143,22 +144,27 @@ def curve_fit(data, runs, path=None, title="data and fitted curves") -> Figure:
 
 def pose_graph_before_after(graph, result, path=None, title=None) -> Figure:
     """The graph's edges and poses at the start (grey) and after ``result`` (blue), side by side."""
-    fig = _figure(width=11.0, height=5.0)
+    fig = figure(width=11.0, height=5.0)
     after = np.asarray(result.params).reshape(-1, 3)
     for k, (poses, colour, name) in enumerate(
         [(graph.poses, "0.55", f"start, chi2 {result.initial_chi2:.4g}"),
          (after, "tab:blue", f"{result.backend} {result.method}, chi2 {result.final_chi2:.4g}")]
     ):
         ax = fig.add_subplot(1, 2, k + 1)
-        segments = np.stack([poses[graph.edges_i, :2], poses[graph.edges_j, :2]], axis=1)
-        from matplotlib.collections import LineCollection
-
-        ax.add_collection(LineCollection(list(segments), colors=colour, linewidths=0.3, alpha=0.5))
-        ax.plot(poses[:, 0], poses[:, 1], ".", color=colour, markersize=1.5)
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.autoscale()
+        draw_graph(ax, graph, poses, colour)
         ax.set_title(name, fontsize=9)
     fig.suptitle(title or f"{graph.name}: {graph.num_poses} poses, {graph.num_edges} edges")
     if path is not None:
         save(fig, path)
     return fig
+
+
+def draw_graph(ax, graph, poses, colour) -> None:
+    """The edges (segments) and poses (dots) of ``graph`` at ``poses`` (N, 3) on ``ax``, equal aspect."""
+    from matplotlib.collections import LineCollection
+
+    segments = np.stack([poses[graph.edges_i, :2], poses[graph.edges_j, :2]], axis=1)
+    ax.add_collection(LineCollection(list(segments), colors=colour, linewidths=0.3, alpha=0.5))
+    ax.plot(poses[:, 0], poses[:, 1], ".", color=colour, markersize=1.5)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale()

@@ -39,6 +39,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from course.app import plot
 from course.core import impl as impl_loader
 from course.core.errors import DatasetError
 from course.notebook_helpers.common import median_time, one_thread
@@ -58,15 +59,6 @@ def load(name: str) -> BALProblem | None:
     except DatasetError as exc:
         print(f"{name}: skipped ({exc})")
         return None
-
-
-def _figure(width: float, height: float) -> Any:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
 
 
 # ---------------------------------------------------------------- sparsity of J, H and S
@@ -164,7 +156,7 @@ def sparsity_figure(problems: Sequence[BALProblem], impl: Any = "solutions") -> 
     drawn as an image of its nonzero entries (small problems only), like matplotlib's ``spy``."""
     from matplotlib.colors import ListedColormap
 
-    fig = _figure(13, 4.4 * len(problems))
+    fig = plot.figure(13, 4.4 * len(problems))
     for row, problem in enumerate(problems):
         J = jacobian_matrix(problem, impl)
         H = (J.T @ J).tocsr()
@@ -210,7 +202,7 @@ def kept_costs(run: Any) -> np.ndarray:
 def cost_figure(runs: Sequence[Any], title: str) -> Any:
     """Each run's own cost (the one it minimizes, ``kept_costs``) against the iteration (left)
     and the seconds since its solve started (right, log scale: the start at 0 is off the axis)."""
-    fig = _figure(12, 4.6)
+    fig = plot.figure(12, 4.6)
     by_iteration, by_time = fig.subplots(1, 2)
     values = []
     for run in runs:
@@ -479,7 +471,7 @@ def dense_vs_schur_table(rows: Sequence[StepTiming], num_cameras: int) -> str:
 
 def dense_vs_schur_figure(rows: Sequence[StepTiming], num_cameras: int) -> Any:
     """The two times of :func:`dense_vs_schur` against the number of points, log-log."""
-    fig = _figure(7, 4.5)
+    fig = plot.figure(7, 4.5)
     ax = fig.add_subplot()
     P = [r.num_points for r in rows]
     ax.plot(P, [1e3 * r.dense for r in rows], "o-", label="dense Cholesky of H (9C + 3P unknowns)")
@@ -512,7 +504,7 @@ def kernel_figure(losses: Sequence[Any], impl: Any = "solutions", reach: float =
     top = reach * max(loss.scale for loss in unique if loss is not None)
     norm = np.linspace(0.0, top, 400)
     s = norm * norm
-    fig = _figure(12, 4.5)
+    fig = plot.figure(12, 4.5)
     cost_ax, weight_ax = fig.subplots(1, 2)
     cost_ax.plot(norm, s, color="k", linestyle=":", label="least squares: s")
     weight_ax.axhline(1.0, color="k", linestyle=":", label="least squares: 1")
@@ -597,7 +589,7 @@ def gauge_figure(problem: BALProblem, impl: Any = "solutions") -> Any:
     log scale), with the gauge free and fixed; the dotted line is ``course.problems.bal.gauge.ZERO``."""
     from course.problems.bal.gauge import ZERO
 
-    fig = _figure(7, 4.5)
+    fig = plot.figure(7, 4.5)
     ax = fig.add_subplot()
     for fix, marker in ((False, "o"), (True, "s")):
         H, _ = _hessian(problem, impl, fix)

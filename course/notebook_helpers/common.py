@@ -228,17 +228,6 @@ def show_rejections(run: RunResult, limit: int, name: str) -> list[int]:
 # ---------------------------------------------------------------- chapter 3b: initialisation
 
 
-def _draw_graph(ax: Any, graph: Any, poses: np.ndarray, colour: str) -> None:
-    """The edges (segments) and poses (dots) of ``graph`` at ``poses`` on ``ax``, equal aspect."""
-    from matplotlib.collections import LineCollection
-
-    segments = np.stack([poses[graph.edges_i, :2], poses[graph.edges_j, :2]], axis=1)
-    ax.add_collection(LineCollection(list(segments), colors=colour, linewidths=0.3, alpha=0.5))
-    ax.plot(poses[:, 0], poses[:, 1], ".", color=colour, markersize=1.5)
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.autoscale()
-
-
 def basin_figure(starts: dict[str, tuple[Any, RunResult]], title: str) -> Any:
     """One row per start: its poses (grey, left) and where the run from it ends (blue, right).
 
@@ -254,7 +243,7 @@ def basin_figure(starts: dict[str, tuple[Any, RunResult]], title: str) -> Any:
                    f"({run.iterations} iterations)")]
         for col, (poses, colour, label) in enumerate(panels):
             ax = fig.add_subplot(len(starts), 2, 2 * row + col + 1)
-            _draw_graph(ax, graph, poses, colour)
+            plot.draw_graph(ax, graph, poses, colour)
             ax.set_title(label, fontsize=9)
     fig.suptitle(title)
     return fig

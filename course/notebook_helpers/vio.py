@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from course.app import plot
 from course.core import peers
 from course.core.errors import DatasetError
 from course.core.impl import not_implemented_reason
@@ -38,15 +39,6 @@ from course.core.impl import not_implemented_reason
 FRAME_DOF, POINT_DOF = 15, 3
 #: ours, in the order of the tables and the legends; then GTSAM's
 OURS = ("prior", "drop", "batch")
-
-
-def _figure(width: float, height: float) -> Any:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
 
 
 # ---------------------------------------------------------------- the runs
@@ -285,7 +277,7 @@ def fill_in_figure(fill: FillIn) -> Any:
     rows and columns red), the Schur complement on the kept indices (the fill-in orange), and
     the next window's H at its start (its new frame and landmarks, the prior included)."""
     panels = 3 if fill.after is not None else 2
-    fig = _figure(5.0 * panels, 5.4)
+    fig = plot.figure(5.0 * panels, 5.4)
     axes = fig.subplots(1, panels)
     _spy(axes[0], fill.before, fill.frames,
          f"H of the full window ({fill.frames} frames) at its solution\n{_nnz(fill.before)}; "
@@ -343,7 +335,7 @@ def window_cost_figure(run: Any, window: int = 10) -> Any:
     with a full window (``window`` keyframes)."""
     steps = run.steps
     t = np.array([s["time"] for s in steps])
-    fig = _figure(9, 6.5)
+    fig = plot.figure(9, 6.5)
     cost_ax, size_ax = fig.subplots(2, 1, sharex=True)
     cost_ax.plot(t, [s["chi2"] for s in steps], "o-", markersize=3, label="chi2 at the window's solution")
     cost_ax.set_yscale("log")
@@ -422,7 +414,7 @@ def ape_curves(estimates: Estimates) -> list[ApeCurve]:
 def ape_figure(curves: Sequence[ApeCurve], title: str) -> Any:
     """Each run's per-keyframe position error against time: left, after SE(3) alignment on the
     whole run (the APE); right, without alignment (the drift from the true start)."""
-    fig = _figure(13, 4.8)
+    fig = plot.figure(13, 4.8)
     aligned_ax, raw_ax = fig.subplots(1, 2, sharex=True)
     for curve in curves:
         style = "--" if curve.label.startswith("GTSAM") else "-"

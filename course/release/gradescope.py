@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from course.core.impl import REPO_ROOT
+from course.core.jsonio import write_json
 
 #: the bundle's scripts, copied to the top of the zip
 TEMPLATES = Path(__file__).resolve().parent / "gradescope_bundle"
@@ -269,14 +270,6 @@ def _tail(path, lines=LOG_LINES) -> str:
     return "\n".join(kept)
 
 
-def write_results(path, data) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(path.name + ".partial")
-    partial.write_text(json.dumps(data, indent=2) + "\n")
-    os.replace(partial, path)
-
-
 def failed(output: str, seconds: float) -> dict:
     return {"score": 0, "execution_time": round(seconds, 3), "output": output, "tests": []}
 
@@ -307,7 +300,7 @@ def finish(results, note: str, status: str, log=None, started=None) -> dict:
                           "Please tell the course staff." + (f"\n\n{tail}" if tail else ""), seconds)
         elif note:
             data["output"] = note + "\n\n" + str(data.get("output", ""))
-    write_results(results, data)
+    write_json(results, data, indent=2, newline=True)
     return data
 
 

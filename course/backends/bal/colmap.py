@@ -224,6 +224,40 @@ def solve(
     max_iterations = check_max_iterations(max_iterations)
     reconstruction, point_ids = to_reconstruction(problem)
     num_observations = reconstruction.compute_num_observations()
+    options = _options(method, max_iterations, function_tolerance, parameter_tolerance, gradient_tolerance,
+                       num_threads)
+    min_relative_decrease = float(options.ceres.solver_options.min_relative_decrease)
+
+    _no_glog_files()
+    with captured_output() as log:
+        start = time.perf_counter()
+        pycolmap.bundle_adjustment(reconstruction, options)
+        seconds = time.perf_counter() - start
+    if verbose:
+        print(log["stdout"] + log["stderr"], file=sys.stderr)
+
+    cameras, points, kept = from_reconstruction(problem, reconstruction, point_ids)
+    rows = parse_iterations(log["stdout"])
+    trace, peer_costs, last_cost = _trace(rows, min_relative_decrease)
+    iterations, reason = _stop_reason(rows, parse_report(log["stderr"]), method, max_iterations)
+    initial_chi2 = 2.0 * cost(problem)
+    return BALRunResult(
+        backend="ceres", method=method, params=pack(cameras, points),
+        initial_chi2=initial_chi2, final_chi2=2.0 * cost(problem, cameras, points),
+        iterations=int(iterations), seconds=seconds, trace=trace, stop_reason=reason,
+        initial_cost=0.5 * initial_chi2, final_cost=cost(problem, cameras, points),
+        peer_initial_cost=peer_costs[0] if peer_costs else float("nan"), peer_final_cost=last_cost,
+        peer_costs=peer_costs, peer_cost=PEER_COST,
+        removed_points=int(np.count_nonzero(~kept)),
+        removed_observations=int(num_observations - reconstruction.compute_num_observations()),
+        behind_camera_start=behind_camera(problem), behind_camera_final=behind_camera(problem, cameras, points),
+    )
+
+
+def _options(method, max_iterations, function_tolerance, parameter_tolerance, gradient_tolerance, num_threads):
+    """COLMAP's ``BundleAdjustmentOptions`` for ``solve``: the BAL camera's parameters refined but
+    the principal point, Ceres' ``method`` and tolerances, and its per-iteration table printed."""
+    import pycolmap
 
     options = pycolmap.BundleAdjustmentOptions()
     options.refine_principal_point = False
@@ -241,22 +275,22 @@ def solve(
     solver.trust_region_strategy_type = getattr(pyceres.TrustRegionStrategyType, strategies[method])
     solver.minimizer_progress_to_stdout = True
     solver.logging_type = pyceres.LoggingType.PER_MINIMIZER_ITERATION
-    min_relative_decrease = float(solver.min_relative_decrease)
+    return options
+
+
+def _no_glog_files() -> None:
+    """Unless ``pycolmap.logging.log_dir`` is set, no glog file per process in the temporary folder
+    (glog's default)."""
+    import pycolmap
 
     logging = pycolmap.logging
-    if not logging.log_dir:  # glog's default: a log file per process in the temp folder; none unless asked for
+    if not logging.log_dir:
         for level in (logging.INFO, logging.WARNING, logging.ERROR):
             logging.set_log_destination(level, "")
-    with captured_output() as log:
-        start = time.perf_counter()
-        pycolmap.bundle_adjustment(reconstruction, options)
-        seconds = time.perf_counter() - start
-    if verbose:
-        print(log["stdout"] + log["stderr"], file=sys.stderr)
 
-    cameras, points, kept = from_reconstruction(problem, reconstruction, point_ids)
-    rows = parse_iterations(log["stdout"])
-    report = parse_report(log["stderr"])
+
+def _trace(rows: list[dict], min_relative_decrease: float) -> tuple[list, list, float]:
+    """``(trace, peer_costs, last accepted cost)`` from the rows of Ceres' table (see ``solve``)."""
     trace, peer_costs, last_cost = [], [], float("nan")
     for row in rows:
         accepted = row["iteration"] == 0 or row["tr_ratio"] > min_relative_decrease
@@ -269,6 +303,11 @@ def solve(
             step_norm=row["step"] if row["iteration"] > 0 else float("nan"),
             accepted=accepted, seconds=row["total_time"]))
         peer_costs.append(row["cost"])
+    return trace, peer_costs, last_cost
+
+
+def _stop_reason(rows: list[dict], report: dict, method: str, max_iterations: int) -> tuple[int, str]:
+    """``(iterations, stop_reason)`` from Ceres' table and COLMAP's report."""
     iterations = rows[-1]["iteration"] if rows else max(report.get("iterations", 1) - 1, 0)
     termination = report.get("termination", "unknown (no COLMAP report captured)")
     reason = f"{termination.lower()}: Ceres {method}, {iterations} iterations"
@@ -276,15 +315,4 @@ def solve(
         reason = f"max_iterations: {max_iterations} reached"
     if not rows:
         reason += "; Ceres' per-iteration table was not captured (no trace)"
-    initial_chi2 = 2.0 * cost(problem)
-    return BALRunResult(
-        backend="ceres", method=method, params=pack(cameras, points),
-        initial_chi2=initial_chi2, final_chi2=2.0 * cost(problem, cameras, points),
-        iterations=int(iterations), seconds=seconds, trace=trace, stop_reason=reason,
-        initial_cost=0.5 * initial_chi2, final_cost=cost(problem, cameras, points),
-        peer_initial_cost=peer_costs[0] if peer_costs else float("nan"), peer_final_cost=last_cost,
-        peer_costs=peer_costs, peer_cost=PEER_COST,
-        removed_points=int(np.count_nonzero(~kept)),
-        removed_observations=int(num_observations - reconstruction.compute_num_observations()),
-        behind_camera_start=behind_camera(problem), behind_camera_final=behind_camera(problem, cameras, points),
-    )
+    return iterations, reason

@@ -67,29 +67,10 @@ def solve(
         raise ValueError(f"unknown g2o method {method!r}; choose one of {METHODS}")
     if max_iterations < 1:
         raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
-    from course.problems.posegraph.dataset import write_g2o
-
     optimizer = g2opy.SparseOptimizer()
     optimizer.set_algorithm(algorithms[method](g2opy.BlockSolverSE2(g2opy.LinearSolverEigenSE2())))
     optimizer.set_verbose(verbose)
-    fd, path = tempfile.mkstemp(suffix=".g2o", prefix="course_g2o_")
-    os.close(fd)
-    try:
-        write_g2o(graph, path)
-        if not optimizer.load(path):
-            raise RuntimeError(f"g2o could not load the graph written to {path}")
-    finally:
-        os.unlink(path)
-    ids = [int(i) for i in np.asarray(graph.ids)]
-    vertices = [optimizer.vertex(i) for i in ids]
-    if len(optimizer.vertices()) != graph.num_poses or len(optimizer.edges()) != graph.num_edges:
-        raise RuntimeError(
-            f"g2o loaded {len(optimizer.vertices())} vertices and {len(optimizer.edges())} "
-            f"edges, expected {graph.num_poses} and {graph.num_edges}"
-        )
-    for k in graph.fixed:
-        vertices[k].set_fixed(True)
-
+    vertices = _load(optimizer, graph)
     terminate = g2opy.SparseOptimizerTerminateAction()
     terminate.set_gain_threshold(gain_threshold)
     optimizer.add_post_iteration_action(terminate)
@@ -104,21 +85,8 @@ def solve(
         raise RuntimeError(f"g2o optimize() returned {iterations}")
 
     initial_chi2 = graph.chi2()
-    trace = [IterationRecord(0, initial_chi2, seconds=0.0)]
-    elapsed, factorizations = 0.0, 0
-    for stats in optimizer.batch_statistics()[:iterations]:
-        elapsed += stats.time_iteration
-        factorizations += max(int(stats.levenberg_iterations), 1)
-        trace.append(
-            IterationRecord(
-                iteration=int(stats.iteration) + 1,
-                chi2=float(stats.chi2),
-                seconds=elapsed,
-                factorizations=factorizations,
-            )
-        )
+    trace, factorizations = _trace(optimizer, iterations, initial_chi2)
     poses = np.array([v.estimate().vector() for v in vertices], dtype=float).reshape(-1, 3)
-
     if optimizer.terminate():
         reason = f"gain_threshold: relative chi2 decrease below {gain_threshold:g}"
     elif iterations >= max_iterations:
@@ -139,3 +107,47 @@ def solve(
         stop_reason=reason,
         factorizations=factorizations,
     )
+
+
+def _load(optimizer, graph: PoseGraph) -> list:
+    """Put ``graph`` into ``optimizer`` through a temporary ``.g2o`` file (see the module
+    docstring) and fix ``graph.fixed``; returns g2o's vertices in our vertex order."""
+    from course.problems.posegraph.dataset import write_g2o
+
+    fd, path = tempfile.mkstemp(suffix=".g2o", prefix="course_g2o_")
+    os.close(fd)
+    try:
+        write_g2o(graph, path)
+        if not optimizer.load(path):
+            raise RuntimeError(f"g2o could not load the graph written to {path}")
+    finally:
+        os.unlink(path)
+    ids = [int(i) for i in np.asarray(graph.ids)]
+    vertices = [optimizer.vertex(i) for i in ids]
+    if len(optimizer.vertices()) != graph.num_poses or len(optimizer.edges()) != graph.num_edges:
+        raise RuntimeError(
+            f"g2o loaded {len(optimizer.vertices())} vertices and {len(optimizer.edges())} "
+            f"edges, expected {graph.num_poses} and {graph.num_edges}"
+        )
+    for k in graph.fixed:
+        vertices[k].set_fixed(True)
+    return vertices
+
+
+def _trace(optimizer, iterations: int, initial_chi2: float) -> tuple[list, int]:
+    """``(trace, factorizations)`` from g2o's batch statistics of the first ``iterations``
+    iterations, after a record 0 at ``initial_chi2`` (see ``solve``)."""
+    trace = [IterationRecord(0, initial_chi2, seconds=0.0)]
+    elapsed, factorizations = 0.0, 0
+    for stats in optimizer.batch_statistics()[:iterations]:
+        elapsed += stats.time_iteration
+        factorizations += max(int(stats.levenberg_iterations), 1)
+        trace.append(
+            IterationRecord(
+                iteration=int(stats.iteration) + 1,
+                chi2=float(stats.chi2),
+                seconds=elapsed,
+                factorizations=factorizations,
+            )
+        )
+    return trace, factorizations

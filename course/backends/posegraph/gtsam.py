@@ -28,6 +28,7 @@ optimizer held (exactly the start when it fails in its first iteration, as on th
 """
 
 import time
+from typing import Any
 
 import numpy as np
 
@@ -128,60 +129,22 @@ def solve(
     params.setAbsoluteErrorTol(absolute_error_tol)
 
     initial_chi2 = graph.chi2()
-    trace = [IterationRecord(0, initial_chi2)]
-    errors = []  # GTSAM's (error before, error after) per hook call
-    poses = graph.poses.copy()
-    clock = {"start": 0.0, "hook": 0.0}
-
-    def current_poses(optimizer_values):
-        out = poses.copy()
-        out[free] = gtsam.utilities.extractPose2(optimizer_values)  # rows in key order
-        return out
-
-    def hook(iteration, error_before, error_after):
-        entered = time.perf_counter()
-        errors.append((error_before, error_after))
-        if iteration > trace[-1].iteration:
-            trace.append(
-                IterationRecord(
-                    iteration=int(iteration),
-                    chi2=graph.chi2(current_poses(optimizer.values())),
-                    damping=float(optimizer.lambda_()) if method == "levenberg-marquardt"
-                    else float(optimizer.getDelta()) if method == "dogleg" else float("nan"),
-                    accepted=error_after <= error_before,
-                    seconds=entered - clock["start"] - clock["hook"],
-                )
-            )
-        clock["hook"] += time.perf_counter() - entered
-
-    params.iterationHook = hook
-    optimizer = optimizer_class(factors, values, params)
+    recorder = _Recorder(graph, free, method, initial_chi2)
+    params.iterationHook = recorder.hook
+    optimizer = recorder.optimizer = optimizer_class(factors, values, params)
     failure = None
-    clock["start"] = time.perf_counter()
+    recorder.start = time.perf_counter()
     try:
         optimizer.optimize()
     except RuntimeError as exc:
         if raise_on_failure:
             raise
         failure = " ".join(str(exc).split())
-    seconds = time.perf_counter() - clock["start"] - clock["hook"]
+    seconds = recorder.elapsed()
 
     iterations = int(optimizer.iterations())
     # Pose2 keeps (cos, sin): theta() may differ from the start in the last bit.
-    final = poses.copy() if iterations == 0 else current_poses(optimizer.values())
-    if failure is not None:
-        reason = f"failed: {failure}"
-    elif iterations >= max_iterations:
-        reason = f"max_iterations: {max_iterations} reached"
-    elif method == "levenberg-marquardt" and optimizer.lambda_() >= params.getlambdaUpperBound():  # type: ignore[attr-defined]
-        reason = (f"lambda_upper_bound: no decreasing step with lambda up to "
-                  f"{params.getlambdaUpperBound():g}")  # type: ignore[attr-defined]
-    elif errors and errors[-1][1] > errors[-1][0]:
-        before, after = errors[-1]
-        reason = f"error_increased: GTSAM's 2 * error {2 * before:.17g} -> {2 * after:.17g}"
-    else:
-        reason = (f"converged: error decrease <= {relative_error_tol:g} relative and "
-                  f"<= {absolute_error_tol:g} absolute")
+    final = recorder.start_poses.copy() if iterations == 0 else recorder.poses(optimizer.values())
     return RunResult(
         backend="gtsam",
         method=method,
@@ -190,7 +153,66 @@ def solve(
         final_chi2=graph.chi2(final),
         iterations=iterations,
         seconds=seconds,
-        trace=trace,
-        stop_reason=reason,
+        trace=recorder.trace,
+        stop_reason=_stop_reason(method, optimizer, params, iterations, max_iterations, failure, recorder.errors,
+                                 relative_error_tol, absolute_error_tol),
     )
 
+
+class _Recorder:
+    """GTSAM's iteration hook for :func:`solve`: one ``IterationRecord`` per iteration, with OUR
+    chi2 of the optimizer's values; the time spent in the hook is kept apart (``elapsed``)."""
+
+    def __init__(self, graph: PoseGraph, free, method: str, initial_chi2: float):
+        self.graph, self.free, self.method = graph, free, method
+        self.start_poses = graph.poses.copy()
+        self.trace = [IterationRecord(0, initial_chi2)]
+        self.errors: list = []  # GTSAM's (error before, error after) per hook call
+        self.optimizer: Any = None  # set once built: the hook reads its values and its lambda or radius
+        self.start = 0.0
+        self.hook_seconds = 0.0
+
+    def poses(self, optimizer_values) -> np.ndarray:
+        """(N, 3) poses: the optimizer's for the free vertices, the start's for the fixed ones."""
+        import gtsam
+
+        out = self.start_poses.copy()
+        out[self.free] = gtsam.utilities.extractPose2(optimizer_values)  # rows in key order
+        return out
+
+    def hook(self, iteration, error_before, error_after) -> None:
+        entered = time.perf_counter()
+        self.errors.append((error_before, error_after))
+        if iteration > self.trace[-1].iteration:
+            optimizer, method = self.optimizer, self.method
+            self.trace.append(
+                IterationRecord(
+                    iteration=int(iteration),
+                    chi2=self.graph.chi2(self.poses(optimizer.values())),
+                    damping=float(optimizer.lambda_()) if method == "levenberg-marquardt"
+                    else float(optimizer.getDelta()) if method == "dogleg" else float("nan"),
+                    accepted=error_after <= error_before,
+                    seconds=entered - self.start - self.hook_seconds,
+                )
+            )
+        self.hook_seconds += time.perf_counter() - entered
+
+    def elapsed(self) -> float:
+        """Seconds since ``start``, the hook's own excluded."""
+        return time.perf_counter() - self.start - self.hook_seconds
+
+
+def _stop_reason(method, optimizer, params, iterations, max_iterations, failure, errors,
+                 relative_error_tol, absolute_error_tol) -> str:
+    """Why GTSAM stopped (``solve``'s ``stop_reason``)."""
+    if failure is not None:
+        return f"failed: {failure}"
+    if iterations >= max_iterations:
+        return f"max_iterations: {max_iterations} reached"
+    if method == "levenberg-marquardt" and optimizer.lambda_() >= params.getlambdaUpperBound():
+        return f"lambda_upper_bound: no decreasing step with lambda up to {params.getlambdaUpperBound():g}"
+    if errors and errors[-1][1] > errors[-1][0]:
+        before, after = errors[-1]
+        return f"error_increased: GTSAM's 2 * error {2 * before:.17g} -> {2 * after:.17g}"
+    return (f"converged: error decrease <= {relative_error_tol:g} relative and "
+            f"<= {absolute_error_tol:g} absolute")

@@ -73,6 +73,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -269,6 +270,44 @@ def add_landmarks(sim, kfs, frame_ids, states, points, extra=()):
     return sorted(ids)
 
 
+class _Prior(NamedTuple):
+    """The marginalisation prior ``e(x) = e0 + J (x [-] x_lin)`` carried to the next window:
+    keyframe ids ``frames`` (a,), landmark ids ``landmarks`` (c,), the linearisation point
+    ``frame_lin`` (a, 15) and ``landmark_lin`` (c, 3), ``J`` (r, 15a + 3c), ``e0`` (r,)."""
+
+    frames: list
+    landmarks: list
+    frame_lin: np.ndarray
+    landmark_lin: np.ndarray
+    J: np.ndarray
+    e0: np.ndarray
+
+    def local(self, frame_ids, lm_ids) -> LinearPrior:
+        """The prior on a window over ``frame_ids`` and ``lm_ids`` (its variables in local indices)."""
+        f_local = {f: k for k, f in enumerate(frame_ids)}
+        l_local = {lm: k for k, lm in enumerate(lm_ids)}
+        return LinearPrior(np.array([f_local[f] for f in self.frames], dtype=np.int64),
+                           np.array([l_local[lm] for lm in self.landmarks], dtype=np.int64),
+                           self.frame_lin, self.landmark_lin, self.J, self.e0)
+
+
+@dataclass
+class _Window:
+    """What the sliding window carries from one step to the next: the estimates ``states``
+    (keyframe -> (15,)) and ``points`` (landmark -> (3,)), ``preints`` (k -> the preintegration
+    from keyframe k to k + 1), the keyframes in the window ``frame_ids`` (consecutive), the
+    marginalisation ``prior`` (None until the first), ``anchor_refs`` (oldest keyframe -> the
+    (15,) its anchor holds) and ``final`` (keyframe -> its (15,) estimate when it left)."""
+
+    states: dict[int, np.ndarray]
+    frame_ids: list[int]
+    points: dict[int, np.ndarray] = field(default_factory=dict)
+    preints: dict = field(default_factory=dict)
+    prior: _Prior | None = None
+    anchor_refs: dict[int, np.ndarray] = field(default_factory=dict)
+    final: dict[int, np.ndarray] = field(default_factory=dict)
+
+
 def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, method="dogleg",
                    impl="solutions", options=WINDOW_OPTIONS, loss="default", first_estimates=False,
                    keep_hessians_at: int | None = None, gauge="project") -> VioRun:
@@ -290,116 +329,145 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
     marg = implementation.module("marginalisation")
     kfs = Keyframes(sim, keyframe_every)
     loss_kw = {} if loss == "default" else {"loss": loss}
-    states = {0: kfs.truth(0)}
-    points: dict[int, np.ndarray] = {}
-    final = {}
-    preints = {}
-    frame_ids = [0]
-    prior_info = None  # (frame ids, landmark ids, frame_lin, landmark_lin, J, e0)
-    anchor_refs: dict[int, np.ndarray] = {}
+    w = _Window(states={0: kfs.truth(0)}, frame_ids=[0])
     seconds: list[float] = []
     iterations: list[int] = []
     steps: list[dict] = []
     hessians: dict = {}
     for new in range(1, len(kfs)):
-        preints[new - 1] = kfs.preintegrate(imu_module, new - 1, states[new - 1])
-        states[new] = propagate(states[new - 1], preints[new - 1], sim.gravity)
-        frame_ids.append(new)
-        extra = prior_info[1] if prior_info is not None else ()
-        lm_ids = add_landmarks(sim, kfs, frame_ids, states, points, extra)
-        priors, linear = [], None
-        if frame_ids[0] == 0:
-            priors.append(FramePrior(0, kfs.truth(0), FIRST_SIGMAS))
-        elif variant == "drop":
-            priors.append(FramePrior(0, states[frame_ids[0]].copy(), ANCHOR_SIGMAS))
-        if prior_info is not None:
-            pf, pl, f_lin, l_lin, J, e0 = prior_info
-            f_local = {f: k for k, f in enumerate(frame_ids)}
-            l_local = {lm: k for k, lm in enumerate(lm_ids)}
-            linear = LinearPrior(np.array([f_local[f] for f in pf], dtype=np.int64),
-                                 np.array([l_local[lm] for lm in pl], dtype=np.int64), f_lin, l_lin, J, e0)
-        data = window_data(sim, kfs, frame_ids, lm_ids, preints, priors, linear)
-        if variant == "prior" and gauge == "project" and frame_ids[0] != 0:
-            data.anchor = anchor(anchor_refs.setdefault(frame_ids[0], states[frame_ids[0]].copy()))
-        if linear is not None and first_estimates:
-            if first_estimates == "frames":
-                data.first_estimates = (linear.frames, linear.frame_lin, np.zeros(0, dtype=np.int64), np.zeros((0, 3)))
-            else:
-                data.first_estimates = (linear.frames, linear.frame_lin, linear.landmarks, linear.landmark_lin)
-        problem = VioProblem(np.array([states[f] for f in frame_ids]),
-                             np.array([points[lm] for lm in lm_ids]).reshape(-1, 3), data, impl, **loss_kw)
-        if keep_hessians_at is not None and len(steps) == keep_hessians_at + 1:
-            hessians.update(after=problem.linearize(problem.x0).H, after_frames=len(frame_ids))
+        _add_keyframe(w, kfs, imu_module, new)
+        extra = w.prior.landmarks if w.prior is not None else ()
+        lm_ids = add_landmarks(sim, kfs, w.frame_ids, w.states, w.points, extra)
+        problem, linear = _window_problem(sim, kfs, w, lm_ids, variant, gauge, first_estimates, impl, loss_kw)
+        if keep_hessians_at is not None and len(steps) == keep_hessians_at + 1:  # the window after the kept one
+            hessians.update(after=problem.linearize(problem.x0).H, after_frames=len(w.frame_ids))
         start = time.perf_counter()
         result = minimize(problem, method, impl, options)
         seconds.append(time.perf_counter() - start)
         iterations.append(result.iterations)
-        x = result.params
-        steps.append({"time": float(kfs.times[new]), "chi2": float(result.final_chi2), "frames": len(frame_ids),
+        steps.append({"time": float(kfs.times[new]), "chi2": float(result.final_chi2), "frames": len(w.frame_ids),
                       "landmarks": len(lm_ids), "prior_dof": 0 if linear is None else int(linear.J.shape[1]),
                       "prior_rank": 0 if linear is None else int(linear.J.shape[0])})
-        for k, f in enumerate(frame_ids):
-            states[f] = problem.frames(x)[k].copy()
-        for k, lm in enumerate(lm_ids):
-            points[lm] = problem.landmarks(x)[k].copy()
-        if len(frame_ids) < window or new == len(kfs) - 1:
+        _update_estimates(w, problem, result.params, lm_ids)
+        if len(w.frame_ids) < window or new == len(kfs) - 1:
             continue
-        oldest = frame_ids[0]
-        final[oldest] = states[oldest].copy()
-        still_seen: set[int] = set()
-        for f in frame_ids[1:]:
-            still_seen.update(int(i) for i in kfs.obs[f][0])
-        gone = [k for k, lm in enumerate(lm_ids) if lm not in still_seen]
-        if variant == "prior":
-            remove = np.r_[np.arange(FRAME_DOF), problem.split + (POINT_DOF * np.array(gone, dtype=np.int64)[:, None]
-                                                                  + np.arange(POINT_DOF)).ravel()].astype(np.int64)
-            H_m, b_m = problem.marginal_system(x, remove)
-            if keep_hessians_at is not None and len(steps) == keep_hessians_at + 1:
-                hessians.update(before=problem.linearize(x).H, marginalised=H_m, removed=remove,
-                                before_frames=len(frame_ids))
-            # Jacobi scaling D = diag(H)^-1/2 first: H mixes information of 1e10 (gyro-bias walk) and
-            # of order 1 (a landmark along its ray), and the relative eigenvalue threshold (eps) of
-            # marginalise and prior_residual would otherwise drop the weak directions of H_mm,
-            # leaving in the prior information that belongs to the removed variables
-            D = 1.0 / np.sqrt(np.maximum(np.diag(H_m), 1e-300))
-            H_s, b_s = marg.marginalise(D[:, None] * H_m * D[None, :], D * b_m, remove)
-            D_keep = np.delete(D, remove)
-            kept_frames = list(range(1, len(frame_ids)))
-            kept_lms = [k for k in range(len(lm_ids)) if k not in set(gone)]
-            blocks = [(k, FRAME_DOF) for k in kept_frames] + [(k, POINT_DOF) for k in kept_lms]
-            offsets = np.cumsum([0] + [d for _, d in blocks])
-            scale = np.abs(H_s).max()
-            touched = [i for i, (_, d) in enumerate(blocks)
-                       if np.abs(H_s[offsets[i]:offsets[i] + d]).max() > 1e-12 * scale]
-            idx = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in touched])
-            tf = [frame_ids[blocks[i][0]] for i in touched if i < len(kept_frames)]
-            tl = [lm_ids[blocks[i][0]] for i in touched if i >= len(kept_frames)]
-            current = np.concatenate([np.array([states[f] for f in tf]).reshape(-1, FRAME_DOF).ravel(),
-                                      np.array([points[lm] for lm in tl]).reshape(-1, POINT_DOF).ravel()])
-            old_lin: dict[tuple[str, int], np.ndarray] = {}
-            if prior_info is not None and first_estimates:  # keep the first estimates of those already in
-                old_lin.update({("f", f): v for f, v in zip(prior_info[0], prior_info[2])})
-                old_lin.update({("l", lm): v for lm, v in zip(prior_info[1], prior_info[3])})
-            f_lin = np.array([old_lin.get(("f", f), states[f]) for f in tf]).reshape(-1, FRAME_DOF)
-            l_lin = np.array([old_lin.get(("l", lm), points[lm]) for lm in tl]).reshape(-1, POINT_DOF)
-            H_p, b_p = H_s[np.ix_(idx, idx)], b_s[idx]
-            if gauge == "project":
-                H_p, b_p = _without_gauge(H_p, b_p, gauge_directions(f_lin, l_lin) / D_keep[idx][:, None])
-            J_s, e0 = marg.prior_residual(H_p, b_p)
-            J = J_s / D_keep[idx][None, :]  # J^T J = D^-1 H_s D^-1 = H_prior, J^T e0 = b_prior
-            if keep_hessians_at is not None and len(steps) == keep_hessians_at + 1:
-                hessians.update(prior_J=J, prior_frame_lin=f_lin, prior_landmark_lin=l_lin)
-            n_f = FRAME_DOF * len(tf)
-            shift = np.concatenate([frame_difference(current[:n_f].reshape(-1, FRAME_DOF), f_lin).ravel(),
-                                    current[n_f:] - l_lin.ravel()])
-            # e(x) = e0 + J (x [-] x_cur) ~ e0 - J (x_cur [-] x_lin) + J (x [-] x_lin): about x_lin
-            prior_info = (tf, tl, f_lin, l_lin, J, e0 - J @ shift)
-        frame_ids = frame_ids[1:]
-    for f in frame_ids:
-        final[f] = states[f].copy()
-    order = sorted(final)
+        keep = hessians if keep_hessians_at is not None and len(steps) == keep_hessians_at + 1 else None
+        _slide(w, kfs, problem, result.params, lm_ids, variant, marg, gauge, first_estimates, keep)
+    for f in w.frame_ids:
+        w.final[f] = w.states[f].copy()
+    order = sorted(w.final)
     return VioRun(f"window {window} ({'with' if variant == 'prior' else 'without'} prior)", kfs.times[order],
-                  np.array([final[f] for f in order]), seconds, iterations, steps, hessians)
+                  np.array([w.final[f] for f in order]), seconds, iterations, steps, hessians)
+
+
+def _add_keyframe(w: _Window, kfs: Keyframes, imu_module, new: int) -> None:
+    """Step 1: keyframe ``new`` joins the window, propagated from the previous one's estimate."""
+    w.preints[new - 1] = kfs.preintegrate(imu_module, new - 1, w.states[new - 1])
+    w.states[new] = propagate(w.states[new - 1], w.preints[new - 1], kfs.sim.gravity)
+    w.frame_ids.append(new)
+
+
+def _window_problem(sim, kfs, w: _Window, lm_ids, variant, gauge, first_estimates, impl,
+                    loss_kw) -> tuple[VioProblem, LinearPrior | None]:
+    """The window's ``VioProblem`` at the current estimates, and the marginalisation prior in its
+    local indices (None before the first): the first keyframe's prior while it is in the window,
+    then the gauge's hold (``"drop"``: a prior on the oldest pose; ``"prior"`` and ``"project"``:
+    :func:`anchor`)."""
+    oldest = w.frame_ids[0]
+    priors = []
+    if oldest == 0:
+        priors.append(FramePrior(0, kfs.truth(0), FIRST_SIGMAS))
+    elif variant == "drop":
+        priors.append(FramePrior(0, w.states[oldest].copy(), ANCHOR_SIGMAS))
+    linear = None if w.prior is None else w.prior.local(w.frame_ids, lm_ids)
+    data = window_data(sim, kfs, w.frame_ids, lm_ids, w.preints, priors, linear)
+    if variant == "prior" and gauge == "project" and oldest != 0:
+        data.anchor = anchor(w.anchor_refs.setdefault(oldest, w.states[oldest].copy()))
+    if linear is not None and first_estimates:
+        if first_estimates == "frames":
+            data.first_estimates = (linear.frames, linear.frame_lin, np.zeros(0, dtype=np.int64), np.zeros((0, 3)))
+        else:
+            data.first_estimates = (linear.frames, linear.frame_lin, linear.landmarks, linear.landmark_lin)
+    problem = VioProblem(np.array([w.states[f] for f in w.frame_ids]),
+                         np.array([w.points[lm] for lm in lm_ids]).reshape(-1, 3), data, impl, **loss_kw)
+    return problem, linear
+
+
+def _update_estimates(w: _Window, problem: VioProblem, x, lm_ids) -> None:
+    """The window's keyframes and landmarks take their values at the solution ``x``."""
+    for k, f in enumerate(w.frame_ids):
+        w.states[f] = problem.frames(x)[k].copy()
+    for k, lm in enumerate(lm_ids):
+        w.points[lm] = problem.landmarks(x)[k].copy()
+
+
+def _slide(w: _Window, kfs, problem, x, lm_ids, variant, marg, gauge, first_estimates, keep) -> None:
+    """Step 4: the oldest keyframe leaves (its estimate final), with the landmarks no remaining
+    keyframe sees; ``"prior"`` marginalises them into the next window's prior first. ``keep``:
+    the dict to put the Hessians and the prior of this step in (``VioRun.hessians``), or None."""
+    oldest = w.frame_ids[0]
+    w.final[oldest] = w.states[oldest].copy()
+    still_seen: set[int] = set()
+    for f in w.frame_ids[1:]:
+        still_seen.update(int(i) for i in kfs.obs[f][0])
+    gone = [k for k, lm in enumerate(lm_ids) if lm not in still_seen]
+    if variant == "prior":
+        w.prior = _marginal_prior(w, problem, x, lm_ids, gone, marg, gauge, first_estimates, keep)
+    w.frame_ids = w.frame_ids[1:]
+
+
+def _marginal_prior(w: _Window, problem, x, lm_ids, gone, marg, gauge, first_estimates, keep) -> _Prior:
+    """The prior left by marginalising the oldest keyframe and the landmarks ``gone`` (local
+    indices) out of the window's system at its solution ``x``, on the kept variables it touches."""
+    remove = np.r_[np.arange(FRAME_DOF), problem.split + (POINT_DOF * np.array(gone, dtype=np.int64)[:, None]
+                                                          + np.arange(POINT_DOF)).ravel()].astype(np.int64)
+    H_m, b_m = problem.marginal_system(x, remove)
+    if keep is not None:
+        keep.update(before=problem.linearize(x).H, marginalised=H_m, removed=remove, before_frames=len(w.frame_ids))
+    # Jacobi scaling D = diag(H)^-1/2 first: H mixes information of 1e10 (gyro-bias walk) and
+    # of order 1 (a landmark along its ray), and the relative eigenvalue threshold (eps) of
+    # marginalise and prior_residual would otherwise drop the weak directions of H_mm,
+    # leaving in the prior information that belongs to the removed variables
+    D = 1.0 / np.sqrt(np.maximum(np.diag(H_m), 1e-300))
+    H_s, b_s = marg.marginalise(D[:, None] * H_m * D[None, :], D * b_m, remove)
+    D_keep = np.delete(D, remove)
+    idx, tf, tl = _touched(H_s, w.frame_ids, lm_ids, gone)
+    current = np.concatenate([np.array([w.states[f] for f in tf]).reshape(-1, FRAME_DOF).ravel(),
+                              np.array([w.points[lm] for lm in tl]).reshape(-1, POINT_DOF).ravel()])
+    old_lin: dict[tuple[str, int], np.ndarray] = {}
+    if w.prior is not None and first_estimates:  # keep the first estimates of those already in
+        old_lin.update({("f", f): v for f, v in zip(w.prior.frames, w.prior.frame_lin)})
+        old_lin.update({("l", lm): v for lm, v in zip(w.prior.landmarks, w.prior.landmark_lin)})
+    f_lin = np.array([old_lin.get(("f", f), w.states[f]) for f in tf]).reshape(-1, FRAME_DOF)
+    l_lin = np.array([old_lin.get(("l", lm), w.points[lm]) for lm in tl]).reshape(-1, POINT_DOF)
+    H_p, b_p = H_s[np.ix_(idx, idx)], b_s[idx]
+    if gauge == "project":
+        H_p, b_p = _without_gauge(H_p, b_p, gauge_directions(f_lin, l_lin) / D_keep[idx][:, None])
+    J_s, e0 = marg.prior_residual(H_p, b_p)
+    J = J_s / D_keep[idx][None, :]  # J^T J = D^-1 H_s D^-1 = H_prior, J^T e0 = b_prior
+    if keep is not None:
+        keep.update(prior_J=J, prior_frame_lin=f_lin, prior_landmark_lin=l_lin)
+    n_f = FRAME_DOF * len(tf)
+    shift = np.concatenate([frame_difference(current[:n_f].reshape(-1, FRAME_DOF), f_lin).ravel(),
+                            current[n_f:] - l_lin.ravel()])
+    # e(x) = e0 + J (x [-] x_cur) ~ e0 - J (x_cur [-] x_lin) + J (x [-] x_lin): about x_lin
+    return _Prior(tf, tl, f_lin, l_lin, J, e0 - J @ shift)
+
+
+def _touched(H_s, frame_ids, lm_ids, gone) -> tuple[np.ndarray, list, list]:
+    """The kept variables that the reduced system ``H_s`` (over the kept keyframes, 15 each, then
+    the kept landmarks, 3 each) is not zero on: ``(their indices in H_s, keyframe ids, landmark ids)``."""
+    kept_frames = list(range(1, len(frame_ids)))
+    kept_lms = [k for k in range(len(lm_ids)) if k not in set(gone)]
+    blocks = [(k, FRAME_DOF) for k in kept_frames] + [(k, POINT_DOF) for k in kept_lms]
+    offsets = np.cumsum([0] + [d for _, d in blocks])
+    scale = np.abs(H_s).max()
+    touched = [i for i, (_, d) in enumerate(blocks)
+               if np.abs(H_s[offsets[i]:offsets[i] + d]).max() > 1e-12 * scale]
+    idx = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in touched])
+    tf = [frame_ids[blocks[i][0]] for i in touched if i < len(kept_frames)]
+    tl = [lm_ids[blocks[i][0]] for i in touched if i >= len(kept_frames)]
+    return idx, tf, tl
 
 
 def batch(sim: VioSim, start: VioRun, keyframe_every=5, method="dogleg", impl="solutions",
