@@ -1,4 +1,5 @@
-"""``python -m autograder [--impl exercises|solutions|PATH] [--only NAME] [--set public|hidden|all] [--json FILE]``.
+"""``python -m autograder [--impl exercises|solutions|PATH] [--only NAME] [--set public|hidden|all] [--json FILE]``,
+or ``python -m autograder batch FOLDER --out DIR`` (:mod:`autograder.batch`).
 
 Exit status 0 whenever grading ran, whatever the score; 2 for usage errors.
 """
@@ -36,6 +37,11 @@ def parser():
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["batch"]:
+        from autograder import batch
+
+        return batch.main(argv[1:])
     p = parser()
     args = p.parse_args(argv)
     from autograder.checks import all_checks, select

@@ -148,23 +148,39 @@ def grade(impl: str, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sandb
     ``which``: "public", "hidden" or "all" (default: all where the reference is, else
     public). ``notices``: a list that receives the sandbox's one-line notice, if any.
     """
+    return grade_many([impl], only, timeout, memory_mb, workers, checks, which, budget, notices)[0]
+
+
+def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sandbox.DEFAULT_MEMORY_MB,
+               workers=2, checks=None, which=None, budget=None, notices=None) -> list:
+    """Grade each implementation of ``impls`` as :func:`grade` does, in one run: the expected
+    outputs computed once, one sandbox session, ``workers`` children at a time across all of
+    them. Returns one list of results per implementation, in order. ``budget`` is per
+    implementation."""
+    impls = [str(impl) for impl in impls]
     checks = select(checks if checks is not None else all_checks(), only)
     tasks = plan(checks, which or default_set())
     for library in sorted({task.missing for task in tasks if task.missing}):
         peers.announce(library)
-    with sandbox.Session(str(impl), timeout=timeout, memory_mb=memory_mb, workers=workers,
-                         budget=budget) as session:
+    total = None if budget is None else budget * len(impls)
+    with sandbox.Session(impls[0], timeout=timeout, memory_mb=memory_mb, workers=workers,
+                         budget=total) as session:
         if notices is not None and session.notice:
             notices.append(session.notice)
+        staged = [session.prepare(impl) for impl in impls]
 
-        def one(task):
+        def one(job):
+            index, task = job
             if task.missing:
                 return not_run(task)
             assert task.expected is not None
-            return judge_task(task, session.run(task.expected.calls, timeout=task.check.timeout or timeout))
+            return judge_task(task, session.run(task.expected.calls, timeout=task.check.timeout or timeout,
+                                                impl=staged[index]))
 
+        jobs = [(index, task) for index in range(len(impls)) for task in tasks]
         with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-            return list(pool.map(one, tasks))
+            results = list(pool.map(one, jobs))
+    return [results[k * len(tasks):(k + 1) * len(tasks)] for k in range(len(impls))]
 
 
 def run(impl, only=None, **kwargs):

@@ -231,8 +231,8 @@ def _copy_tree(source: Path, target: Path, skip=()) -> None:
 
 
 def stage(impl: str, root: Path) -> str:
-    """Copy what the child imports into ``root`` (created, root-owned, 0755); return the
-    path of the staged implementation (a package directory) for ``course.core.impl.load``."""
+    """Copy what the child imports into ``root`` (created, root-owned, 0755): the framework
+    and ``impl``; return the path of the staged implementation (see :func:`stage_impl`)."""
     root.mkdir(mode=0o755)
     os.chmod(root, 0o755)
     _copy_tree(REPO_ROOT / "course", root / "course")
@@ -241,10 +241,20 @@ def stage(impl: str, root: Path) -> str:
     for name in AUTOGRADER_FILES:
         shutil.copy2(REPO_ROOT / "autograder" / name, package / name)
         os.chmod(package / name, 0o644)
-    source = Path(impl) if os.sep in impl else REPO_ROOT / impl
-    target = root / "impl" / (source.name or "submission")
     (root / "impl").mkdir(mode=0o755)
     os.chmod(root / "impl", 0o755)
+    return stage_impl(impl, root)
+
+
+def stage_impl(impl: str, root: Path) -> str:
+    """Copy the implementation ``impl`` (a name in the repository or a path) into ``root/impl``
+    (a folder of its own for each one staged) and return the staged package directory for
+    ``course.core.impl.load``."""
+    source = Path(impl) if os.sep in impl else REPO_ROOT / impl
+    folder = root / "impl" / str(len(list((root / "impl").iterdir())))
+    folder.mkdir(mode=0o755)
+    os.chmod(folder, 0o755)
+    target = folder / (source.name or "submission")
     _copy_tree(source, target, skip={"__pycache__"})
     return str(target)
 

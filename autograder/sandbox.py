@@ -26,6 +26,7 @@ import stat
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import unicodedata
 import zipfile
@@ -154,6 +155,8 @@ class Session:
         self._env: dict = {}
         self._child_impl = self.impl
         self._server: forkserver.ForkServer | None = None
+        self._prepared: dict = {}
+        self._staging = threading.Lock()
         self._stage: Path | None = None
 
     # ------------------------------------------------------------ set-up and tear-down
@@ -203,6 +206,7 @@ class Session:
         os.chmod(self._base, 0o711)
         self._stage = self._base / "stage"
         self._child_impl = isolation.stage(self.impl, self._stage)
+        self._prepared[self.impl] = self._child_impl
         if interpreter or packages:
             runtime = isolation.stage_runtime(self._base / "python")
             self._python, self._env = runtime["executable"], runtime["env"]
@@ -253,8 +257,19 @@ class Session:
 
     # ------------------------------------------------------------ one check
 
-    def run(self, calls: list, timeout=None) -> ChildRun:
-        """Run ``calls`` in a fresh child; blocks while all worker slots are busy."""
+    def prepare(self, impl: str) -> str:
+        """Make another implementation gradable in this session (staged for the children when
+        isolating); returns what :meth:`run` takes as ``impl``."""
+        impl = str(impl)
+        with self._staging:
+            if impl not in self._prepared:
+                self._prepared[impl] = isolation.stage_impl(impl, self._stage) \
+                    if self.isolate and self._stage is not None else impl
+            return self._prepared[impl]
+
+    def run(self, calls: list, timeout=None, impl=None) -> ChildRun:
+        """Run ``calls`` in a fresh child, with the session's implementation or ``impl`` (from
+        :meth:`prepare`); blocks while all worker slots are busy."""
         timeout = timeout or self.timeout
         by_budget = False
         if self.budget is not None and self._start is not None:
@@ -270,7 +285,7 @@ class Session:
                 tmp = Path(name)
                 work = tmp / "work"
                 work.mkdir()
-                return self._execute(calls, timeout, by_budget, tmp, work, None)
+                return self._execute(calls, timeout, by_budget, tmp, work, None, impl)
         slot = self._free.get()
         try:
             work = slot.home / "work"
@@ -279,7 +294,7 @@ class Session:
             os.chown(work, slot.uid, slot.gid)
             os.chmod(work, 0o700)
             try:
-                return self._execute(calls, timeout, by_budget, slot.home, work, slot)
+                return self._execute(calls, timeout, by_budget, slot.home, work, slot, impl)
             finally:
                 isolation.kill_uid(slot.uid, slot.gid)
                 isolation.remove_tree(work)
@@ -287,11 +302,11 @@ class Session:
         finally:
             self._free.put(slot)
 
-    def _execute(self, calls, timeout, by_budget, home: Path, work: Path, slot) -> ChildRun:
+    def _execute(self, calls, timeout, by_budget, home: Path, work: Path, slot, impl=None) -> ChildRun:
         start = time.perf_counter()
         token = secrets.token_hex(16)
         calls_path, out_path, progress_path = home / "calls.pkl", work / "out.npz", work / "progress"
-        self._write_spec(calls, timeout, calls_path, slot)
+        self._write_spec(calls, timeout, calls_path, slot, impl or self._child_impl)
         streams = home / "out" if slot is not None else home
         if slot is not None:
             slot.memory_exceeded = False
@@ -323,10 +338,10 @@ class Session:
         return self._outcome(calls, proc, status, by_budget, timeout, streams, out_path, progress_path, token, slot,
                              time.perf_counter() - start)
 
-    def _write_spec(self, calls, timeout, calls_path: Path, slot) -> None:
+    def _write_spec(self, calls, timeout, calls_path: Path, slot, impl: str) -> None:
         """The child's instructions (a pickle only the grader and the child's group can read)."""
         spec = {
-            "impl": self._child_impl,
+            "impl": impl,
             "calls": [call.payload() for call in calls],
             "memory_bytes": int(self.memory_mb * 2**20) if self.memory_mb else None,
             "cpu_seconds": timeout + 1,

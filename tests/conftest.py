@@ -32,3 +32,11 @@ def needs(*libraries):
     missing = [name for name in libraries if not peers.installed(name)]
     reason = f"{', '.join(missing)} not installed here (the peers extra, where it has wheels)"
     return pytest.mark.skipif(bool(missing), reason=reason)
+
+
+def pytest_collection_modifyitems(items):
+    """A test that reads the batch grading of a module's variants (the ``graded`` fixture) is a
+    real grading run: slow."""
+    for item in items:
+        if "graded" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.slow)

@@ -21,10 +21,16 @@ pytestmark = pytest.mark.slow  # real grading runs, a child process per check
 
 ROOT = Path(__file__).resolve().parent.parent
 
-from student_variants import BUGS, HOSTILE, apply, assert_loses_exactly, build, losing  # noqa: E402
-
-#: time limit per check in the tests (the infinite loop waits for it)
-TIMEOUT = "5"  # per check: loose enough for a loaded 2-core machine
+from student_variants import (  # noqa: E402
+    BUGS,
+    HOSTILE,
+    TIMEOUT,
+    apply,
+    assert_loses_exactly,
+    build,
+    grade_variants,
+    losing,
+)
 
 
 def grade_cli(tmp_path, impl, *extra, name="results.json"):
@@ -88,20 +94,20 @@ def test_exercises_score_zero_with_one_line_per_todo(tmp_path):
 # ---------------------------------------------------------------- student mistakes
 
 
-def _grade_variant(tmp_path, name, variant, everything=True):
-    """Grade a variant on every check, or on every check whose child loads the edited module."""
-    impl = build(name, tmp_path)
-    only = [] if everything else [arg for item in variant.loaded_by for arg in ("--only", item)]
-    return grade_cli(tmp_path, impl, *only)
+@pytest.fixture(scope="module")
+def graded(tmp_path_factory):
+    """The known mistakes on every check whose child loads the edited module (the checks left out
+    never import it), the hostile variants on every check: one batch run per set of checks."""
+    jobs = {name: BUGS[name].loaded_by for name in BUGS} | {name: () for name in HOSTILE}
+    return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
 
 
 @pytest.mark.parametrize("name", sorted(BUGS))
-def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
+def test_a_known_mistake_costs_its_own_checks_only(graded, name):
     variant = BUGS[name]
-    # the checks left out never import the edited file; the hostile variants below run everything
-    proc, results = _grade_variant(tmp_path, name, variant, everything=False)
+    stdout, results = graded[name]
     assert len(results["tests"]) >= 12
-    assert_loses_exactly(results, variant.fails, proc.stdout)
+    assert_loses_exactly(results, variant.fails, stdout)
     feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
     assert variant.says in feedback
     for test in results["tests"]:
@@ -119,10 +125,10 @@ def test_at_least_eight_distinct_mistakes():
 
 @needs("pyceres", "qdldl")
 @pytest.mark.parametrize("name", sorted(HOSTILE))
-def test_hostile_code_scores_zero_on_its_checks_and_nothing_else(tmp_path, name):
+def test_hostile_code_scores_zero_on_its_checks_and_nothing_else(graded, name):
     variant = HOSTILE[name]
-    proc, results = _grade_variant(tmp_path, name, variant)
-    assert_loses_exactly(results, variant.fails, proc.stdout)
+    stdout, results = graded[name]
+    assert_loses_exactly(results, variant.fails, stdout)
     by_name = {t["name"]: t for t in results["tests"]}
     for check in variant.fails:
         assert by_name[check]["score"] == 0, by_name[check]
@@ -130,15 +136,14 @@ def test_hostile_code_scores_zero_on_its_checks_and_nothing_else(tmp_path, name)
     assert results["score"] == pytest.approx(sum(t["score"] for t in results["tests"]))
 
 
-def test_a_fake_results_line_changes_nothing(tmp_path):
-    variant = HOSTILE["fake_results_line"]
-    proc, results = _grade_variant(tmp_path, "fake_results_line", variant)
+def test_a_fake_results_line_changes_nothing(graded):
+    stdout, results = graded["fake_results_line"]
     maximum = sum(t["max_score"] for t in results["tests"])
     assert results["score"] < maximum
-    total = re.findall(r"^Total: (\S+) / (\S+)$", proc.stdout, flags=re.M)
+    total = re.findall(r"^Total: (\S+) / (\S+)$", stdout, flags=re.M)
     assert total == [(f"{results['score']:g}", f"{maximum:g}")]
     # what the student printed is quoted as such, never taken for a result
-    quoted = [line for line in proc.stdout.splitlines() if "Score: 100/100" in line]
+    quoted = [line for line in stdout.splitlines() if "Score: 100/100" in line]
     assert quoted and all(line.lstrip().startswith("| Score") for line in quoted)
 
 

@@ -5,9 +5,10 @@ import pytest
 from test_autograder_chapters23 import grade_cli
 
 from autograder.checks import all_checks
-from student_variants import BUGS_BUNDLE_ADJUSTMENT, SOLUTIONS, apply, assert_loses_exactly, build
+from student_variants import BUGS_BUNDLE_ADJUSTMENT, SOLUTIONS, apply, assert_loses_exactly, grade_variants
 
 
+@pytest.mark.slow  # real grading runs, a child process per check
 def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(tmp_path):
     _, results = grade_cli(tmp_path, "solutions", "bundle_adjustment", name="ref.json")
     assert results["tests"] and all(t["score"] == t["max_score"] for t in results["tests"])
@@ -16,11 +17,18 @@ def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(tmp_path):
                                     for t in results["tests"])
 
 
+@pytest.fixture(scope="module")
+def graded(tmp_path_factory):
+    """Every variant of this module, graded in one batch run per set of checks."""
+    jobs = {name: BUGS_BUNDLE_ADJUSTMENT[name].loaded_by for name in BUGS_BUNDLE_ADJUSTMENT}
+    return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
+
+
 @pytest.mark.parametrize("name", sorted(BUGS_BUNDLE_ADJUSTMENT))
-def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
+def test_a_known_mistake_costs_its_own_checks_only(graded, name):
     variant = BUGS_BUNDLE_ADJUSTMENT[name]
-    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
-    assert_loses_exactly(results, variant.fails, proc.stdout)
+    stdout, results = graded[name]
+    assert_loses_exactly(results, variant.fails, stdout)
     feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
     assert variant.says in feedback, feedback
 

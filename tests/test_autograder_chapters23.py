@@ -20,9 +20,17 @@ pytestmark = pytest.mark.slow  # real grading runs, a child process per check
 
 ROOT = Path(__file__).resolve().parent.parent
 
-from student_variants import BUGS_CHAPTERS_2_3, SOLUTIONS, V, apply, assert_loses_exactly, build  # noqa: E402
+from student_variants import (  # noqa: E402
+    BUGS_CHAPTERS_2_3,
+    SOLUTIONS,
+    TIMEOUT,
+    V,
+    apply,
+    assert_loses_exactly,
+    build,
+    grade_variants,
+)
 
-TIMEOUT = "5"
 #: --only names covering every check of chapters 2 and 3
 CHAPTERS_2_3 = ("pose_graph_edge", "pose_graph_assembly", "sparse_solve", "ceres_edge_cost", "pose_graph_fast",
                 "pose_graph.end_to_end", "dogleg")
@@ -123,14 +131,20 @@ def test_an_unwritten_optional_exercise_says_the_loop_is_used(tmp_path):
 # ---------------------------------------------------------------- student mistakes
 
 
+@pytest.fixture(scope="module")
+def graded(tmp_path_factory):
+    """Every known mistake of chapters 2 and 3, graded in one batch run per set of checks."""
+    jobs = {name: BUGS_CHAPTERS_2_3[name].loaded_by for name in BUGS_CHAPTERS_2_3}
+    return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
+
+
 @needs("pyceres", "qdldl")
 @pytest.mark.parametrize("name", sorted(BUGS_CHAPTERS_2_3))
-def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
+def test_a_known_mistake_costs_its_own_checks_only(graded, name):
     variant = BUGS_CHAPTERS_2_3[name]
-    impl = build(name, tmp_path)
-    proc, results = grade_cli(tmp_path, impl, *variant.loaded_by)
+    stdout, results = graded[name]
     assert len(results["tests"]) >= 3
-    assert_loses_exactly(results, variant.fails, proc.stdout)
+    assert_loses_exactly(results, variant.fails, stdout)
     feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
     assert variant.says in feedback
     for test in results["tests"]:

@@ -35,11 +35,13 @@ def test_decoding_runs_no_code_from_the_file():
         expected.decode({"__array__": "object", "shape": [1], "data": ["os.system"]})
 
 
+@pytest.mark.slow
 @needs("pyceres", "qdldl")
 def test_the_shipped_data_is_current():
     assert oracle.release_expected(check=True) == [], "run `python -m course release`"
 
 
+@pytest.mark.slow
 @needs("pyceres", "qdldl")
 def test_stale_or_extra_data_is_reported(tmp_path):
     shutil.copytree(ROOT / "autograder" / "expected", tmp_path / "expected")
@@ -51,6 +53,7 @@ def test_stale_or_extra_data_is_reported(tmp_path):
     assert oracle.release_expected(check=True, directory=tmp_path) == []
 
 
+@pytest.mark.slow
 @needs("pyceres", "qdldl")
 def test_public_data_matches_every_check_and_hidden_inputs_differ():
     modules = module_of()

@@ -6,9 +6,17 @@ import pytest
 from test_autograder_chapters23 import grade_cli
 
 from autograder.checks import all_checks
-from student_variants import ALTERNATIVES_GAUGE, BUGS_GAUGE, SOLUTIONS, apply, assert_loses_exactly, build
+from student_variants import (
+    ALTERNATIVES_GAUGE,
+    BUGS_GAUGE,
+    SOLUTIONS,
+    apply,
+    assert_loses_exactly,
+    grade_variants,
+)
 
 
+@pytest.mark.slow  # real grading runs, a child process per check
 def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(tmp_path):
     _, results = grade_cli(tmp_path, "solutions", "gauge", name="ref.json")
     assert len(results["tests"]) == 6 and all(t["score"] == t["max_score"] for t in results["tests"])
@@ -17,19 +25,27 @@ def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(tmp_path):
                                     for t in results["tests"])
 
 
+@pytest.fixture(scope="module")
+def graded(tmp_path_factory):
+    """Every variant of this module, graded in one batch run per set of checks."""
+    jobs = {name: BUGS_GAUGE[name].loaded_by for name in BUGS_GAUGE}
+    jobs |= {name: ("gauge",) for name in ALTERNATIVES_GAUGE}
+    return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
+
+
 @pytest.mark.parametrize("name", sorted(BUGS_GAUGE))
-def test_a_known_mistake_costs_its_own_check_only(tmp_path, name):
+def test_a_known_mistake_costs_its_own_check_only(graded, name):
     variant = BUGS_GAUGE[name]
-    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
-    assert_loses_exactly(results, variant.fails, proc.stdout)
+    stdout, results = graded[name]
+    assert_loses_exactly(results, variant.fails, stdout)
     feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
     assert variant.says in feedback, feedback
 
 
 @pytest.mark.parametrize("name", sorted(ALTERNATIVES_GAUGE))
-def test_the_same_directions_written_another_way_keep_full_marks(tmp_path, name):
-    proc, results = grade_cli(tmp_path, build(name, tmp_path), "gauge")
-    assert_loses_exactly(results, set(), proc.stdout)
+def test_the_same_directions_written_another_way_keep_full_marks(graded, name):
+    stdout, results = graded[name]
+    assert_loses_exactly(results, set(), stdout)
 
 
 def test_five_known_mistakes_and_they_name_real_checks():

@@ -12,12 +12,13 @@ from student_variants import (
     SOLUTIONS,
     apply,
     assert_loses_exactly,
-    build,
+    grade_variants,
 )
 
 PRE, RES = "imu_preintegration.preintegrate", "imu_preintegration.imu_factor_residual"
 
 
+@pytest.mark.slow  # real grading runs, a child process per check
 def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(tmp_path):
     _, results = grade_cli(tmp_path, "solutions", "imu_preintegration", name="ref.json")
     assert len(results["tests"]) == 16 and all(t["score"] == t["max_score"] for t in results["tests"])
@@ -26,19 +27,27 @@ def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(tmp_path):
                                     for t in results["tests"])
 
 
+@pytest.fixture(scope="module")
+def graded(tmp_path_factory):
+    """Every variant of this module, graded in one batch run per set of checks."""
+    jobs = {name: BUGS_IMU_PREINTEGRATION[name].loaded_by for name in BUGS_IMU_PREINTEGRATION}
+    jobs |= {name: ("imu_preintegration",) for name in ALTERNATIVES_IMU_PREINTEGRATION}
+    return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
+
+
 @pytest.mark.parametrize("name", sorted(BUGS_IMU_PREINTEGRATION))
-def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
+def test_a_known_mistake_costs_its_own_checks_only(graded, name):
     variant = BUGS_IMU_PREINTEGRATION[name]
-    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
-    assert_loses_exactly(results, variant.fails, proc.stdout)
+    stdout, results = graded[name]
+    assert_loses_exactly(results, variant.fails, stdout)
     feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
     assert variant.says in feedback, feedback
 
 
 @pytest.mark.parametrize("name", sorted(ALTERNATIVES_IMU_PREINTEGRATION))
-def test_the_same_results_written_another_way_keep_full_marks(tmp_path, name):
-    proc, results = grade_cli(tmp_path, build(name, tmp_path), "imu_preintegration")
-    assert_loses_exactly(results, set(), proc.stdout)
+def test_the_same_results_written_another_way_keep_full_marks(graded, name):
+    stdout, results = graded[name]
+    assert_loses_exactly(results, set(), stdout)
 
 
 def test_five_known_mistakes_per_function_and_they_name_real_checks():

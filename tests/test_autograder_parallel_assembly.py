@@ -13,7 +13,7 @@ from student_variants import (
     SOLUTIONS,
     apply,
     assert_loses_exactly,
-    build,
+    grade_variants,
 )
 
 
@@ -26,22 +26,28 @@ def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(tmp_path):
                                     for t in results["tests"])
 
 
-@pytest.mark.slow
+@pytest.fixture(scope="module")
+def graded(tmp_path_factory):
+    """Every variant of this module, graded in one batch run per set of checks."""
+    jobs = {name: BUGS_PARALLEL_ASSEMBLY[name].loaded_by for name in BUGS_PARALLEL_ASSEMBLY}
+    jobs |= {name: ALTERNATIVES_PARALLEL_ASSEMBLY[name].loaded_by for name in ALTERNATIVES_PARALLEL_ASSEMBLY}
+    return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
+
+
 @pytest.mark.parametrize("name", sorted(BUGS_PARALLEL_ASSEMBLY))
-def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
+def test_a_known_mistake_costs_its_own_checks_only(graded, name):
     variant = BUGS_PARALLEL_ASSEMBLY[name]
-    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
-    assert_loses_exactly(results, variant.fails, proc.stdout)
+    stdout, results = graded[name]
+    assert_loses_exactly(results, variant.fails, stdout)
     feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
     assert variant.says in feedback, feedback
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(ALTERNATIVES_PARALLEL_ASSEMBLY))
-def test_a_correct_alternative_keeps_full_marks(tmp_path, name):
-    variant = ALTERNATIVES_PARALLEL_ASSEMBLY[name]
-    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
-    assert_loses_exactly(results, set(), proc.stdout)
+def test_a_correct_alternative_keeps_full_marks(graded, name):
+    stdout, results = graded[name]
+    assert_loses_exactly(results, set(), stdout)
 
 
 def test_every_exercise_has_known_mistakes_and_they_name_real_checks():

@@ -12,11 +12,12 @@ from student_variants import (
     SOLUTIONS,
     apply,
     assert_loses_exactly,
-    build,
+    grade_variants,
     losing,
 )
 
 
+@pytest.mark.slow  # real grading runs, a child process per check
 def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(tmp_path):
     _, results = grade_cli(tmp_path, "solutions", "robust_kernels", name="ref.json")
     assert results["tests"] and all(t["score"] == t["max_score"] for t in results["tests"])
@@ -25,20 +26,27 @@ def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(tmp_path):
                                     for t in results["tests"])
 
 
+@pytest.fixture(scope="module")
+def graded(tmp_path_factory):
+    """Every variant of this module, graded in one batch run per set of checks."""
+    jobs = {name: BUGS_ROBUST_KERNELS[name].loaded_by for name in BUGS_ROBUST_KERNELS}
+    jobs |= {name: ALTERNATIVES_ROBUST_KERNELS[name].loaded_by for name in ALTERNATIVES_ROBUST_KERNELS}
+    return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
+
+
 @pytest.mark.parametrize("name", sorted(BUGS_ROBUST_KERNELS))
-def test_a_known_mistake_costs_its_own_checks_only(tmp_path, name):
+def test_a_known_mistake_costs_its_own_checks_only(graded, name):
     variant = BUGS_ROBUST_KERNELS[name]
-    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
-    assert_loses_exactly(results, variant.fails, proc.stdout)
+    stdout, results = graded[name]
+    assert_loses_exactly(results, variant.fails, stdout)
     feedback = " ".join(t["output"] for t in results["tests"] if t["name"] in variant.fails)
     assert variant.says in feedback, feedback
 
 
 @pytest.mark.parametrize("name", sorted(ALTERNATIVES_ROBUST_KERNELS))
-def test_correct_code_written_another_way_keeps_full_marks(tmp_path, name):
-    variant = ALTERNATIVES_ROBUST_KERNELS[name]
-    proc, results = grade_cli(tmp_path, build(name, tmp_path), *variant.loaded_by)
-    assert results["tests"] and not losing(results), proc.stdout
+def test_correct_code_written_another_way_keeps_full_marks(graded, name):
+    stdout, results = graded[name]
+    assert results["tests"] and not losing(results), stdout
 
 
 def test_every_exercise_has_five_known_mistakes_and_they_name_real_checks():

@@ -70,6 +70,7 @@ def test_unimplemented_exercises_fail_with_the_todo(capsys):
     assert "TODO curve_model.residuals_and_jacobian" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_demo_writes_plots(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["demo", "--out", str(out), "--repeat", "1"]) == 0
@@ -95,6 +96,7 @@ def test_no_command_is_a_usage_error():
     assert exc.value.code == 2
 
 
+@pytest.mark.slow
 def test_vio_prints_the_table_and_writes_json(tmp_path, capsys):
     assert main(["vio", "vio-sim:3:0", "--no-peers", "--json", str(tmp_path / "vio.json")]) == 0
     out = capsys.readouterr().out

@@ -147,6 +147,7 @@ def test_batch_and_window_on_a_short_run(sim):
     assert len(batch.solve_seconds) == 1 and len(window.solve_seconds) == 16
 
 
+@pytest.mark.slow
 def test_the_batch_finds_our_batch_optimum_on_vio_sim_12():
     """From the dead-reckoned start (19 m off at the end) GTSAM's LM reaches 0.1648 m in about 100
     iterations, our batch's optimum (0.165 m, started from our window); its window 0.200 m."""

@@ -250,6 +250,7 @@ def test_time_iterations_splits_an_attempt_into_its_pieces():
     assert run.linearizations >= 1 and 0 < run.amdahl(2) < 1 / (1 - run.assembly_share)
 
 
+@pytest.mark.slow
 def test_the_section_prints_tables_and_says_what_cannot_run():
     lines = []
     parallel_speedup.section(repeats=1, out=lines.append, problems=("bal-synthetic:4:60:1", "no-such-problem"),

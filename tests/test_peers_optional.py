@@ -94,6 +94,7 @@ def test_the_demo_without_any_optional_library_exits_0_and_says_each_once(monkey
     assert (tmp_path / "out" / "curve.json").is_file()
 
 
+@pytest.mark.slow
 def test_the_benchmark_without_g2o_skips_its_ratio(monkeypatch, capsys):
     from course.app import benchmark
 

@@ -77,6 +77,7 @@ def test_the_marginal_system_holds_the_leaving_factors_only():
     assert np.abs(H_stay[np.ix_(outside, outside)]).max() > 0.0
 
 
+@pytest.mark.slow
 def test_the_prior_carries_no_gauge_information():
     sim = load_vio_sim("vio-sim:3.5:0")
     run = vw.sliding_window(sim, "prior", keep_hessians_at=9)
@@ -103,6 +104,7 @@ def test_the_prior_beats_dropping_and_is_near_the_batch(name):
     assert with_prior <= BATCH_MARGIN * batch
 
 
+@pytest.mark.slow
 def test_the_window_and_gtsam_on_a_short_run():
     """4 s: the prior beats dropping; GTSAM's batch reaches our batch's optimum (same problem)."""
     pytest.importorskip("gtsam")

@@ -7,11 +7,17 @@ the text to replace was found. Each variant lists the checks it must lose points
 the end-to-end run that uses it when the wrong code changes where the run ends.
 """
 
+import json
 import shutil
+import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-SOLUTIONS = Path(__file__).resolve().parents[2] / "solutions"
+ROOT = Path(__file__).resolve().parents[2]
+SOLUTIONS = ROOT / "solutions"
+#: seconds per check in the tests' grading runs
+TIMEOUT = "5"
 
 CURVE = "curve_model.residuals_and_jacobian: "
 NORMAL = "gauss_newton.normal_equations: "
@@ -921,3 +927,27 @@ def assert_loses_exactly(results, fails, stdout=""):
     hidden = {name[: -len(HIDDEN_SUFFIX)] for name in lost if name.endswith(HIDDEN_SUFFIX)}
     assert public == set(fails), "\n" + stdout
     assert {name for name in fails if "end_to_end" not in name} <= hidden <= set(fails), "\n" + stdout
+
+
+def grade_variants(root: Path, jobs: dict) -> dict:
+    """Grade the variants of ``jobs`` (name -> the ``--only`` names, ``()`` for every check)
+    through ``python -m autograder batch``: one grading run for each set of ``--only`` names,
+    every check in a child of its own as in a single run. Returns ``{name: (the table the
+    command line prints, results.json)}``."""
+    groups: dict = {}
+    for name, only in jobs.items():
+        groups.setdefault(tuple(only), []).append(name)
+    graded = {}
+    for number, (only, names) in enumerate(groups.items()):
+        folder, out = Path(root) / f"batch-{number}", Path(root) / f"results-{number}"
+        folder.mkdir(parents=True)
+        for name in names:
+            build(name, folder)
+        args = [arg for item in only for arg in ("--only", item)]
+        proc = subprocess.run([sys.executable, "-m", "autograder", "batch", str(folder), "--out", str(out),
+                               "--timeout", TIMEOUT, *args], cwd=ROOT, capture_output=True, text=True,
+                              timeout=60 + 60 * len(names))
+        assert proc.returncode == 0, proc.stderr
+        for name in names:
+            graded[name] = ((out / f"{name}.txt").read_text(), json.loads((out / f"{name}.json").read_text()))
+    return graded
