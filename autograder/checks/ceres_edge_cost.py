@@ -37,7 +37,7 @@ def _ceres_inputs(seed=None):
 
 def _ceres_calls(task):
     def build(seed=None):
-        return [Call(f"@autograder.tasks:{task}", (z, U, x_i, x_j), returns="dict",
+        return [Call(f"@autograder.tasks.ceres_edge_cost:{task}", (z, U, x_i, x_j), returns="dict",
                      label="ceres_edge_cost.SE2EdgeCost" + (".evaluate" if task == "ceres_cost" else ".Evaluate"),
                      where=where) for z, U, x_i, x_j, where in _ceres_inputs(seed)]
 

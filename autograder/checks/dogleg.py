@@ -6,7 +6,7 @@ lengths of the Cauchy point ``a = -alpha g`` and of the Gauss-Newton step, and o
 case where the Cauchy point is almost on the boundary and the Gauss-Newton step is
 1e8 times longer: there the naive root of the quadratic for beta loses most of its
 digits. The case comes back from the child as character codes (see
-``autograder.tasks.dogleg_step``). The end-to-end checks run ``course.solver.minimize``
+``autograder.tasks.dogleg.dogleg_step``). The end-to-end checks run ``course.solver.minimize``
 with ``"dogleg"`` on the curve and on a pose graph with every piece from the student
 (model, normal equations or pose-graph pieces, and the dogleg), compare where it ends with
 the reference run, and check from the trace that no rejected step was followed by a
@@ -71,7 +71,7 @@ def _cauchy_calls(seed=None):
 
 
 def _step_call(g, h_gn, alpha, radius, where):
-    return Call("@autograder.tasks:dogleg_step", (g, h_gn, alpha, float(radius)), returns="dict",
+    return Call("@autograder.tasks.dogleg:dogleg_step", (g, h_gn, alpha, float(radius)), returns="dict",
                 label="dogleg.dogleg_step", where=where)
 
 
@@ -137,7 +137,7 @@ def _case_rule(call, expected):
 
 def _judge_step(ctx, predicted=True):
     """The case, h and (unless ``predicted`` is False) the predicted decrease of every call."""
-    from autograder.tasks import decode_text
+    from autograder.tasks.common import decode_text
 
     triples, failure = call_fields(ctx)
     for index, (call, got, want) in enumerate(triples):
@@ -217,17 +217,17 @@ def _end_calls(on):
         label = f"minimize({'curve problem' if on == 'curve' else 'pose graph'}, 'dogleg') with {_pieces(on)}"
         if on == "curve":
             noise = 0 if seed is None else int(np.random.default_rng([seed, 506]).integers(1, 1 << 30))
-            return [Call("@autograder.tasks:minimize_curve_run", ("dogleg",), {"seed": noise}, returns="dict",
-                         label=label)]
-        return [Call("@autograder.tasks:minimize_pose_graph", (_e2e_graph(seed), "dogleg"), {"vectorized": None},
-                     returns="dict", label=label)]
+            return [Call("@autograder.tasks.dogleg:minimize_curve_run", ("dogleg",), {"seed": noise},
+                         returns="dict", label=label)]
+        return [Call("@autograder.tasks.pose_graph:minimize_pose_graph", (_e2e_graph(seed), "dogleg"),
+                     {"vectorized": None}, returns="dict", label=label)]
 
     return build
 
 
 def _judge_end(on):
     def judge(ctx):
-        from autograder.tasks import STOP_REASONS
+        from autograder.tasks.common import STOP_REASONS
 
         triples, failure = call_fields(ctx)
         if failure:
