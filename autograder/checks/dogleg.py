@@ -227,7 +227,8 @@ def _end_calls(on):
 
 def _judge_end(on):
     def judge(ctx):
-        from autograder.tasks.common import STOP_REASONS
+        from autograder.tasks.common import stop_reason
+        from course.solver import StopReason
 
         triples, failure = call_fields(ctx)
         if failure:
@@ -241,10 +242,9 @@ def _judge_end(on):
         params = compare(got["params"], want["params"], "params", 1e-6, 1e-9) if on == "curve" else None
         summary = (f"{int(got['iterations'])} step attempts, {int(got['rejected'])} rejected, "
                    f"{int(got['factorizations'])} factorizations")
-        stop = int(got["stop"])
-        reason = STOP_REASONS[stop] if 0 <= stop < len(STOP_REASONS) else "?"
+        reason, reference_reason = stop_reason(got["stop"]), stop_reason(want["stop"])
         # a run that only reaches the minimum by exhausting its iterations has not converged
-        spun = reason == "max_iterations" and int(want["stop"]) != STOP_REASONS.index("max_iterations")
+        spun = reason == StopReason.MAX_ITERATIONS and reference_reason != StopReason.MAX_ITERATIONS
         if chi2 is None and params is None and not spun:
             return Verdict(1.0, f"ok (chi2 {float(got['final_chi2']):.6g}; {summary}, none after a rejection)")
         what = "the curve from (0, 0, 0)" if on == "curve" else f"the pose graph {call.args[0]['name']}"
@@ -254,11 +254,11 @@ def _judge_end(on):
             text += f"; {params}"
         elif chi2 is None and params is None:
             text += (f", reached, but the run never converged (the reference stops after "
-                     f"{int(want['iterations'])} step attempts, by {STOP_REASONS[int(want['stop'])]})")
-        if reason == "max_iterations" and got["trailing_rejections"] >= 10:
+                     f"{int(want['iterations'])} step attempts, by {reference_reason})")
+        if reason == StopReason.MAX_ITERATIONS and got["trailing_rejections"] >= 10:
             text += (f": the last {int(got['trailing_rejections'])} steps were all rejected, so the radius never "
                      "became small enough: a poor step (rho < 0.25) must halve it (update_radius)")
-        elif reason == "step_tolerance":
+        elif reason == StopReason.STEP_TOLERANCE:
             text += ": the radius shrank to nothing before the minimum: check update_radius and the predicted decrease"
         modules = "" if on == "curve" else f" ({_POSE_GRAPH_MODULES})"
         text += (f". This run uses {_pieces(on)}{modules}: a unit check of theirs that fails points "

@@ -4,8 +4,7 @@ import threading
 
 import numpy as np
 
-#: why a minimizer stopped, as the code returned in ``stop``
-STOP_REASONS = ("max_iterations", "gradient_tolerance", "cost_tolerance", "step_tolerance")
+from course.solver import StopReason
 
 
 class OutputError(Exception):
@@ -41,6 +40,19 @@ def stub_todo(call) -> str:
     return ""
 
 
+def stop_code(reason) -> float:
+    """Why a run stopped as a number: the position of ``reason`` in :class:`StopReason`, -1 if none."""
+    reasons = list(StopReason)
+    return float(reasons.index(reason)) if reason in reasons else -1.0
+
+
+def stop_reason(code) -> str:
+    """The :class:`StopReason` value of a :func:`stop_code` ('?' for -1 or an unknown code)."""
+    reasons = list(StopReason)
+    code = int(code)
+    return reasons[code].value if 0 <= code < len(reasons) else "?"
+
+
 def run_summary(result) -> dict:
     """A run as numbers: where it ended, and how rejected steps were retried."""
     trace = result.trace
@@ -52,7 +64,6 @@ def run_summary(result) -> dict:
         if record.accepted:
             break
         trailing += 1
-    reason = result.stop_reason
     return {
         "params": np.asarray(result.params, float).ravel(),
         "final_chi2": float(result.final_chi2),
@@ -61,5 +72,5 @@ def run_summary(result) -> dict:
         "rejected": float(len(rejected)),
         "refactorized_after_rejection": float(len(refactorized)),
         "trailing_rejections": float(trailing),
-        "stop": float(STOP_REASONS.index(reason) if reason in STOP_REASONS else -1),
+        "stop": stop_code(result.stop_reason),
     }
