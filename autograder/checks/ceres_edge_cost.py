@@ -11,7 +11,8 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Verdict
-from autograder.checks.pose_graph_edge import check, edges, failed, values
+from autograder.checks.common import check, failed, values
+from autograder.checks.pose_graph_edge import edges
 from autograder.feedback import call_fields, compare
 
 MODULES = ("ceres_edge_cost",)

@@ -10,7 +10,7 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Check, Verdict
-from autograder.checks.pose_graph_edge import failed
+from autograder.checks.common import failed
 from autograder.feedback import call_fields, compare, fmt
 
 MODULES = ("pose_graph_edge", "pose_graph_assembly", "sparse_solve")

@@ -9,8 +9,8 @@ second set of poses; hidden inputs: the hidden graph of the assembly checks.
 import numpy as np
 
 from autograder.checks import Call, Verdict
+from autograder.checks.common import check, failed, values
 from autograder.checks.pose_graph_assembly import graph_at, reference_blocks, small_graph
-from autograder.checks.pose_graph_edge import check, failed, values
 from autograder.feedback import call_fields, compare
 
 MODULES = ("pose_graph_fast",)

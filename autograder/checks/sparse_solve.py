@@ -13,8 +13,8 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Verdict
+from autograder.checks.common import check, failed, values
 from autograder.checks.pose_graph_assembly import small_graph
-from autograder.checks.pose_graph_edge import check, failed, values
 from autograder.feedback import call_fields, compare
 
 MODULES = ("sparse_solve",)
