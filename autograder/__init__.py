@@ -8,10 +8,11 @@ writes the raw outputs as plain float arrays; the parent reads them with
 ``solutions``), and alone writes the results: a terminal table and Gradescope's
 ``results.json`` (:mod:`autograder.report`).
 
-Modules: ``checks/`` (the registry, one module per chapter), ``compare.py``
+Modules: ``checks/`` (the registry, one module per exercise), ``feedback.py``
 (tolerance comparisons that produce feedback), ``grade.py`` (runs the checks on two
-workers), ``tasks.py`` (framework runs such as a whole ``minimize`` that the child
-performs with the student's code), ``report.py``, ``sandbox.py``, ``child.py``.
+workers), ``tasks/`` (framework runs such as a whole ``minimize`` that the child
+performs with the student's code, one module per exercise), ``report.py``,
+``sandbox.py``, ``child.py``.
 
 This ``__init__`` imports nothing on purpose: the child imports ``autograder.child``
 and must set its resource limits before numpy loads. Use ``autograder.grade.grade``.

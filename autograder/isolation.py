@@ -7,7 +7,7 @@ from a high range that no account uses, locked with ``flock`` so that two gradin
 on one machine never share one. The child of a check:
 
 * runs in a private working directory owned by its uid, inside root-owned 0711
-  directories, and imports ``course/``, three files of ``autograder/`` and the
+  directories, and imports ``course/``, the runner and tasks of ``autograder/`` and the
   implementation from a root-owned staging copy (:func:`stage`), never from the
   repository;
 * cannot read the reference: :func:`protect_reference` makes ``solutions/``,
@@ -51,8 +51,9 @@ FIRST_ID = int(os.environ.get("AUTOGRADER_FIRST_ID", "61700"))
 ID_RANGE = 200
 #: RLIMIT_NPROC of a child's uid: its processes and threads (BLAS runs one thread)
 PROCESSES = 32
-#: what the child imports from the repository, staged for it
-AUTOGRADER_FILES = ("__init__.py", "child.py", "forkserver.py", "tasks.py")
+#: what the child imports from the repository, staged for it: files and packages of ``autograder/``
+AUTOGRADER_FILES = ("__init__.py", "child.py", "forkserver.py")
+AUTOGRADER_PACKAGES = ("tasks",)
 OMIT_MARKER = "# RELEASE: omit"
 TEMP_DIRS = ("/tmp", "/var/tmp", "/dev/shm")
 LIBRARY_SKIP = {"site-packages", "dist-packages", "test", "idlelib", "turtledemo", "ensurepip",
@@ -241,6 +242,8 @@ def stage(impl: str, root: Path) -> str:
     for name in AUTOGRADER_FILES:
         shutil.copy2(REPO_ROOT / "autograder" / name, package / name)
         os.chmod(package / name, 0o644)
+    for name in AUTOGRADER_PACKAGES:
+        _copy_tree(REPO_ROOT / "autograder" / name, package / name, skip={"__pycache__"})
     (root / "impl").mkdir(mode=0o755)
     os.chmod(root / "impl", 0o755)
     return stage_impl(impl, root)

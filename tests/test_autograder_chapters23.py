@@ -167,7 +167,7 @@ def test_the_mistakes_are_distinct_and_name_real_checks():
 
 def test_the_reference_dogleg_never_refactorizes_between_a_rejection_and_the_retry(data_folder):
     """intel-g2o from its start rejects dogleg steps; each retry reuses the factorization."""
-    from autograder.tasks import minimize_pose_graph
+    from autograder.tasks.pose_graph import minimize_pose_graph
     from course.problems.posegraph.dataset import load_dataset
     from course.problems.posegraph.problem import PoseGraphProblem
     from course.solver import minimize
@@ -189,7 +189,8 @@ def test_the_reference_dogleg_never_refactorizes_between_a_rejection_and_the_ret
 
 
 def test_the_dogleg_case_and_stop_reason_come_back_as_numbers():
-    from autograder.tasks import decode_text, dogleg_step, encode_text
+    from autograder.tasks.common import decode_text, encode_text
+    from autograder.tasks.dogleg import dogleg_step
 
     assert decode_text(encode_text("steepest-descent")) == "steepest-descent"
     out = dogleg_step(np.array([1.0, 0.0]), np.array([-1e8, 1e4]), 1.0, 1.0 + 2.0**-40, impl=_solutions())

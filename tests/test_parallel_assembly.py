@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from autograder.checks import parallel_assembly as checks
-from autograder.tasks import BlockKernel, OutputError, parallel_normal_equations
+from autograder.tasks.common import OutputError
+from autograder.tasks.parallel_assembly import BlockKernel, parallel_normal_equations
 from course.app import parallel_speedup
 from course.core import impl as impl_loader
 from course.problems.bal.dataset import synthetic

@@ -1,6 +1,6 @@
 """The registry of checks: one module per exercise module, named after it
 (``checks/damping.py`` grades ``exercises/damping.py``), plus ``end_to_end.py`` for the
-runs that use several pieces together.
+runs that use several pieces together, and ``common.py`` for the helpers several share.
 
 A check is a :class:`Check`: a ``name`` (unique, ``"<exercise>: <title>"``), the
 ``exercise`` it belongs to (partial credit per exercise is the sum of its checks),

@@ -14,7 +14,7 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call
-from autograder.checks.pose_graph_edge import check, values
+from autograder.checks.common import check, values
 
 MODULES = ("bundle_adjustment",)
 RESIDUALS = "bundle_adjustment.reprojection_residuals_and_jacobians"

@@ -11,7 +11,8 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Verdict
-from autograder.checks.pose_graph_edge import check, edges, failed, values
+from autograder.checks.common import check, failed, values
+from autograder.checks.pose_graph_edge import edges
 from autograder.feedback import call_fields, compare
 
 MODULES = ("ceres_edge_cost",)
@@ -37,7 +38,7 @@ def _ceres_inputs(seed=None):
 
 def _ceres_calls(task):
     def build(seed=None):
-        return [Call(f"@autograder.tasks:{task}", (z, U, x_i, x_j), returns="dict",
+        return [Call(f"@autograder.tasks.ceres_edge_cost:{task}", (z, U, x_i, x_j), returns="dict",
                      label="ceres_edge_cost.SE2EdgeCost" + (".evaluate" if task == "ceres_cost" else ".Evaluate"),
                      where=where) for z, U, x_i, x_j, where in _ceres_inputs(seed)]
 

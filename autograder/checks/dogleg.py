@@ -6,7 +6,7 @@ lengths of the Cauchy point ``a = -alpha g`` and of the Gauss-Newton step, and o
 case where the Cauchy point is almost on the boundary and the Gauss-Newton step is
 1e8 times longer: there the naive root of the quadratic for beta loses most of its
 digits. The case comes back from the child as character codes (see
-``autograder.tasks.dogleg_step``). The end-to-end checks run ``course.solver.minimize``
+``autograder.tasks.dogleg.dogleg_step``). The end-to-end checks run ``course.solver.minimize``
 with ``"dogleg"`` on the curve and on a pose graph with every piece from the student
 (model, normal equations or pose-graph pieces, and the dogleg), compare where it ends with
 the reference run, and check from the trace that no rejected step was followed by a
@@ -71,7 +71,7 @@ def _cauchy_calls(seed=None):
 
 
 def _step_call(g, h_gn, alpha, radius, where):
-    return Call("@autograder.tasks:dogleg_step", (g, h_gn, alpha, float(radius)), returns="dict",
+    return Call("@autograder.tasks.dogleg:dogleg_step", (g, h_gn, alpha, float(radius)), returns="dict",
                 label="dogleg.dogleg_step", where=where)
 
 
@@ -137,7 +137,7 @@ def _case_rule(call, expected):
 
 def _judge_step(ctx, predicted=True):
     """The case, h and (unless ``predicted`` is False) the predicted decrease of every call."""
-    from autograder.tasks import decode_text
+    from autograder.tasks.common import decode_text
 
     triples, failure = call_fields(ctx)
     for index, (call, got, want) in enumerate(triples):
@@ -217,17 +217,18 @@ def _end_calls(on):
         label = f"minimize({'curve problem' if on == 'curve' else 'pose graph'}, 'dogleg') with {_pieces(on)}"
         if on == "curve":
             noise = 0 if seed is None else int(np.random.default_rng([seed, 506]).integers(1, 1 << 30))
-            return [Call("@autograder.tasks:minimize_curve_run", ("dogleg",), {"seed": noise}, returns="dict",
-                         label=label)]
-        return [Call("@autograder.tasks:minimize_pose_graph", (_e2e_graph(seed), "dogleg"), {"vectorized": None},
-                     returns="dict", label=label)]
+            return [Call("@autograder.tasks.dogleg:minimize_curve_run", ("dogleg",), {"seed": noise},
+                         returns="dict", label=label)]
+        return [Call("@autograder.tasks.pose_graph:minimize_pose_graph", (_e2e_graph(seed), "dogleg"),
+                     {"vectorized": None}, returns="dict", label=label)]
 
     return build
 
 
 def _judge_end(on):
     def judge(ctx):
-        from autograder.tasks import STOP_REASONS
+        from autograder.tasks.common import stop_reason
+        from course.solver import StopReason
 
         triples, failure = call_fields(ctx)
         if failure:
@@ -241,10 +242,9 @@ def _judge_end(on):
         params = compare(got["params"], want["params"], "params", 1e-6, 1e-9) if on == "curve" else None
         summary = (f"{int(got['iterations'])} step attempts, {int(got['rejected'])} rejected, "
                    f"{int(got['factorizations'])} factorizations")
-        stop = int(got["stop"])
-        reason = STOP_REASONS[stop] if 0 <= stop < len(STOP_REASONS) else "?"
+        reason, reference_reason = stop_reason(got["stop"]), stop_reason(want["stop"])
         # a run that only reaches the minimum by exhausting its iterations has not converged
-        spun = reason == "max_iterations" and int(want["stop"]) != STOP_REASONS.index("max_iterations")
+        spun = reason == StopReason.MAX_ITERATIONS and reference_reason != StopReason.MAX_ITERATIONS
         if chi2 is None and params is None and not spun:
             return Verdict(1.0, f"ok (chi2 {float(got['final_chi2']):.6g}; {summary}, none after a rejection)")
         what = "the curve from (0, 0, 0)" if on == "curve" else f"the pose graph {call.args[0]['name']}"
@@ -254,11 +254,11 @@ def _judge_end(on):
             text += f"; {params}"
         elif chi2 is None and params is None:
             text += (f", reached, but the run never converged (the reference stops after "
-                     f"{int(want['iterations'])} step attempts, by {STOP_REASONS[int(want['stop'])]})")
-        if reason == "max_iterations" and got["trailing_rejections"] >= 10:
+                     f"{int(want['iterations'])} step attempts, by {reference_reason})")
+        if reason == StopReason.MAX_ITERATIONS and got["trailing_rejections"] >= 10:
             text += (f": the last {int(got['trailing_rejections'])} steps were all rejected, so the radius never "
                      "became small enough: a poor step (rho < 0.25) must halve it (update_radius)")
-        elif reason == "step_tolerance":
+        elif reason == StopReason.STEP_TOLERANCE:
             text += ": the radius shrank to nothing before the minimum: check update_radius and the predicted decrease"
         modules = "" if on == "curve" else f" ({_POSE_GRAPH_MODULES})"
         text += (f". This run uses {_pieces(on)}{modules}: a unit check of theirs that fails points "

@@ -48,7 +48,8 @@ def _end_calls(method):
     def build(seed=None):
         noise = 0 if seed is None else hidden_noise(seed)
         label = f"minimize(curve problem, {method!r}) with {_pieces(method)}"
-        return [Call("@autograder.tasks:minimize_curve", (method,), {"seed": noise}, returns="dict", label=label)]
+        return [Call("@autograder.tasks.end_to_end:minimize_curve", (method,), {"seed": noise}, returns="dict",
+                     label=label)]
 
     return build
 

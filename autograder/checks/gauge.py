@@ -15,7 +15,7 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.bundle_adjustment import problem
-from autograder.checks.pose_graph_edge import check, failed
+from autograder.checks.common import check, failed
 from autograder.feedback import call_fields
 
 MODULES = ("gauge",)

@@ -19,7 +19,7 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Verdict
-from autograder.checks.pose_graph_edge import check, failed, values
+from autograder.checks.common import check, failed, values
 from autograder.feedback import call_fields, compare
 
 MODULES = ("marginalisation",)

@@ -4,7 +4,7 @@ normal equations graded alone.
 ``chunk_bounds`` is judged by its properties (contiguous, covering every observation, as
 many non-empty chunks as asked or one per observation, sizes within one of each other), so
 any balanced chunking earns full marks. ``normal_equations_parallel`` runs in the child with
-a stand-in ``kernel`` (``autograder.tasks.BlockKernel``) that sums per-observation blocks
+a stand-in ``kernel`` (``autograder.tasks.parallel_assembly.BlockKernel``) that sums per-observation blocks
 the reference computed: the grade does not depend on the student's
 ``bundle_adjustment.normal_equations``. Its outputs must equal the serial assembly (the
 blocks summed over all observations) to rtol 1e-12 (atol 1e-14 times the largest entry);
@@ -26,13 +26,13 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.bundle_adjustment import problem
-from autograder.checks.pose_graph_edge import check, failed
+from autograder.checks.common import check, failed
 from autograder.feedback import call_fields, compare
 
 MODULES = ("parallel_assembly",)
 BOUNDS = "parallel_assembly.chunk_bounds"
 PARALLEL = "parallel_assembly.normal_equations_parallel"
-TASK = "@autograder.tasks:parallel_normal_equations"
+TASK = "@autograder.tasks.parallel_assembly:parallel_normal_equations"
 
 RTOL, ATOL = 1e-12, 1e-14  # atol relative to the output's largest reference entry (at least 1)
 

@@ -10,7 +10,7 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Check, Verdict
-from autograder.checks.pose_graph_edge import failed
+from autograder.checks.common import failed
 from autograder.feedback import call_fields, compare, fmt
 
 MODULES = ("pose_graph_edge", "pose_graph_assembly", "sparse_solve")
@@ -30,7 +30,7 @@ def _graph(seed=None):
 
 def _end_calls(seed=None):
     graph = _graph(seed)
-    return [Call("@autograder.tasks:minimize_pose_graph", (graph, "gauss-newton"), {"vectorized": False},
+    return [Call("@autograder.tasks.pose_graph:minimize_pose_graph", (graph, "gauss-newton"), {"vectorized": False},
                  returns="dict", label=f"minimize(pose graph, 'gauss-newton') with {PIECES}",
                  where=f"on {graph['name']} ({len(graph['poses'])} poses, {len(graph['edges_i'])} edges)")]
 

@@ -1,7 +1,7 @@
 """Checks of ``pose_graph_assembly.assemble_normal_equations``, graded alone: the reference
 error and Jacobians of every edge stand in for the student's ``pose_graph_edge`` (see
-``autograder.tasks.assemble_with_reference_edges``). H blocks of the free poses, b and
-chi2, and the rows and columns of the fixed poses.
+``autograder.tasks.pose_graph_assembly.assemble_with_reference_edges``). H blocks of the
+free poses, b and chi2, and the rows and columns of the fixed poses.
 
 Public inputs: a 6-pose, 8-edge graph (one edge from a later to an earlier pose, full
 information matrices) with the first pose fixed, with poses 0 and 3 fixed, at other
@@ -16,7 +16,7 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Verdict
-from autograder.checks.pose_graph_edge import check, failed, wrap
+from autograder.checks.common import check, failed, wrap
 from autograder.feedback import call_fields, compare
 
 MODULES = ("pose_graph_assembly",)
@@ -97,7 +97,7 @@ def reference_blocks(graph):
 def _assembly_call(graph, where):
     args = (graph["poses"], graph["edges_i"], graph["edges_j"], graph["measurements"], graph["information"],
             graph["fixed"], reference_blocks(graph))
-    return Call("@autograder.tasks:assemble_with_reference_edges", args, returns="dict",
+    return Call("@autograder.tasks.pose_graph_assembly:assemble_with_reference_edges", args, returns="dict",
                 label="pose_graph_assembly.assemble_normal_equations", where=where)
 
 

@@ -5,68 +5,26 @@ Public inputs: generic edges, raw angle errors beyond +-pi and near its ends, a 
 angle near pi, and two seeded random edges; hidden inputs: fresh edges of each kind
 (the same angle cases, other poses and measurements).
 
-Also the helpers the other chapter-2 check modules share: the judges' failure with every
-TODO named (:func:`failed`, :func:`values`) and the edges (:func:`edges`).
+The edges (:func:`edges`) are also those of the Ceres cost's checks.
 """
 
 from functools import cache
 
 import numpy as np
 
-from autograder.checks import Call, Check, Verdict
-from autograder.feedback import TODO_PATTERN, call_fields, compare, first_error, fmt
-from autograder.feedback import values as _feedback_values
+from autograder.checks import Call, Verdict
+from autograder.checks.common import check, failed, values, wrap
+from autograder.feedback import call_fields, compare, fmt
 
 MODULES = ("pose_graph_edge",)
 EDGE = "pose_graph_edge.edge_error_and_jacobians"
 
-LOOP_NOTE = "[the per-edge loop works]"
-
-# ---------------------------------------------------------------- shared helpers
-
-
-def wrap(angle):
-    return (np.asarray(angle, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
+# ---------------------------------------------------------------- inputs
 
 
 def pose_text(x):
     return fmt(np.asarray(x, dtype=float))
 
-
-def failed(ctx, hints=None):
-    """``first_error`` naming every TODO stub met (a constructor stub hides its methods')."""
-    verdict = first_error(ctx, hints)
-    if verdict is None or not verdict.not_implemented:
-        return verdict
-    names, loop = list(verdict.not_implemented), False
-    for outcome in ctx.student:
-        if outcome.error is not None:
-            loop = loop or LOOP_NOTE in outcome.error.message
-            for name in TODO_PATTERN.findall(outcome.error.message):
-                if name not in names:
-                    names.append(name)
-    message = verdict.message
-    if loop:
-        message += (" (optional, going further: without it PoseGraphProblem falls back to your "
-                    "per-edge loop pose_graph_assembly, fine for small graphs)")
-    return Verdict(0.0, message, tuple(names))
-
-
-def values(*args, **kwargs):
-    """``autograder.feedback.values``, naming every TODO stub met (see :func:`failed`)."""
-    judge = _feedback_values(*args, **kwargs)
-
-    def wrapped(ctx):
-        return failed(ctx, kwargs.get("errors")) or judge(ctx)
-
-    return wrapped
-
-
-def check(exercise, title, points, calls, judge, **kwargs):
-    return Check(f"{exercise}: {title}", exercise, points, calls, judge, **kwargs)
-
-
-# ---------------------------------------------------------------- inputs
 
 #: the angle cases of the edges: (lowest, highest raw angle error theta_j - theta_i - theta_ij, note)
 #: for the hidden inputs; None: any

@@ -9,8 +9,8 @@ second set of poses; hidden inputs: the hidden graph of the assembly checks.
 import numpy as np
 
 from autograder.checks import Call, Verdict
+from autograder.checks.common import check, failed, values
 from autograder.checks.pose_graph_assembly import graph_at, reference_blocks, small_graph
-from autograder.checks.pose_graph_edge import check, failed, values
 from autograder.feedback import call_fields, compare
 
 MODULES = ("pose_graph_fast",)
@@ -29,14 +29,14 @@ def _where(seed, text=""):
 
 
 def _fast_edge_calls(seed=None):
-    return [Call("@autograder.tasks:fast_edges", (_fast_graph(seed),), returns="dict",
+    return [Call("@autograder.tasks.pose_graph_fast:fast_edges", (_fast_graph(seed),), returns="dict",
                  label="pose_graph_fast.edge_errors_and_jacobians", where=_where(seed))]
 
 
 def _fast_assembler_calls(seed=None):
     graph = _fast_graph(seed)
     blocks = [reference_blocks(graph), reference_blocks(_fast_graph(seed, "poses_b"))]
-    return [Call("@autograder.tasks:fast_assemble", (graph, blocks), returns="dict",
+    return [Call("@autograder.tasks.pose_graph_fast:fast_assemble", (graph, blocks), returns="dict",
                  label="pose_graph_fast.SparseAssembler",
                  where=_where(seed, ", assemble called twice with new blocks"))]
 

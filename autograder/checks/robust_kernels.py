@@ -16,7 +16,7 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call
-from autograder.checks.pose_graph_edge import check, values
+from autograder.checks.common import check, values
 
 MODULES = ("robust_kernels",)
 HUBER = "robust_kernels.huber"

@@ -13,8 +13,8 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Verdict
+from autograder.checks.common import check, failed, values
 from autograder.checks.pose_graph_assembly import small_graph
-from autograder.checks.pose_graph_edge import check, failed, values
 from autograder.feedback import call_fields, compare
 
 MODULES = ("sparse_solve",)
@@ -56,7 +56,7 @@ def _dense_calls(seed=None):
 
 def _upper_calls(seed=None):
     (H1, _), _, _ = systems(seed)
-    return [Call("@autograder.tasks:upper_triangle", (H1, sparse), returns="dict",
+    return [Call("@autograder.tasks.sparse_solve:upper_triangle", (H1, sparse), returns="dict",
                  label="sparse_solve.upper_triangle_csc",
                  where=f"for H of the 6-pose graph given as {'a scipy CSR matrix' if sparse else 'a dense array'}")
             for sparse in (False, True)]
@@ -107,7 +107,7 @@ def _sparse_calls(count):
         where = ("for the upper triangle of H of the 6-pose graph (one call)" if count == 1 else
                  f"for {count} successive calls on one solver with the same pattern and new values "
                  "(other poses, then a damped H)")
-        return [Call("@autograder.tasks:sparse_solves", (shape, indices, indptr, values[:count], rhs),
+        return [Call("@autograder.tasks.sparse_solve:sparse_solves", (shape, indices, indptr, values[:count], rhs),
                      returns="dict", label="sparse_solve.SparseCholeskySolver.solve", where=where)]
 
     return build
@@ -120,7 +120,7 @@ def _alternating_calls(seed=None):
     # each solver keeps its matrix and gets a new b (refactorizing is graded by the checks above)
     first = (shape, indices, indptr, [values[0], values[0]], [rhs[0], rhs[2]])
     second = (shape2, indices2, indptr2, [values2[0], values2[0]], [rhs2[0], rhs2[2]])
-    return [Call("@autograder.tasks:alternating_solves", (first, second), returns="dict",
+    return [Call("@autograder.tasks.sparse_solve:alternating_solves", (first, second), returns="dict",
                  label="sparse_solve.SparseCholeskySolver.solve",
                  where="with two solvers, one per pattern (the 6-pose graph, and the same graph with its poses "
                        "numbered differently), called alternately: first solver, second solver, first, second "
@@ -134,7 +134,7 @@ def _judge_upper(ctx):
     triples, failure = call_fields(ctx, failed=failed)
     if failure:
         return failure
-    from autograder.tasks import decode_text
+    from autograder.tasks.common import decode_text
 
     partial = None
     for index, (call, got, want) in enumerate(triples):

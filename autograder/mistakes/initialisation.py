@@ -6,8 +6,8 @@ from collections import deque
 
 import numpy as np
 
+from autograder.checks.common import wrap
 from autograder.checks.initialisation import ROTATIONS, TRANSLATIONS, TREE
-from autograder.checks.pose_graph_edge import wrap
 
 
 def _rotation(a):

@@ -6,13 +6,13 @@ partial sum is overwritten instead of added, or W is collected in completion ord
 The assembly's outputs are sums of the per-observation blocks the call carries, each
 observation counted ``m_k`` times (:func:`_sums`); the chunks are those of the reference's
 ``chunk_bounds``, and the completion order is the stand-in kernel's schedule
-(``autograder.tasks.stagger_delay``) on ``workers`` threads.
+(``autograder.tasks.parallel_assembly.stagger_delay``) on ``workers`` threads.
 """
 
 import numpy as np
 
 from autograder.checks.parallel_assembly import BOUNDS, PARALLEL
-from autograder.tasks import stagger_delay
+from autograder.tasks.parallel_assembly import stagger_delay
 
 
 def _bounds(K, chunks, *, remainder=True, clamp=True, ceil=False):

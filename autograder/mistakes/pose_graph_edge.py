@@ -3,7 +3,8 @@
 
 import numpy as np
 
-from autograder.checks.pose_graph_edge import EDGE, wrap
+from autograder.checks.common import wrap
+from autograder.checks.pose_graph_edge import EDGE
 
 
 def rot(theta):

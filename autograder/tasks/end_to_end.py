@@ -1,0 +1,18 @@
+"""The whole minimizer on the curve problem with the student's pieces (``checks/end_to_end.py``)."""
+
+import numpy as np
+
+
+def minimize_curve(method, impl, num_points=100, seed=0):
+    """``course.solver.minimize`` on the curve problem (noise ``seed``), every piece from ``impl``."""
+    from course.problems.curve.problem import CurveProblem, generate
+    from course.solver import minimize
+
+    problem = CurveProblem(generate(num_points=num_points, seed=seed), impl=impl)
+    result = minimize(problem, method, impl=impl)
+    return {
+        "params": np.asarray(result.params, float),
+        "final_chi2": float(result.final_chi2),
+        "iterations": float(result.iterations),
+        "accepted": float(sum(1 for record in result.trace[1:] if record.accepted)),
+    }
