@@ -9,7 +9,8 @@ cases with lambda, nu and rho moved within their branch.
 
 import numpy as np
 
-from autograder.checks import Call, Check
+from autograder.checks import Call
+from autograder.checks.common import check
 from autograder.checks.gauss_newton import systems
 from autograder.feedback import fmt, values
 
@@ -115,10 +116,6 @@ def _alpha_calls(seed=None):
     return calls
 
 
-def _check(exercise, title, points, calls, judge):
-    return Check(f"{exercise}: {title}", exercise, points, calls, judge)
-
-
 UPDATE_HINTS = {
     1: "accepted: max(lambda / 9, 1e-7); rejected: min(lambda * 11, 1e7)",
     2: "accepted: max(lambda / (1 + alpha), 1e-7); rejected: lambda + |dchi2| / (2 alpha)",
@@ -143,25 +140,25 @@ def _type_checks(kind):
     ex = f"damping.{cls}"
     custom = {"lambda_0": 0.3} if kind == 1 else {"tau": 0.5}
     checks = [
-        _check(ex, "initial_state", 1, _initial_calls(cls, custom),
+        check(ex, "initial_state", 1, _initial_calls(cls, custom),
                values(("lam", "nu"), LAM_RTOL, LAM_ATOL,
                       "type 1: lambda_0 as given" if kind == 1 else "lambda_0 = tau max diag(H), nu = 2")),
-        _check(ex, "damping_diagonal", 2 if kind == 1 else 1, _diagonal_calls(cls),
+        check(ex, "damping_diagonal", 2 if kind == 1 else 1, _diagonal_calls(cls),
                values(("value",), 1e-12, 0.0, "d = lambda diag(H)" if kind == 1 else "d = lambda (1, ..., 1)",
                       labels={"value": "d"})),
-        _check(ex, "gain_denominator", 2 if kind == 1 else 1, _gain_calls(cls, kind),
+        check(ex, "gain_denominator", 2 if kind == 1 else 1, _gain_calls(cls, kind),
                values(("value",), 1e-9, 1e-12,
                       "Gavin eq. 16: h^T (lambda diag(H) h - b)" if kind == 1 else "Gavin eq. 15: h^T (lambda h - b)",
                       labels={"value": "denominator"}, scalar=True)),
     ]
     if kind == 2:
-        checks.append(_check(ex, "step_scale", 2, _alpha_calls,
+        checks.append(check(ex, "step_scale", 2, _alpha_calls,
                              values(("value",), 1e-9, 0.0,
                                     "alpha = g^T h / ((chi2(p+h) - chi2(p)) / 2 + 2 g^T h), g = -b, at least 0.1",
                                     labels={"value": "alpha"}, scalar=True)))
     judge = values(("lam", "nu"), LAM_RTOL, LAM_ATOL, UPDATE_HINTS[kind])
     for key, (title, points, cases) in enumerate(UPDATE_CASES[kind]):
-        checks.append(_check(ex, title, points, _update_calls(cls, cases, 10 * kind + key), judge))
+        checks.append(check(ex, title, points, _update_calls(cls, cases, 10 * kind + key), judge))
     return checks
 
 

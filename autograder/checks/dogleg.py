@@ -19,7 +19,8 @@ the same case, another noise seed and another Manhattan graph.
 
 import numpy as np
 
-from autograder.checks import Call, Check, Verdict
+from autograder.checks import Call, Verdict
+from autograder.checks.common import check
 from autograder.feedback import call_fields, compare, fmt, values
 
 MODULES = ("dogleg",)
@@ -272,28 +273,24 @@ def _judge_end(on):
 # ---------------------------------------------------------------- registry
 
 
-def _check(exercise, title, points, calls, judge):
-    return Check(f"{exercise}: {title}", exercise, points, calls, judge)
-
-
 CHECKS = [
-    _check(CAUCHY, "h_cp and alpha", 2, _cauchy_calls,
+    check(CAUCHY, "h_cp and alpha", 2, _cauchy_calls,
            values(("alpha", "h_cp"), 1e-9, 1e-12, {"alpha": "alpha = |g|^2 / (g^T H g)", "h_cp": "h_cp = -alpha g"},
                   scalar=True)),
-    _check(STEP, "Gauss-Newton case (|h_gn| <= radius)", 1, _case_calls("gauss-newton"), _judge_step),
-    _check(STEP, "steepest-descent case (|a| >= radius)", 2, _case_calls("steepest-descent"), _judge_step),
-    _check(STEP, "dogleg case (|a| < radius < |h_gn|)", 3, _case_calls("dogleg"), _judge_step),
-    _check(STEP, "stable beta (Cauchy point almost on the boundary)", 1, _stable_calls,
+    check(STEP, "Gauss-Newton case (|h_gn| <= radius)", 1, _case_calls("gauss-newton"), _judge_step),
+    check(STEP, "steepest-descent case (|a| >= radius)", 2, _case_calls("steepest-descent"), _judge_step),
+    check(STEP, "dogleg case (|a| < radius < |h_gn|)", 3, _case_calls("dogleg"), _judge_step),
+    check(STEP, "stable beta (Cauchy point almost on the boundary)", 1, _stable_calls,
            lambda ctx: _judge_step(ctx, predicted=False)),
-    _check(RADIUS, "good step (rho > 0.75)", 1,
+    check(RADIUS, "good step (rho > 0.75)", 1,
            _radius_calls([(1.0, 0.9, 0.5), (2.0, 0.9, 0.5), (0.4, 0.99, 0.4)]),
            _radius_judge("rho > 0.75: max(radius, 3 |step|)")),
-    _check(RADIUS, "poor step (rho < 0.25)", 1,
+    check(RADIUS, "poor step (rho < 0.25)", 1,
            _radius_calls([(1.0, 0.1, 0.5), (3.0, -2.0, 3.0), (1.0, 0.2499, 1.0)]),
            _radius_judge("rho < 0.25: radius / 2")),
-    _check(RADIUS, "in between (0.25 <= rho <= 0.75)", 1,
+    check(RADIUS, "in between (0.25 <= rho <= 0.75)", 1,
            _radius_calls([(1.0, 0.5, 0.5), (2.0, 0.25, 2.0), (2.0, 0.75, 2.0)]),
            _radius_judge("0.25 <= rho <= 0.75: the radius stays")),
-    _check(END, "curve", 2, _end_calls("curve"), _judge_end("curve")),
-    _check(END, "pose graph", 2, _end_calls("pose graph"), _judge_end("pose graph")),
+    check(END, "curve", 2, _end_calls("curve"), _judge_end("curve")),
+    check(END, "pose graph", 2, _end_calls("pose graph"), _judge_end("pose graph")),
 ]

@@ -7,7 +7,8 @@ lambda diag(H) differ); hidden inputs: the same kinds from other seeds and sizes
 
 import numpy as np
 
-from autograder.checks import Call, Check
+from autograder.checks import Call
+from autograder.checks.common import check
 from autograder.feedback import fmt, values
 
 MODULES = ("gauss_newton",)
@@ -76,19 +77,15 @@ def _step_calls(damped):
     return build
 
 
-def _check(exercise, title, points, calls, judge):
-    return Check(f"{exercise}: {title}", exercise, points, calls, judge)
-
-
 CHECKS = [
-    _check(NORMAL, "unit weights", 1, _normal_calls("unit"),
+    check(NORMAL, "unit weights", 1, _normal_calls("unit"),
            values(("H", "b"), 1e-9, 1e-9, {"H": "H = J^T W J", "b": "b = J^T W r"})),
-    _check(NORMAL, "non-uniform weights", 3, _normal_calls("weighted"),
+    check(NORMAL, "non-uniform weights", 3, _normal_calls("weighted"),
            values(("H", "b"), 1e-9, 1e-9, {"H": "H = J^T W J", "b": "b = J^T W r"})),
-    _check(STEP, "undamped step", 2, _step_calls(False),
+    check(STEP, "undamped step", 2, _step_calls(False),
            values(("value",), 1e-8, 1e-10, "h solves H h = -b", labels={"value": "h"},
                   errors={"LinAlgError": "H given here is symmetric positive definite"})),
-    _check(STEP, "damped step", 2, _step_calls(True),
+    check(STEP, "damped step", 2, _step_calls(True),
            values(("value",), 1e-8, 1e-10, "h solves (H + diag(damping)) h = -b",
                   labels={"value": "h"}, errors={"LinAlgError": (
                       "H + diag(damping) is symmetric positive definite here; H + damping (a vector) "
