@@ -3,7 +3,6 @@ scores zero, each known mistake costs its own group's check only and names its c
 the same directions written another way keep full marks."""
 
 import pytest
-from test_autograder_chapters23 import grade_cli
 
 from autograder.checks import all_checks
 from student_variants import (
@@ -16,20 +15,21 @@ from student_variants import (
 )
 
 
-@pytest.mark.slow  # real grading runs, a child process per check
-def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(tmp_path):
-    _, results = grade_cli(tmp_path, "solutions", "gauge", name="ref.json")
+def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(graded):
+    _, results = graded["solutions"]
     assert len(results["tests"]) == 6 and all(t["score"] == t["max_score"] for t in results["tests"])
-    _, results = grade_cli(tmp_path, "exercises", "gauge", name="stub.json")
+    _, results = graded["exercises"]
     assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO gauge.gauge_directions")
                                     for t in results["tests"])
 
 
 @pytest.fixture(scope="module")
 def graded(tmp_path_factory):
-    """Every variant of this module, graded in one batch run per set of checks."""
+    """Every variant of this module, the reference and the stubs, graded in one batch run per set of
+    checks."""
     jobs = {name: BUGS_GAUGE[name].loaded_by for name in BUGS_GAUGE}
     jobs |= {name: ("gauge",) for name in ALTERNATIVES_GAUGE}
+    jobs |= {"solutions": ("gauge",), "exercises": ("gauge",)}
     return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
 
 

@@ -3,7 +3,6 @@ zero, each known mistake costs its own checks only and names its cause, and the 
 preintegration or residual written another way keeps full marks."""
 
 import pytest
-from test_autograder_chapters23 import grade_cli
 
 from autograder.checks import all_checks
 from student_variants import (
@@ -18,20 +17,21 @@ from student_variants import (
 PRE, RES = "imu_preintegration.preintegrate", "imu_preintegration.imu_factor_residual"
 
 
-@pytest.mark.slow  # real grading runs, a child process per check
-def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(tmp_path):
-    _, results = grade_cli(tmp_path, "solutions", "imu_preintegration", name="ref.json")
+def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(graded):
+    _, results = graded["solutions"]
     assert len(results["tests"]) == 16 and all(t["score"] == t["max_score"] for t in results["tests"])
-    _, results = grade_cli(tmp_path, "exercises", "imu_preintegration", name="stub.json")
+    _, results = graded["exercises"]
     assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO imu_preintegration.")
                                     for t in results["tests"])
 
 
 @pytest.fixture(scope="module")
 def graded(tmp_path_factory):
-    """Every variant of this module, graded in one batch run per set of checks."""
+    """Every variant of this module, the reference and the stubs, graded in one batch run per set of
+    checks."""
     jobs = {name: BUGS_IMU_PREINTEGRATION[name].loaded_by for name in BUGS_IMU_PREINTEGRATION}
     jobs |= {name: ("imu_preintegration",) for name in ALTERNATIVES_IMU_PREINTEGRATION}
+    jobs |= {"solutions": ("imu_preintegration",), "exercises": ("imu_preintegration",)}
     return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
 
 

@@ -3,7 +3,6 @@ zero, each known mistake costs its own check only and names its cause, and corre
 written another way keeps full marks."""
 
 import pytest
-from test_autograder_chapters23 import grade_cli
 
 from autograder.checks import all_checks
 from student_variants import (
@@ -20,20 +19,21 @@ def initialisation_checks():
     return [c for c in all_checks() if c.exercise.startswith("initialisation.")]
 
 
-@pytest.mark.slow  # real grading runs, a child process per check
-def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(tmp_path):
-    _, results = grade_cli(tmp_path, "solutions", "initialisation", name="ref.json")
+def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(graded):
+    _, results = graded["solutions"]
     assert results["tests"] and all(t["score"] == t["max_score"] for t in results["tests"])
-    _, results = grade_cli(tmp_path, "exercises", "initialisation", name="stub.json")
+    _, results = graded["exercises"]
     assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO initialisation.")
                                     for t in results["tests"])
 
 
 @pytest.fixture(scope="module")
 def graded(tmp_path_factory):
-    """Every variant of this module, graded in one batch run per set of checks."""
+    """Every variant of this module, the reference and the stubs, graded in one batch run per set of
+    checks."""
     jobs = {name: BUGS_INITIALISATION[name].loaded_by for name in BUGS_INITIALISATION}
     jobs |= {name: ("initialisation",) for name in ALTERNATIVES_INITIALISATION}
+    jobs |= {"solutions": ("initialisation",), "exercises": ("initialisation",)}
     return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
 
 

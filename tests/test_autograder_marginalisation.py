@@ -3,7 +3,6 @@ zero, each known mistake costs its own checks only and names its cause, and the 
 computed another way keeps full marks."""
 
 import pytest
-from test_autograder_chapters23 import grade_cli
 
 from autograder.checks import all_checks
 from student_variants import (
@@ -18,20 +17,21 @@ from student_variants import (
 FUNCTIONS = ("marginalisation.marginalise", "marginalisation.prior_residual", "marginalisation.prior_update")
 
 
-@pytest.mark.slow  # real grading runs, a child process per check
-def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(tmp_path):
-    _, results = grade_cli(tmp_path, "solutions", "marginalisation", name="ref.json")
+def test_the_reference_keeps_full_marks_and_the_stub_scores_zero(graded):
+    _, results = graded["solutions"]
     assert len(results["tests"]) == 14 and all(t["score"] == t["max_score"] for t in results["tests"])
-    _, results = grade_cli(tmp_path, "exercises", "marginalisation", name="stub.json")
+    _, results = graded["exercises"]
     assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO marginalisation.")
                                     for t in results["tests"])
 
 
 @pytest.fixture(scope="module")
 def graded(tmp_path_factory):
-    """Every variant of this module, graded in one batch run per set of checks."""
+    """Every variant of this module, the reference and the stubs, graded in one batch run per set of
+    checks."""
     jobs = {name: BUGS_MARGINALISATION[name].loaded_by for name in BUGS_MARGINALISATION}
     jobs |= {name: ("marginalisation",) for name in ALTERNATIVES_MARGINALISATION}
+    jobs |= {"solutions": ("marginalisation",), "exercises": ("marginalisation",)}
     return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
 
 

@@ -4,7 +4,6 @@ different implementations (executor.map, another balanced chunking, another way 
 partial sums) keep full marks."""
 
 import pytest
-from test_autograder_chapters23 import grade_cli
 
 from autograder.checks import all_checks
 from student_variants import (
@@ -17,20 +16,21 @@ from student_variants import (
 )
 
 
-@pytest.mark.slow  # real grading runs, a child process per check
-def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(tmp_path):
-    _, results = grade_cli(tmp_path, "solutions", "parallel_assembly", name="ref.json")
+def test_the_reference_keeps_full_marks_and_the_stubs_score_zero(graded):
+    _, results = graded["solutions"]
     assert results["tests"] and all(t["score"] == t["max_score"] for t in results["tests"])
-    _, results = grade_cli(tmp_path, "exercises", "parallel_assembly", name="stub.json")
+    _, results = graded["exercises"]
     assert results["tests"] and all(t["score"] == 0 and t["output"].startswith("TODO parallel_assembly.")
                                     for t in results["tests"])
 
 
 @pytest.fixture(scope="module")
 def graded(tmp_path_factory):
-    """Every variant of this module, graded in one batch run per set of checks."""
+    """Every variant of this module, the reference and the stubs, graded in one batch run per set of
+    checks."""
     jobs = {name: BUGS_PARALLEL_ASSEMBLY[name].loaded_by for name in BUGS_PARALLEL_ASSEMBLY}
     jobs |= {name: ALTERNATIVES_PARALLEL_ASSEMBLY[name].loaded_by for name in ALTERNATIVES_PARALLEL_ASSEMBLY}
+    jobs |= {"solutions": ("parallel_assembly",), "exercises": ("parallel_assembly",)}
     return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
 
 

@@ -100,7 +100,7 @@ def test_the_benchmark_without_g2o_skips_its_ratio(monkeypatch, capsys):
 
     hide(monkeypatch, "g2opy")
     lines = []
-    benchmark.main(repeats=1, graphs=("manhattan:50",), out=lines.append, bal=())
+    benchmark.main(repeats=1, graphs=("manhattan:50",), out=lines.append, bal=(), solvers=False, parallel=False)
     assert any(line.startswith("manhattan:50") and "g2opy is not installed here" in line for line in lines)
     assert announced(capsys.readouterr().err, "g2opy") == 1
 

@@ -115,10 +115,13 @@ def dense_vs_sparse(name="intel", repeats=5, impl="solutions"):
     return statistics.median(dense), statistics.median(sparse)
 
 
-def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal=("ladybug-49",)):
+def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal=("ladybug-49",), solvers=True,
+         parallel=True):
     """Print the benchmarks of ``impl``; what cannot run here (a graph, g2opy) is one line.
 
-    ``bal``: the bundle-adjustment problems of :mod:`course.app.benchmark_bal`."""
+    ``bal``: the bundle-adjustment problems of :mod:`course.app.benchmark_bal`; ``solvers``: the
+    sparse and dense solves (SuperLU against qdldl on w10000, dense against sparse on intel);
+    ``parallel``: the parallel assembly against the serial one."""
     out(f"Gauss-Newton seconds per iteration, ours over g2o (g2opy), median of {repeats}; impl {impl}:")
     out(f"{'graph':10} {'ours ms/it':>11} {'g2o ms/it':>10} {'ratio':>6} {'ours chi2':>14} {'g2o chi2':>14}")
     for name in graphs:
@@ -147,6 +150,21 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal
             progress.close()
         out(f"{name:10} {ours * 1e3:9.1f} {theirs * 1e3:9.1f} {ours / theirs:6.2f} {r_ours.iterations:8d} "
             f"{r_g2o.iterations:7d} {r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")
+    if solvers:
+        _solvers(repeats, impl, out)
+    # chapter 4: one LM iteration of bundle adjustment against the peers', and our time to solution
+    from course.app import benchmark_bal
+
+    benchmark_bal.main(names=bal, repeats=repeats, impl=impl, out=out)
+    if parallel:  # chapter 4: the parallel assembly against the serial one, alone and in whole LM / dogleg iterations
+        from course.app import parallel_speedup
+
+        parallel_speedup.section(repeats=2 * repeats - 1, impl=impl, out=out,
+                                 iteration_repeats=max(1, (repeats + 1) // 2))
+
+
+def _solvers(repeats, impl, out) -> None:
+    """SuperLU against qdldl on w10000 and dense against sparse on intel, one line each."""
     progress = Progress(2 * repeats, label="w10000 sparse solvers")
     try:
         superlu, qdldl, r_superlu, r_qdldl = superlu_vs_qdldl("w10000", repeats, impl=impl, progress=progress)
@@ -165,11 +183,3 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal
     else:
         out(f"intel: dense solve {dense * 1e3:.1f} ms, sparse {sparse * 1e3:.2f} ms, "
             f"dense/sparse = {dense / sparse:.0f}x (median of {repeats})")
-    # chapter 4: one LM iteration of bundle adjustment against the peers', and our time to solution
-    from course.app import benchmark_bal
-
-    benchmark_bal.main(names=bal, repeats=repeats, impl=impl, out=out)
-    # chapter 4: the parallel assembly against the serial one, alone and in whole LM / dogleg iterations
-    from course.app import parallel_speedup
-
-    parallel_speedup.section(repeats=2 * repeats - 1, impl=impl, out=out, iteration_repeats=max(1, (repeats + 1) // 2))

@@ -930,7 +930,8 @@ def assert_loses_exactly(results, fails, stdout=""):
 
 
 def grade_variants(root: Path, jobs: dict) -> dict:
-    """Grade the variants of ``jobs`` (name -> the ``--only`` names, ``()`` for every check)
+    """Grade the variants of ``jobs`` (name -> the ``--only`` names, ``()`` for every check;
+    the names ``solutions`` and ``exercises`` stand for the reference and the stubs)
     through ``python -m autograder batch``: one grading run for each set of ``--only`` names,
     every check in a child of its own as in a single run. Returns ``{name: (the table the
     command line prints, results.json)}``."""
@@ -942,7 +943,10 @@ def grade_variants(root: Path, jobs: dict) -> dict:
         folder, out = Path(root) / f"batch-{number}", Path(root) / f"results-{number}"
         folder.mkdir(parents=True)
         for name in names:
-            build(name, folder)
+            if name in ("solutions", "exercises"):  # the reference and the stubs, as they are
+                shutil.copytree(ROOT / name, folder / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+            else:
+                build(name, folder)
         args = [arg for item in only for arg in ("--only", item)]
         proc = subprocess.run([sys.executable, "-m", "autograder", "batch", str(folder), "--out", str(out),
                                "--timeout", TIMEOUT, *args], cwd=ROOT, capture_output=True, text=True,
