@@ -412,14 +412,13 @@ def uid_pids(uid: int, *, zombies=False) -> list:
                 status = f.read()
         except OSError:
             continue
-        fields = dict(line.split(":", 1) for line in status.splitlines() if ":" in line)
-        try:
-            real = int(fields["Uid"].split()[0])
-        except (KeyError, ValueError, IndexError):
+        try:  # only the two lines needed: this runs for every process, several times a check
+            real = int(status.split("\nUid:", 1)[1].split(None, 1)[0])
+        except (IndexError, ValueError):
             continue
         if real != uid:
             continue
-        if not zombies and fields.get("State", "").strip().startswith("Z"):
+        if not zombies and status.split("\nState:", 1)[-1].lstrip().startswith("Z"):
             continue
         pids.append(int(name))
     return pids
