@@ -1,1 +1,1 @@
-"""course.app."""
+"""The application: the command line, compare, the benchmarks, plots, the VIO comparison."""

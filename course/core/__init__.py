@@ -1,1 +1,1 @@
-"""course.core."""
+"""The core: errors, the implementation loader, traces, the optional-peer guard, data folders."""

@@ -1,1 +1,1 @@
-"""course.geometry.se2."""
+"""SE(2) and SO(3), for the framework and given to the exercises that need them."""

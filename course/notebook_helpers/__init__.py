@@ -1,1 +1,1 @@
-"""course.notebook_helpers.common."""
+"""The notebooks' tables and figures, per chapter."""

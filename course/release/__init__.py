@@ -1,1 +1,1 @@
-"""course.release.stubs."""
+"""Release tooling: exercises from solutions, the student tree, the Gradescope zip, platforms."""

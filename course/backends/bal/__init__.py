@@ -1,1 +1,1 @@
-"""course.backends.bal."""
+"""Bundle adjustment's peers: Ceres through pycolmap, GTSAM, scipy."""

@@ -1,1 +1,1 @@
-"""course.backends.curve."""
+"""The curve fit's peers: Ceres through pyceres, scipy."""

@@ -1,1 +1,1 @@
-"""course.problems.curve.problem."""
+"""Chapter 1, curve fitting: y = exp(a x^2 + b x + c), its data and problem."""

@@ -1,1 +1,1 @@
-"""course.problems.vio.problem."""
+"""Chapter 5, visual-inertial odometry: the simulator, the problem, the sliding window, APE."""
