@@ -494,15 +494,25 @@ _PR_SET_CHILD_SUBREAPER, _PR_GET_CHILD_SUBREAPER = 36, 37
 
 def set_subreaper(on: bool) -> bool:
     """Make this process the reaper of its orphaned descendants; return the old setting."""
+    old = is_subreaper()
     try:
         import ctypes
 
-        libc = ctypes.CDLL(None, use_errno=True)
-        old = ctypes.c_int(0)
-        libc.prctl(_PR_GET_CHILD_SUBREAPER, ctypes.byref(old), 0, 0, 0)
-        libc.prctl(_PR_SET_CHILD_SUBREAPER, 1 if on else 0, 0, 0, 0)
-        return bool(old.value)
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_CHILD_SUBREAPER, 1 if on else 0, 0, 0, 0)
     except Exception:  # noqa: BLE001 - not Linux, or no libc: orphans go to init
+        pass
+    return old
+
+
+def is_subreaper() -> bool:
+    """Whether this process reaps its orphaned descendants (False where that cannot be asked)."""
+    try:
+        import ctypes
+
+        flag = ctypes.c_int(0)
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_GET_CHILD_SUBREAPER, ctypes.byref(flag), 0, 0, 0)
+        return bool(flag.value)
+    except Exception:  # noqa: BLE001 - not Linux, or no libc
         return False
 
 

@@ -181,7 +181,7 @@ class Session:
             return
         if not self.isolate:
             self._was_subreaper = isolation.set_subreaper(True)
-            if not _is_subreaper():
+            if not isolation.is_subreaper():
                 return
         root = str(self._stage) if self.isolate else str(REPO_ROOT)
         env = isolated_env(self._base, self._env) if self.isolate else child_env()
@@ -433,11 +433,6 @@ def _crash_message(code, problem: str) -> str:
         message += (": does your code call os._exit() or sys.exit()? (if it printed a "
                     "traceback below, the grader could not start: tell your instructor)")
     return message
-
-def _is_subreaper() -> bool:
-    was = isolation.set_subreaper(True)
-    return was
-
 
 def _relative(path) -> str:
     try:

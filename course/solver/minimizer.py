@@ -94,16 +94,16 @@ def minimize(problem: Problem, method="gauss-newton", impl="solutions", options:
                                  strategy.factorizations)
         trace.append(record)
         strategy.step_done(trial, lin, rho, accepted)
-        # a step that changes chi2 by less than cost_tolerance, accepted or not, means the
-        # optimum is reached to rounding: rho is noise there, and a rejected step would only
-        # shrink lambda's or the radius' inverse until the step tolerance (as Ceres stops)
-        converged = abs(lin.chi2 - trial.chi2) <= options.cost_tolerance * lin.chi2
         if accepted:
             x, previous = trial.x, lin.chi2
             lin = trial.lin if trial.lin is not None else problem.linearize(x)
             converged = abs(previous - lin.chi2) <= options.cost_tolerance * previous
             if not converged:
                 strategy.relinearized(problem, lin)
+        else:  # a rejected step that changes chi2 by less than cost_tolerance: the optimum, to rounding
+            # (rho is noise there; going on would only shrink the step to the step tolerance, as
+            # Ceres' function tolerance also stops)
+            converged = abs(lin.chi2 - trial.chi2) <= options.cost_tolerance * lin.chi2
         if converged:
             reason = StopReason.COST_TOLERANCE
         elif strategy.exhausted(x, options):
