@@ -55,7 +55,7 @@ BOOTSTRAP = (
 #: the fork server (:mod:`autograder.forkserver`), started the same way
 SERVER_BOOTSTRAP = (
     "import os, sys; sys.path.insert(0, {root!r}); import site; "
-    "[site.addsitedir(p) for p in {sites!r}]; from autograder.forkserver import serve; serve(); os._exit(0)"
+    "[site.addsitedir(p) for p in {sites!r}]; from autograder.forkserver import serve; serve({sites!r}); os._exit(0)"
 )
 THREAD_VARIABLES = (
     "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
