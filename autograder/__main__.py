@@ -1,5 +1,6 @@
 """``python -m autograder [--impl exercises|solutions|PATH] [--only NAME] [--set public|hidden|all] [--json FILE]``,
-or ``python -m autograder batch FOLDER --out DIR`` (:mod:`autograder.batch`).
+or a whole class: ``python -m autograder batch SUBMISSIONS --out DIR`` and ``python -m autograder
+merge PART... --out DIR`` (:mod:`autograder.classroom`).
 
 Exit status 0 whenever grading ran, whatever the score; 2 for usage errors.
 """
@@ -39,9 +40,13 @@ def parser():
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["batch"]:
-        from autograder import batch
+        from autograder.classroom import batch
 
         return batch.main(argv[1:])
+    if argv[:1] == ["merge"]:
+        from autograder.classroom import merge
+
+        return merge.main(argv[1:])
     p = parser()
     args = p.parse_args(argv)
     from autograder.checks import all_checks, select

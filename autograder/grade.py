@@ -14,6 +14,7 @@ and the library's absence is said once (``course.core.peers``).
 """
 
 import sys
+import threading
 import time
 import traceback
 from concurrent.futures import ThreadPoolExecutor
@@ -43,6 +44,8 @@ class CheckResult:
     printed: str = ""
     seconds: float = 0.0
     hidden: bool = False
+    status: str = "ok"  # ok | timeout | crashed (the child) | not run
+    mistake: str = ""  # the known mistake the output matched (its likely cause), if any
 
     @property
     def title(self) -> str:
@@ -117,7 +120,19 @@ def not_run(task: Task) -> CheckResult:
     """The result of a check whose library is not installed here: 0 points, and why."""
     message = (f"not run: {task.missing} is not installed here, and this check needs it; it runs where "
                f"{task.missing} is (Gradescope has it): `{peers.INSTALL[task.missing]}` where it has a wheel")
-    return CheckResult(task.name, task.check.exercise, 0.0, float(task.check.points), message, hidden=task.hidden)
+    return CheckResult(task.name, task.check.exercise, 0.0, float(task.check.points), message, hidden=task.hidden,
+                       status="not run")
+
+
+def known_mistake(message: str, expected: expected_data.Expected) -> str:
+    """The likely cause of the known mistake ``message`` names ('' when none): feedback ends a
+    comparison that matched a known mistake with ``": " + why``."""
+    for per_call in expected.mistakes:
+        for pairs in per_call.values():
+            for _, why in pairs:
+                if why and f": {why}" in message:
+                    return why
+    return ""
 
 
 def judge_task(task: Task, child) -> CheckResult:
@@ -137,8 +152,52 @@ def judge_task(task: Task, child) -> CheckResult:
         shown = "\n".join(f"  | {line[:160]}" for line in lines[:PRINTED_LINES])
         more = f"\n  | ... ({len(lines) - PRINTED_LINES} more lines)" if len(lines) > PRINTED_LINES else ""
         message += f"\nYour code printed (shown for information, never graded):\n{shown}{more}"
+    mistake = known_mistake(verdict.message, want) if fraction < 1.0 else ""
     return CheckResult(task.name, check.exercise, round(check.points * fraction, 4), float(check.points),
-                       message, tuple(verdict.not_implemented), child.printed, child.seconds, task.hidden)
+                       message, tuple(verdict.not_implemented), child.printed, child.seconds, task.hidden,
+                       child.status, mistake)
+
+
+class Hung:
+    """The functions of one implementation that ran out of time, so that a function that
+    hangs costs one timeout, not one per check that calls it: ``blocked(calls)`` says why a
+    check whose calls include one of them is not run."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._where: dict = {}  # call target (or IMPORT) -> (function, the check where it timed out)
+
+    IMPORT = "<import>"
+
+    def record(self, task: "Task", child) -> None:
+        if child.status != "timeout" or "budget" in _first_error(child):
+            return
+        calls = task.expected.calls if task.expected is not None else []
+        if 0 <= child.running < len(calls):
+            key, function = calls[child.running].target, calls[child.running].function
+        else:  # it hung before the first call: loading the implementation
+            key, function = self.IMPORT, "loading your code"
+        with self._lock:
+            self._where.setdefault(key, (function, task.name))
+
+    def blocked(self, calls) -> str:
+        with self._lock:
+            for key in [self.IMPORT] + [call.target for call in calls]:
+                if key in self._where:
+                    function, check = self._where[key]
+                    return f"not run: {function} timed out in {check!r}, so this check would too"
+        return ""
+
+
+def _first_error(child) -> str:
+    errors = [outcome.error for outcome in child.outcomes if outcome.error is not None]
+    return errors[0].message if errors else ""
+
+
+def skipped(task: "Task", why: str) -> CheckResult:
+    """A check not run because a function it calls already timed out: 0 points, and why."""
+    return CheckResult(task.name, task.check.exercise, 0.0, float(task.check.points), why, hidden=task.hidden,
+                       status="not run")
 
 
 def grade(impl: str, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sandbox.DEFAULT_MEMORY_MB,
@@ -152,17 +211,27 @@ def grade(impl: str, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sandb
 
 
 def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sandbox.DEFAULT_MEMORY_MB,
-               workers=2, checks=None, which=None, budget=None, notices=None) -> list:
+               workers=2, checks=None, which=None, budget=None, notices=None, on_done=None, on_check=None) -> list:
     """Grade each implementation of ``impls`` as :func:`grade` does, in one run: the expected
     outputs computed once, one sandbox session, ``workers`` children at a time across all of
     them. Returns one list of results per implementation, in order. ``budget`` is per
-    implementation."""
+    implementation.
+
+    ``on_done(index, results)`` is called (from a worker thread, one call at a time) as soon
+    as every check of ``impls[index]`` is judged; ``on_check(index, result)`` after each check.
+    Once a function of an implementation has timed out, its other checks that call it are
+    not run (:class:`Hung`).
+    """
     impls = [str(impl) for impl in impls]
     checks = select(checks if checks is not None else all_checks(), only)
     tasks = plan(checks, which or default_set())
     for library in sorted({task.missing for task in tasks if task.missing}):
         peers.announce(library)
     total = None if budget is None else budget * len(impls)
+    hung = [Hung() for _ in impls]
+    left = [len(tasks)] * len(impls)
+    results: list = [[None] * len(tasks) for _ in impls]
+    report = threading.Lock()
     with sandbox.Session(impls[0], timeout=timeout, memory_mb=memory_mb, workers=workers,
                          budget=total) as session:
         if notices is not None and session.notice:
@@ -170,17 +239,31 @@ def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sand
         staged = [session.prepare(impl) for impl in impls]
 
         def one(job):
-            index, task = job
+            index, number, task = job
             if task.missing:
-                return not_run(task)
-            assert task.expected is not None
-            return judge_task(task, session.run(task.expected.calls, timeout=task.check.timeout or timeout,
-                                                impl=staged[index]))
+                result = not_run(task)
+            else:
+                assert task.expected is not None
+                why = hung[index].blocked(task.expected.calls)
+                if why:
+                    result = skipped(task, why)
+                else:
+                    child = session.run(task.expected.calls, timeout=task.check.timeout or timeout,
+                                        impl=staged[index])
+                    hung[index].record(task, child)
+                    result = judge_task(task, child)
+            with report:
+                results[index][number] = result
+                left[index] -= 1
+                if on_check is not None:
+                    on_check(index, result)
+                if left[index] == 0 and on_done is not None:
+                    on_done(index, results[index])
 
-        jobs = [(index, task) for index in range(len(impls)) for task in tasks]
+        jobs = [(index, number, task) for index in range(len(impls)) for number, task in enumerate(tasks)]
         with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-            results = list(pool.map(one, jobs))
-    return [results[k * len(tasks):(k + 1) * len(tasks)] for k in range(len(impls))]
+            list(pool.map(one, jobs))
+    return results
 
 
 def run(impl, only=None, **kwargs):

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from autograder import submission as uploads
 from course.core.impl import REPO_ROOT
 from course.release import gradescope
 
@@ -276,7 +277,7 @@ def test_a_crash_of_the_grader_still_gives_results(bundle):
 # ---------------------------------------------------------------- the locator
 
 
-MODULES = gradescope.exercise_modules(REPO_ROOT)
+MODULES = uploads.exercise_modules(REPO_ROOT)
 
 
 def test_locator_finds_a_subfolder_without_init(tmp_path):
@@ -288,7 +289,7 @@ def test_locator_finds_a_subfolder_without_init(tmp_path):
     (tmp_path / "submission" / "__MACOSX").mkdir()
     for name in ("damping.py", "curve_model.py", "dogleg.py"):
         (tmp_path / "submission" / "__MACOSX" / name).write_text("resource fork\n")
-    located = gradescope.locate_submission(tmp_path / "submission", MODULES)
+    located = uploads.locate_submission(tmp_path / "submission", MODULES)
     assert located.folder == work
     assert located.found == ["curve_model.py", "damping.py"]
     assert "my_work/" in located.message and "graded as the unwritten stubs" in located.message
@@ -299,7 +300,7 @@ def test_locator_top_level_and_symlinks(tmp_path):
     submission.mkdir()
     (submission / "gauss_newton.py").write_text("x = 1\n")
     (submission / "damping.py").symlink_to(REPO_ROOT / "solutions" / "damping.py")
-    located = gradescope.locate_submission(submission, MODULES)
+    located = uploads.locate_submission(submission, MODULES)
     assert located.folder == submission and located.found == ["gauss_newton.py"]
     assert "top level" in located.message
 
@@ -308,11 +309,11 @@ def test_locator_without_exercise_files(tmp_path):
     submission = tmp_path / "submission"
     (submission / "stuff").mkdir(parents=True)
     (submission / "stuff" / "homework.py").write_text("x = 1\n")
-    located = gradescope.locate_submission(submission, MODULES)
+    located = uploads.locate_submission(submission, MODULES)
     assert located.folder is None
     assert "No exercise file found" in located.message and "stuff/homework.py" in located.message
     assert "damping.py" in located.message
-    empty = gradescope.locate_submission(tmp_path / "missing", MODULES)
+    empty = uploads.locate_submission(tmp_path / "missing", MODULES)
     assert empty.folder is None and "empty" in empty.message
 
 
@@ -324,8 +325,8 @@ def test_staging_copies_only_exercise_modules(tmp_path):
     (work / "numpy.py").write_text("shadow = True\n")
     (work / "autograder").mkdir()
     (work / "autograder" / "__init__.py").write_text("shadow = True\n")
-    located = gradescope.locate_submission(tmp_path / "submission", MODULES)
-    staged = gradescope.stage_submission(located, REPO_ROOT, tmp_path / "staged")
+    located = uploads.locate_submission(tmp_path / "submission", MODULES)
+    staged = uploads.stage_submission(located, REPO_ROOT, tmp_path / "staged")
     names = sorted(p.name for p in staged.iterdir())
     assert names == sorted(MODULES + ["__init__.py"])
     assert (staged / "damping.py").read_text() == "MINE = True\n"

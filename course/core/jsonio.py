@@ -1,5 +1,5 @@
-"""JSON files written whole or not at all (standard library only: the Gradescope ``finish``
-step uses it when grading could not start)."""
+"""JSON (and other text) files written whole or not at all (standard library only: the
+Gradescope ``finish`` step uses it when grading could not start)."""
 
 import json
 import os
@@ -15,8 +15,12 @@ def write_json(path, data, indent=None, *, newline: bool = False) -> Path:
     ``os.replace`` puts it at ``path``, so a reader sees the old file or the new one, never a
     part. ``data`` that is not JSON-serialisable raises before anything is written.
     """
+    return write_text(path, json.dumps(data, indent=indent) + ("\n" if newline else ""))
+
+
+def write_text(path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` whole or not at all, as :func:`write_json` does."""
     path = Path(path)
-    text = json.dumps(data, indent=indent) + ("\n" if newline else "")
     path.parent.mkdir(parents=True, exist_ok=True)
     # a name of our own rather than tempfile.mkstemp, whose file is 0600: this one gets the
     # permissions (umask) any other new file would

@@ -11,8 +11,8 @@ releases with CPython 3.10 wheels, the Python of Gradescope's Ubuntu 22.04 image
 ``run_autograder`` for each submission. ``run_autograder`` calls this module twice:
 
 * ``python3 -m course.release.gradescope stage``: find the folder of the submission that holds
-  the exercise files (:func:`locate_submission`) and copy it into a fresh package
-  (:func:`stage_submission`): only regular files named like a module of ``exercises/``,
+  the exercise files (:func:`autograder.submission.locate_submission`) and copy it into a fresh package
+  (:func:`autograder.submission.stage_submission`): only regular files named like a module of ``exercises/``,
   the unwritten stub for each module the student did not send, ``exercises/__init__.py``
   when the student sent none;
 * ``python3 -m course.release.gradescope finish``: after ``python3 -m autograder --impl STAGED
@@ -30,7 +30,6 @@ import json
 import math
 import os
 import secrets
-import shutil
 import stat
 import sys
 import time
@@ -38,6 +37,7 @@ import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from autograder.submission import exercise_modules, locate_submission, stage_submission
 from course.core.impl import REPO_ROOT
 from course.core.jsonio import write_json
 
@@ -53,8 +53,6 @@ SKIPPED_NAMES = {"__pycache__", ".pytest_cache", ".mypy_cache", ".ruff_cache", "
 SKIPPED_SUFFIXES = (".pyc", ".pyo", ".egg-info")
 #: a fixed timestamp for every member, so that the same tree gives the same zip
 ZIP_DATE = (2020, 1, 1, 0, 0, 0)
-#: folders of an upload that never hold the student's work
-IGNORED_UPLOAD_DIRS = {"__MACOSX", "__pycache__", ".git", ".ipynb_checkpoints", ".venv", "venv"}
 #: lines of the grader's error output quoted in a results.json when grading failed
 LOG_LINES = 40
 VISIBILITIES = {"visible", "hidden", "after_due_date", "after_published"}
@@ -145,91 +143,6 @@ def build_bundle(target, root: Path = REPO_ROOT, hidden_seed=None) -> Bundle:
         members.append(SEED_FILE)
     os.replace(partial, target)
     return Bundle(target, target.stat().st_size, members)
-
-
-# ---------------------------------------------------------------- the submission
-
-
-def exercise_modules(source: Path) -> list:
-    """File names of the exercise modules (``damping.py``, ...), without ``__init__.py``."""
-    return sorted(p.name for p in Path(source, "exercises").glob("*.py") if p.name != "__init__.py")
-
-
-@dataclass
-class Located:
-    """The folder of a submission that holds the exercise files, or why there is none."""
-
-    folder: Path | None = None
-    found: list = field(default_factory=list)  # exercise file names in that folder
-    message: str = ""
-
-
-def _regular(path: Path) -> bool:
-    try:
-        return stat.S_ISREG(os.lstat(path).st_mode)
-    except OSError:
-        return False
-
-
-def locate_submission(submission, modules) -> Located:
-    """The folder under ``submission`` (itself included) holding the most files named like
-    an exercise module (regular files, not symlinks); ties go to the shallowest, then to
-    the first by name. ``message`` says what was found, or that nothing was."""
-    submission = Path(submission)
-    wanted = set(modules)
-    best = None
-    if submission.is_dir():
-        for directory, dirs, names in os.walk(submission):  # does not follow symlinks
-            dirs[:] = sorted(d for d in dirs if d not in IGNORED_UPLOAD_DIRS and not d.startswith("."))
-            found = sorted(n for n in names if n in wanted and _regular(Path(directory, n)))
-            if not found:
-                continue
-            where = Path(directory)
-            key = (-len(found), len(where.relative_to(submission).parts), str(where))
-            if best is None or key < best[0]:
-                best = (key, where, found)
-    if best is None:
-        uploaded = _listing(submission)
-        return Located(message=(
-            "No exercise file found in the submission. Upload your exercise files as they are named in "
-            f"exercises/ ({', '.join(sorted(wanted))}), at the top level or inside one folder. "
-            + (f"The submission holds: {uploaded}." if uploaded else "The submission is empty.")))
-    _, where, found = best
-    shown = where.relative_to(submission).as_posix()
-    shown = "the top level of the submission" if shown == "." else f"{shown}/"
-    missing = sorted(wanted - set(found))
-    message = f"Graded the exercise files in {shown}: {', '.join(found)}."
-    if missing:
-        message += (f"\nNot in the submission, graded as the unwritten stubs (0 points): {', '.join(missing)}.")
-    return Located(folder=where, found=found, message=message)
-
-
-def _listing(submission: Path, limit=20) -> str:
-    names = []
-    if submission.is_dir():
-        for directory, dirs, files in os.walk(submission):
-            dirs.sort()
-            for name in sorted(files):
-                names.append(Path(directory, name).relative_to(submission).as_posix())
-    shown = ", ".join(names[:limit])
-    return shown + (f" and {len(names) - limit} more" if len(names) > limit else "")
-
-
-def stage_submission(located: Located, source, target) -> Path:
-    """A fresh package at ``target``: the student's exercise files (copied, regular files
-    only), the stub from ``exercises/`` for each module missing, and ``__init__.py`` (the
-    student's when it is in the same folder, else ``exercises/__init__.py``)."""
-    source, target = Path(source), Path(target)
-    if located.folder is None:
-        raise ValueError("nothing to stage: " + located.message)
-    target.mkdir(parents=True)
-    stubs = Path(source, "exercises")
-    for name in exercise_modules(source) + ["__init__.py"]:
-        student = located.folder / name
-        origin = student if _regular(student) else stubs / name
-        shutil.copyfile(origin, target / name, follow_symlinks=False)
-        os.chmod(target / name, 0o644)
-    return target
 
 
 # ---------------------------------------------------------------- results.json

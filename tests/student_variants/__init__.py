@@ -949,9 +949,10 @@ def grade_variants(root: Path, jobs: dict) -> dict:
                 build(name, folder)
         args = [arg for item in only for arg in ("--only", item)]
         proc = subprocess.run([sys.executable, "-m", "autograder", "batch", str(folder), "--out", str(out),
-                               "--timeout", TIMEOUT, *args], cwd=ROOT, capture_output=True, text=True,
-                              timeout=60 + 60 * len(names))
+                               "--timeout", TIMEOUT, "--no-report", *args], cwd=ROOT, capture_output=True,
+                              text=True, timeout=60 + 60 * len(names))
         assert proc.returncode == 0, proc.stderr
         for name in names:
-            graded[name] = ((out / f"{name}.txt").read_text(), json.loads((out / f"{name}.json").read_text()))
+            graded[name] = ((out / "results" / f"{name}.txt").read_text(),
+                            json.loads((out / "results" / f"{name}.json").read_text()))
     return graded
