@@ -23,7 +23,9 @@ Exit status 0 when grading ran, 2 for usage errors (a missing folder, a malforme
 import argparse
 import hashlib
 import shutil
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -89,7 +91,13 @@ class Log:
         self.file.close()
 
 
+def _terminate(signum, frame):
+    raise SystemExit(f"batch: stopped by signal {signum}; run the same command again to grade the rest")
+
+
 def main(argv=None) -> int:
+    if threading.current_thread() is threading.main_thread():  # a killed run still stops its children
+        signal.signal(signal.SIGTERM, _terminate)
     p = parser()
     args = p.parse_args(argv)
     try:

@@ -106,9 +106,11 @@ def from_export(folder: Path) -> list:
     subs = []
     for key, entry in metadata.items():
         folder_name = str(key)
-        submitters = entry.get(":submitters:") if isinstance(entry, dict) else None
+        submitters = _get(entry, "submitters") if isinstance(entry, dict) else None
         if not isinstance(submitters, list) or not all(isinstance(s, dict) for s in submitters):
             raise IntakeError(f"{metadata_path}: {folder_name}: no ':submitters:' list")
+        if not (root / folder_name).is_dir():
+            raise IntakeError(f"{metadata_path}: {folder_name} is listed, but there is no folder {folder_name}/")
 
         number = folder_name.removeprefix("submission_")
         subs.append(Submission(safe_id(number), _joined(submitters, "name") or folder_name, root / folder_name,
@@ -118,9 +120,14 @@ def from_export(folder: Path) -> list:
     return _unique(subs, metadata_path)
 
 
+def _get(entry: dict, key: str):
+    """``entry[":key"]``: the export's keys are Ruby symbols (``:name:`` reads as ``":name"``)."""
+    return entry.get(f":{key}", entry.get(key))
+
+
 def _joined(submitters: list, key: str) -> str:
     """The submitters' ``:key:`` values joined with "; " (a group submission is one row)."""
-    return "; ".join(str(s[f":{key}:"]) for s in submitters if s.get(f":{key}:"))
+    return "; ".join(str(_get(s, key)) for s in submitters if _get(s, key))
 
 
 def unpack(archive_path: Path, target: Path) -> Path:
