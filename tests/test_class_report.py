@@ -210,6 +210,23 @@ def test_similar_pairs_flags_exactly_the_copy(batch_dir, reference):
     assert any(note.startswith("s10/damping.py does not tokenize") for note in found.notes)
 
 
+def test_with_the_reference_the_class_common_filter_is_not_needed(batch_dir, monkeypatch):
+    """The reference alone discounts what the reference and the mistake students share."""
+    monkeypatch.setattr(similarity, "COMMON_FRACTION", 2.0)  # no n-gram is in twice the class
+    pairs = similarity.similar_pairs(batch_dir / "submissions", STUBS, REFERENCE)
+    assert [(p.a, p.b, p.file) for p in pairs] == [(X, Y, "damping.py")]
+
+
+def test_the_outlier_bar():
+    """A pair must stand out from its file's other pairs: where many pairs are alike (a class
+    that shares a common source), a high score alone is not enough."""
+    median, mad, bar = similarity.outlier_bar([0.9, 0.1, 0.12, 0.08, 0.11, 0.1])
+    assert median == pytest.approx(0.105) and 0.11 < bar < 0.9
+    _, _, bar = similarity.outlier_bar([0.75, 0.7, 0.65, 0.72, 0.68, 0.7])
+    assert bar > 0.75
+    assert similarity.outlier_bar([0.9]) == (0.9, 0.0, 0.0)  # one pair: the absolute rule decides
+
+
 def test_small_class_needs_the_reference(tmp_path):
     """Two students, the reference and one slip of it: without the reference they are near
     copies of each other and are flagged (nothing tells their shared code from a copy); with

@@ -30,7 +30,7 @@ from autograder.classroom import similarity
 TOLERANCE = 1e-9
 PROBLEMS = ("timed out", "crashed", "no files")
 #: lines shown per side for one similar pair
-MAX_LINES = 80
+MAX_LINES = 120
 STYLE = """
 body { font-family: sans-serif; max-width: 75em; margin: 1em auto; padding: 0 1em; }
 table { border-collapse: collapse; margin: 0.5em 0 1.5em; }
@@ -293,7 +293,7 @@ def _similar_section(out_dir: Path, students: list, stubs_dir: Path, reference_d
                      "highest.</p>\n<table><tr><th>File</th><th>Written</th><th>Pairs</th><th>Median</th>"
                      f"<th>Highest</th></tr>\n{stats}</table>\n")
     if found.notes:
-        parts.append('<p class="note">Not valid Python, compared as plain words and symbols instead:</p>\n<ul>'
+        parts.append('<p class="note">Notes on the files compared:</p>\n<ul>'
                      + "".join(f"<li>{_e(note)}</li>" for note in found.notes) + "</ul>\n")
     return "".join(parts)
 

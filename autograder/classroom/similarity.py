@@ -53,11 +53,13 @@ MIN_PAIRS = 3
 #: COMMON_MIN_STUDENTS of them) are common to the class, not evidence
 COMMON_FRACTION = 0.5
 COMMON_MIN_STUDENTS = 3
+#: larger files are not compared (an exercise file is a few kilobytes)
+MAX_BYTES = 1_000_000
 
 _BUILTINS = frozenset(dir(builtins))
 _SKIP = {tokenize.COMMENT, tokenize.NL, tokenize.INDENT, tokenize.DEDENT, tokenize.ENCODING, tokenize.ENDMARKER}
-_FSTRING_PARTS = {getattr(tokenize, name) for name in ("FSTRING_MIDDLE", "FSTRING_END") if hasattr(tokenize, name)}
-_FSTRING_START = getattr(tokenize, "FSTRING_START", None)
+_FSTRING_START = getattr(tokenize, "FSTRING_START", -1)
+_FSTRING_END = getattr(tokenize, "FSTRING_END", -1)
 _WORD = re.compile(r"[A-Za-z_]\w*|\d[\w.]*|\S")
 
 
@@ -122,8 +124,14 @@ def _normalise(kind: int, text: str, previous: str) -> str:
 
 def _python_tokens(text: str) -> list:
     """Normalised ``(token, line)`` of Python source, without comments and docstrings."""
-    raw = [t for t in tokenize.generate_tokens(io.StringIO(text).readline)
-           if t.type not in _SKIP and t.type not in _FSTRING_PARTS]
+    raw = []
+    depth = 0  # inside an f-string (Python 3.12+ tokenizes its parts): one S, as older Pythons give
+    for t in tokenize.generate_tokens(io.StringIO(text).readline):
+        if depth:
+            depth += (t.type == _FSTRING_START) - (t.type == _FSTRING_END)
+        elif t.type not in _SKIP:
+            raw.append(t)
+            depth = int(t.type == _FSTRING_START)
     out: list = []
     i = 0
     while i < len(raw):
@@ -192,6 +200,18 @@ def _covered(fp: Fingerprint, shared: set) -> list:
     return _ranges(lines)
 
 
+def outlier_bar(scores: list) -> tuple:
+    """``(median, scaled MAD, bar)`` of one file's pair scores: a pair must score above the bar
+    (median + ``OUTLIER_MADS`` MADs scaled to a normal's standard deviation). With fewer than
+    ``MIN_PAIRS`` pairs there is no class to stand out from: the bar is 0 and the absolute rule decides."""
+    values = np.asarray(scores, dtype=float)
+    if values.size == 0:
+        return 0.0, 0.0, 0.0
+    median = float(np.median(values))
+    mad = 1.4826 * float(np.median(np.abs(values - median)))
+    return median, mad, (median + OUTLIER_MADS * mad if values.size >= MIN_PAIRS else 0.0)
+
+
 def _students(submissions_dir: Path) -> list:
     return sorted(p for p in Path(submissions_dir).iterdir() if p.is_dir())
 
@@ -213,9 +233,14 @@ def compare_class(submissions_dir, stubs_dir, reference_dir=None) -> Comparison:
         seen: dict = {}
         for folder in students:
             path = folder / name
-            if not path.is_file() or path.read_bytes() == stub_bytes:
-                continue  # not sent: the unwritten stub
+            if path.is_symlink() or not path.is_file():
+                continue
+            if path.stat().st_size > MAX_BYTES:
+                result.notes.append(f"{folder.name}/{name} is larger than {MAX_BYTES} bytes: not compared")
+                continue
             data = path.read_bytes()
+            if data == stub_bytes:
+                continue  # not sent: the unwritten stub
             if data not in seen:  # many students hand in the same file (often the reference's)
                 seen[data] = fingerprint(data.decode("utf-8", errors="replace"))
             fp = seen[data]
@@ -239,11 +264,7 @@ def compare_class(submissions_dir, stubs_dir, reference_dir=None) -> Comparison:
                 smaller = min(len(remaining[a]), len(remaining[b]))
                 scores[(a, b)] = len(shared) / smaller if smaller else 0.0
                 shared_sets[(a, b)] = shared
-        values = np.array(list(scores.values()), dtype=float)
-        median = float(np.median(values)) if values.size else 0.0
-        mad = 1.4826 * float(np.median(np.abs(values - median))) if values.size else 0.0
-        # with fewer than MIN_PAIRS pairs there is no class to stand out from: the absolute rule decides
-        bar = median + OUTLIER_MADS * mad if len(scores) >= MIN_PAIRS else 0.0
+        median, mad, bar = outlier_bar(list(scores.values()))
         counts_shared = {pair: len(grams) for pair, grams in shared_sets.items()}
         result.files[name] = FileStats(name, ids, scores, counts_shared, median, mad, bar)
         for (a, b), score in scores.items():
