@@ -294,10 +294,12 @@ def test_report_similarity_is_escaped(report):
 def test_report_without_reference_and_command_line(batch_dir, tmp_path):
     out = tmp_path / "copy"
     shutil.copytree(batch_dir, out)
+    (out / "results" / "s99.json").write_text("{not json")  # a results file that does not read is named
     proc = subprocess.run([sys.executable, "-m", "autograder.classroom.report", str(out), "--stubs", str(STUBS)],
                           cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == str(out / "report.html")
     text = (out / "report.html").read_text()
     assert "s11" in text.split('id="similar"')[1] and "no reference" in text
+    assert "s99.json: not read" in text and "13 students" in text
     assert str(out.resolve()) in text.split('id="footer"')[1]

@@ -5,26 +5,28 @@ Method: our own token n-grams, no dependency. Each file is tokenized with Python
 lines, indentation and docstrings are dropped, every identifier that is not a keyword, a
 builtin or an attribute name becomes ``N`` and every string ``S``, so renamed variables and
 rewritten comments change nothing. A file is the set of its ``NGRAM``-token windows (plain
-n-gram sets: the exercise files are small, so winnowing would only lose the exact line
-mapping). Then what every student would share is discounted: the n-grams of the shipped
-stub (docstrings, signatures, hints), of the reference solution when one is given (a correct
-answer is not evidence that two students copied each other) and those found in at least
-``COMMON_FRACTION`` of the class's written submissions of that file (the short lines that
-many correct students write alike). Two students are compared on what remains: the score is
-the containment ``|A & B| / min(|A|, |B|)``.
+n-gram sets rather than winnowing: a class's exercise files are small, so keeping every
+n-gram costs little and makes the containment exact). Then what every student would share
+is discounted: the n-grams of the shipped stub (docstrings, signatures, hints), of the
+reference solution when one is given (a correct answer is not evidence that two students
+copied each other), and those found in at least ``COMMON_FRACTION`` of the class's written
+submissions of that file and in at least ``COMMON_MIN_STUDENTS`` of them (the lines that
+many correct students write alike; without a reference this is what discounts it, so in a
+class of a few students, two correct ones may be flagged). Two students are compared on
+what remains: the score is the containment ``|A & B| / min(|A|, |B|)``.
 
 A pair is flagged when the score is high in absolute terms (``>= MIN_CONTAINMENT`` over at
 least ``MIN_SHARED`` shared n-grams, so two tiny leftovers, such as the same one-line slip,
 never flag) and an outlier among all the pairs of that file (above their median plus
 ``OUTLIER_MADS`` scaled median absolute deviations; with fewer than ``MIN_PAIRS`` pairs the
-absolute rule alone decides). Unwritten stubs (byte-identical to the
-stub) are never compared. Code that does not tokenize is split into words and symbols
-instead, and a note says so.
+absolute rule alone decides). Unwritten stubs (byte-identical to the stub) are never
+compared. Code that does not tokenize is split into words and symbols instead, and a note
+says so.
 
-Why not copydetect 0.5.0 (winnowing, with boilerplate directories)? It pulls in jinja2 and
+Why not copydetect 0.5.0 (winnowing, with boilerplate directories)? It adds jinja2 and
 pygments, declares Python up to 3.12 only, and flags on one global threshold; here the
-discounting (stub, reference, class-common code), the per-exercise outlier test and the
-line mapping for the report are a hundred lines we control.
+discounting (stub, reference, class-common code), the per-file outlier test and the line
+mapping for the report are a couple of hundred lines we control, with no dependency.
 
 Similarity is a prompt to look at two submissions, not a verdict.
 """
