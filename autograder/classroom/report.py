@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from autograder.classroom import similarity
 
@@ -109,6 +110,7 @@ def histogram_png(totals: list, maximum: float) -> str:
     ax.hist(totals, bins=min(20, max(5, len(totals))), range=(0.0, top), color="#4878a8", edgecolor="white")
     ax.set_xlabel(f"total points (out of {_points(maximum)})")
     ax.set_ylabel("students")
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlim(0.0, top)
     fig.tight_layout()
     buffer = io.BytesIO()
