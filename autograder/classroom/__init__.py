@@ -1,2 +1,8 @@
-"""Grading a whole class: the submissions read (``intake``), graded in one run (``batch``),
-recorded (``gradebook``), joined across machines (``merge``) and summed up (``report``)."""
+"""Grading a whole class: the submissions read (``intake``: a folder of uploads or
+Gradescope's export), graded in one run (``batch``), recorded (``gradebook``:
+``results/<id>.json`` per student and ``grades.csv``), joined across machines (``merge``)
+and summed up (``report``: ``report.html`` with scores, pass rates per check, the known
+mistakes, the submissions that failed to run, and the pairs ``similarity`` finds whose code
+is unusually similar once the shipped stubs and the reference are discounted). Submissions
+are only read as text here, never imported.
+"""
