@@ -134,16 +134,16 @@ RENAMES = {"clamp": "bound_it", "ones_times": "filled", "start": "first", "scale
            "factor": "mult", "new_lam": "lam_next", "biggest": "top", "slope": "gh", "denominator": "den",
            "grown": "bigger", "shrunk": "smaller", "cube": "c3", "LOW": "LAM_MIN", "HIGH": "LAM_MAX"}
 
-#: a damping module whose update never returns
-HANGING = OWN_DAMPING.replace("    def update(self, state, rho, accepted, alpha=1.0, dchi2=0.0):\n",
-                              "    def update(self, state, rho, accepted, alpha=1.0, dchi2=0.0):\n"
-                              "        while True:\n            pass\n")
-
-#: a damping module that leaves a sleeping process behind on every call of initial_state
-FORKING = OWN_DAMPING.replace(
-    "        start = DampingState(lam=self.lambda_0)\n",
-    "        import os, time\n        if os.fork() == 0:\n            time.sleep(600)\n            os._exit(0)\n"
-    "        start = DampingState(lam=self.lambda_0)\n")
+REFERENCE_DAMPING = (SOLUTIONS / "damping.py").read_text()
+UPDATE = "    def update(self, state, rho, accepted, alpha=1.0, dchi2=0.0):\n"
+assert UPDATE in REFERENCE_DAMPING
+#: the reference's damping module, whose update methods never return
+HANGING = REFERENCE_DAMPING.replace(UPDATE, UPDATE + "        while True:\n            pass\n")
+#: the reference's damping module, leaving a sleeping process behind on every call of initial_state
+FORKING = REFERENCE_DAMPING.replace(
+    "    def initial_state(self, diag_H):\n",
+    "    def initial_state(self, diag_H):\n        import os, time\n        if os.fork() == 0:\n"
+    "            time.sleep(600)\n            os._exit(0)\n")
 
 
 def near_copy(source: str) -> str:
