@@ -126,7 +126,10 @@ class ChecksOf:
                 from autograder.grade import HIDDEN_SUFFIX
 
                 title += HIDDEN_SUFFIX
-            yield CheckItem.from_parent(self, name=f"{title} {points_text(check.points)}", check=check,
+            name = f"{title} {points_text(check.points)}"
+            # the id from its text, as pytest reads ids back (``--lf``'s cache): a "[" there opens
+            # parameters, and the names hold brackets ("[2 pts]", "lambda clamped to [1e-7, 1e7]")
+            yield CheckItem.from_parent(self, name=name, nodeid=f"{self.nodeid}::{name}", check=check,
                                         hidden=hidden, folder=self.folder)
 
 
