@@ -26,10 +26,13 @@ def not_implemented(results) -> list:
     return seen
 
 
+def total(results) -> str:
+    """The points of ``results`` as the table's last lines print them: ``"14 / 30"``."""
+    return f"{_points(sum(r.score for r in results))} / {_points(sum(r.max_score for r in results))}"
+
+
 def summary(results) -> str:
-    total = sum(r.score for r in results)
-    maximum = sum(r.max_score for r in results)
-    lines = [f"Total: {_points(total)} / {_points(maximum)}"]
+    lines = [f"Total: {total(results)}"]
     todos = not_implemented(results)
     if todos:
         lines.append(f"Not implemented ({len(todos)}):")

@@ -167,6 +167,26 @@ def test_tree_imports_its_own_course_and_no_solutions(tree, python):
 
 
 @pytest.mark.slow
+def test_pytest_in_the_tree_lists_the_public_checks(tree, python):
+    """The tree's pytest.ini wins over its pyproject.toml; bare ``pytest`` (the console script: its
+    own folder first on sys.path, the package on PYTHONPATH as the editable install puts it) and
+    ``python -m pytest`` both load the plugin and list exercises/'s public checks, with points."""
+    assert (tree / "pytest.ini").read_text() == (TEMPLATES / "pytest.ini").read_text()
+    assert not (tree / "tests").exists()
+    from autograder.checks import all_checks
+
+    script = Path(sys.executable).parent / "pytest"  # bare `pytest`, run by the tree's interpreter
+    for command in (["-m", "pytest"], [str(script)]):
+        out = _run(python, tree, *command, "--collect-only", timeout=120)
+        assert out.returncode == 0, out.stdout + out.stderr
+        assert "configfile: pytest.ini" in out.stdout and "testpaths: exercises" in out.stdout
+        quiet = _run(python, tree, *command, "--collect-only", "-q", timeout=120)
+        ids = [line for line in quiet.stdout.splitlines() if "::" in line]
+        assert len(ids) == len(all_checks()) and not [i for i in ids if "hidden inputs" in i], quiet.stdout
+        assert "exercises/damping.py::GavinType1: update (accepted step) [1 pt]" in ids
+
+
+@pytest.mark.slow
 def test_demo_with_the_stubs_runs_the_peers_and_names_the_todos(tree, python, tmp_path):
     out = _run(python, tree, "-m", "course", "demo", "--curve-only", "--repeat", "1", "--out", str(tmp_path / "out"))
     assert out.returncode == 0, out.stderr

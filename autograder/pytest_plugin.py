@@ -1,0 +1,283 @@
+"""pytest as a front door to the autograder: ``pytest exercises`` grades that folder, one test per check.
+
+Enabled with ``-p autograder.pytest_plugin``, which the student tree's ``pytest.ini`` and the
+instructor's ``pyproject.toml`` put in ``addopts``.
+
+**Collection.** A folder pytest reaches is graded when it is laid out like ``exercises/``: an
+``__init__.py`` and files named after more than half of the check modules (``exercises/``,
+``solutions/``, a copy or a submission, wherever it is; a missing file fails its checks).
+:func:`pytest_collect_directory` claims it before pytest's ``Package`` would, so nothing of it is
+imported in pytest's process (only a ``conftest.py`` put in it would be: pytest loads every
+conftest). The folder yields one collector per exercise file (its path is the file, so editors
+link to it) and one per check module that grades several files together (``end_to_end``,
+``pose_graph``); each holds one item per check, named with its points
+(``exercises/damping.py::GavinType1: update (accepted step) [1 pt]``), and a hidden-input item
+per check too where the set graded is "all" (the instructor's tree,
+``autograder.grade.default_set``; ``--autograder-set`` picks another). Any other folder is left
+to pytest, so a test suite beside it (``tests/``) collects as before.
+
+**Running.** The first item of a folder that runs grades every selected item of that folder
+(after ``-k``, ``--lf``, ``--deselect``) in one grading run, ``autograder.grade.grade`` with two
+workers: the same children, judge and feedback as ``python -m autograder``. Each item then reports
+its own result: full marks pass; fewer fail, and the failure is the autograder's feedback, without
+a traceback; a check not run because a library is missing here is skipped, saying so. The judge
+runs its own two workers: ``pytest -n`` (xdist) would grade once per worker.
+
+**Points.** The terminal summary ends with the points of the items that ran (skipped ones score 0,
+as in the autograder's table): ``autograder: 14 / 30 points on the 12 checks run (public
+checks)``; with every check run, the total of ``python -m autograder --impl SAME --set SAME``.
+"""
+
+import contextlib
+import io
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+CHECKS_DIR = Path(__file__).resolve().parent / "checks"
+NOT_CHECKS = ("__init__", "common")
+SET_WORDS = {"public": "public checks", "hidden": "hidden checks", "all": "public and hidden checks"}
+
+
+def pytest_addoption(parser):
+    group = parser.getgroup("autograder", "grading an implementation folder (autograder.pytest_plugin)")
+    group.addoption("--autograder-set", choices=("public", "hidden", "all"), default=None,
+                    help="the checks to collect: public (shipped inputs), hidden (fresh inputs, judged with the "
+                         "reference: instructor only) or all; default: all where the reference is, else public")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "public: an autograder check on the inputs shipped with the course")
+    config.addinivalue_line("markers", "hidden: an autograder check on fresh inputs, judged with the reference")
+    if config.getoption("autograder_set"):
+        which_set(config)  # a usage error now rather than at collection
+
+
+def which_set(config) -> str:
+    from autograder.grade import default_set, reference_available
+
+    which = config.getoption("autograder_set") or default_set()
+    if which != "public" and not reference_available():
+        raise pytest.UsageError(f"--autograder-set {which}: the hidden checks are judged with the reference, "
+                                "which this tree does not have; use public")
+    return which
+
+
+def is_implementation(path: Path) -> bool:
+    """True for a folder laid out like ``exercises/`` (see the module docstring). It reads names
+    only: the check modules (``autograder/checks/NAME.py``), named after the exercise files they
+    grade, and the folder's files; the framework's packages hold one such name at most."""
+    try:
+        if not (path / "__init__.py").is_file():
+            return False
+        files = {entry.stem for entry in path.iterdir() if entry.suffix == ".py"}
+    except OSError:
+        return False
+    names = {entry.stem for entry in CHECKS_DIR.glob("*.py")} - set(NOT_CHECKS)
+    return 2 * len(files & names) > len(names)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collect_directory(path, parent):
+    if is_implementation(path):
+        return ImplementationFolder.from_parent(parent, path=path)
+    return None
+
+
+def points_text(points: float) -> str:
+    return f"[{points:g} pt]" if points == 1 else f"[{points:g} pts]"
+
+
+class ImplementationFolder(pytest.Directory):
+    """An implementation of the exercises: its exercise files and the checks that grade several."""
+
+    def collect(self):
+        from autograder.checks import modules
+
+        which = which_set(self.config)
+        hidden_sets = {"public": (False,), "hidden": (True,), "all": (False, True)}[which]
+        for name, module in modules():
+            if name in module.MODULES:
+                group = ExerciseFile.from_parent(self, path=self.path / f"{name}.py")
+            else:
+                group = CheckGroup.from_parent(self, name=name)
+            group.entries = [(check, hidden) for check in module.CHECKS for hidden in hidden_sets]
+            group.prefix, group.folder = name, self.path.resolve()
+            yield group
+
+
+class ChecksOf:
+    """What an exercise file and a check group share: one item per (check, set)."""
+
+    entries: list
+    prefix: str
+    folder: Path
+
+    def collect(self):
+        for check, hidden in self.entries:
+            title = check.name
+            for head in (self.prefix + ".", self.prefix + ": "):
+                if title.startswith(head):
+                    title = title[len(head):]
+                    break
+            if hidden:
+                from autograder.grade import HIDDEN_SUFFIX
+
+                title += HIDDEN_SUFFIX
+            name = f"{title} {points_text(check.points)}"
+            # the id from its text, as pytest reads ids back (``--lf``'s cache): a "[" there opens
+            # parameters, and the names hold brackets ("[2 pts]", "lambda clamped to [1e-7, 1e7]")
+            yield CheckItem.from_parent(self, name=name, nodeid=f"{self.nodeid}::{name}", check=check,
+                                        hidden=hidden, folder=self.folder)
+
+
+class ExerciseFile(ChecksOf, pytest.File):
+    """The checks of one exercise file (``exercises/damping.py``); the file is never imported."""
+
+
+class CheckGroup(ChecksOf, pytest.Collector):
+    """The checks of a check module that grades several files together (``end_to_end``)."""
+
+
+class CheckFailed(Exception):
+    """A check below full marks; its text is the autograder's feedback."""
+
+
+@dataclass
+class FolderGrading:
+    """One folder's grading run: its results by name, and those of the items reported so far."""
+
+    results: dict = field(default_factory=dict)
+    error: str = ""
+    output: str = ""  # what the grading run printed (notices, a missing library said once)
+    notices: list = field(default_factory=list)
+    reported: list = field(default_factory=list)
+    not_run: set = field(default_factory=set)  # names of the results skipped for a missing library
+
+
+GRADINGS = pytest.StashKey[dict]()
+
+
+def gradings(config) -> dict:
+    """``{folder: FolderGrading}`` of this pytest session."""
+    return config.stash.setdefault(GRADINGS, {})
+
+
+def impl_argument(folder: Path) -> str:
+    """``exercises`` or ``solutions`` for the repository's own folders (as ``make check`` names
+    them), else the folder's path."""
+    from course.core.impl import BUILTIN, REPO_ROOT
+
+    for name in BUILTIN:
+        if folder == (REPO_ROOT / name).resolve():
+            return name
+    return str(folder)
+
+
+class CheckItem(pytest.Item):
+    """One check of one set (public or hidden inputs) on the folder's implementation."""
+
+    def __init__(self, *, check, hidden: bool, folder: Path, **kwargs):
+        super().__init__(**kwargs)
+        self.check, self.hidden, self.folder = check, hidden, folder
+        self.add_marker("hidden" if hidden else "public")
+
+    @property
+    def result_name(self) -> str:
+        from autograder.grade import HIDDEN_SUFFIX
+
+        return self.check.name + (HIDDEN_SUFFIX if self.hidden else "")
+
+    def grading(self) -> FolderGrading:
+        """This folder's grading run; the first item to ask starts it, for every selected item."""
+        runs = gradings(self.config)
+        if self.folder not in runs:
+            runs[self.folder] = grade_items([item for item in self.session.items
+                                             if isinstance(item, CheckItem) and item.folder == self.folder])
+        return runs[self.folder]
+
+    def runtest(self):
+        from autograder.grade import missing_library
+
+        run = self.grading()
+        if run.error:
+            raise CheckFailed(run.error)
+        result = run.results[self.result_name]
+        run.reported.append(result)
+        if missing_library(self.check):
+            run.not_run.add(result.name)
+            pytest.skip(result.message)
+        if not result.full:
+            raise CheckFailed(result.message)
+
+    def repr_failure(self, excinfo, style=None):
+        if isinstance(excinfo.value, CheckFailed):
+            return str(excinfo.value)
+        return super().repr_failure(excinfo, style)
+
+    def reportinfo(self):
+        return self.path, line_of(self.path, self.check.exercise), self.name
+
+
+def line_of(path: Path, exercise: str):
+    """The 0-based line of the class or function an exercise names (``damping.GavinType1``), read
+    as text (never imported); None when not found."""
+    head = exercise.split(".")[1] if "." in exercise else ""
+    if not head or not path.is_file():
+        return None
+    pattern = re.compile(rf"^(class|def)\s+{re.escape(head)}\b")
+    for number, line in enumerate(path.read_text(errors="replace").splitlines()):
+        if pattern.match(line):
+            return number
+    return None
+
+
+def grade_items(items: list) -> FolderGrading:
+    """Grade the checks of ``items`` (all of one folder) in one run of the autograder."""
+    from autograder.expected import ExpectedDataError
+    from autograder.grade import grade
+    from autograder.isolation import IsolationError
+
+    run = FolderGrading()
+    checks = []
+    for item in items:
+        if item.check not in checks:
+            checks.append(item.check)
+    sets = {item.hidden for item in items}
+    which = "all" if len(sets) == 2 else ("hidden" if True in sets else "public")
+    printed = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(printed):
+            results = grade(impl_argument(items[0].folder), checks=checks, which=which, workers=2,
+                            notices=run.notices)
+    except (ExpectedDataError, IsolationError) as exc:
+        run.error = f"autograder: {exc}"
+        results = []
+    run.output = printed.getvalue()
+    run.results = {result.name: result for result in results}
+    return run
+
+
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_terminal_summary(terminalreporter, config):
+    """After pytest's own summary (the short one included), before the final counts: the points."""
+    from autograder.report import total
+
+    yield
+    runs = gradings(config)
+    for folder, run in runs.items():
+        for line in [*run.notices, *run.output.strip().splitlines()]:
+            terminalreporter.write_line(line if line.startswith("autograder") else f"autograder: {line}")
+        if not run.reported:
+            continue
+        sets = {result.hidden for result in run.reported}
+        which = "all" if len(sets) == 2 else ("hidden" if True in sets else "public")
+        where = f" in {folder}" if len(runs) > 1 else ""
+        count = len(run.reported)
+        not_run = sum(1 for result in run.reported if result.name in run.not_run)
+        note = f"; {not_run} not run here score 0: a library is missing" if not_run else ""
+        terminalreporter.write_line(f"autograder: {total(run.reported)} points on the {count} "
+                                    f"check{'s' if count != 1 else ''} run{where} ({SET_WORDS[which]}{note})",
+                                    bold=True)
