@@ -26,7 +26,7 @@ STUDENT_TEMPLATES = Path(__file__).resolve().parent / "student_tree"
 INSTRUCTOR_ONLY = ("solutions", "tests", ".ci", "autograder/mistakes", "CONTRIBUTING.md")
 #: names skipped at any depth: version control, environments, outputs, caches
 LOCAL_CLUTTER = (".git", ".venv", "out", "build", "__pycache__", ".pytest_cache", ".mypy_cache",
-                 ".ruff_cache", ".ipynb_checkpoints", "*.egg-info", "*.pyc")
+                 ".import_linter_cache", ".ruff_cache", ".ipynb_checkpoints", "*.egg-info", "*.pyc")
 
 
 class ReleaseError(ValueError):
