@@ -403,7 +403,13 @@ def acquire_slots(count: int) -> list:
 
 def uid_pids(uid: int, *, zombies=False) -> list:
     """Pids of the processes whose real uid is ``uid`` (zombies only when asked)."""
-    pids = []
+    live, dead = processes(uid)
+    return live + dead if zombies else live
+
+
+def processes(uid: int) -> tuple:
+    """``(live, zombies)``: the pids of ``uid``'s processes, from one pass over ``/proc``."""
+    live, dead = [], []
     for name in os.listdir("/proc"):
         if not name.isdigit():
             continue
@@ -418,10 +424,9 @@ def uid_pids(uid: int, *, zombies=False) -> list:
             continue
         if real != uid:
             continue
-        if not zombies and status.split("\nState:", 1)[-1].lstrip().startswith("Z"):
-            continue
-        pids.append(int(name))
-    return pids
+        zombie = status.split("\nState:", 1)[-1].lstrip().startswith("Z")
+        (dead if zombie else live).append(int(name))
+    return live, dead
 
 
 def _kill_as(uid: int, gid: int) -> None:
@@ -455,12 +460,14 @@ def kill_uid(uid: int, gid: int, deadline=2.0) -> bool:
     """Kill every process of ``uid``; True when none is left (zombies aside)."""
     end = time.monotonic() + deadline
     while True:
-        if not uid_pids(uid):
-            reap(uid)
+        live, dead = processes(uid)
+        if not live:
+            reap(uid, dead)
             return True
         _kill_as(uid, gid)
-        if not uid_pids(uid):
-            reap(uid)
+        live, dead = processes(uid)
+        if not live:
+            reap(uid, dead)
             return True
         if time.monotonic() > end:
             return False
@@ -471,10 +478,11 @@ def kill_uid(uid: int, gid: int, deadline=2.0) -> bool:
 TRACKED: set = set()
 
 
-def reap(uid: int) -> None:
-    """Collect the zombies of ``uid`` that were reparented to this process (subreaper)."""
+def reap(uid: int, zombies=None) -> None:
+    """Collect the zombies of ``uid`` (or the pids ``zombies``) that were reparented to this
+    process (subreaper)."""
     me = os.getpid()
-    for pid in uid_pids(uid, zombies=True):
+    for pid in uid_pids(uid, zombies=True) if zombies is None else zombies:
         if pid in TRACKED:
             continue
         try:

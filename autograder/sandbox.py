@@ -295,8 +295,10 @@ class Session:
             os.chmod(work, 0o700)
             try:
                 return self._execute(calls, timeout, by_budget, slot.home, work, slot, impl)
-            finally:
+            except BaseException:  # _execute kills the uid's processes itself when it returns
                 isolation.kill_uid(slot.uid, slot.gid)
+                raise
+            finally:
                 isolation.remove_tree(work)
                 isolation.sweep_temp(slot.uid)
         finally:
