@@ -409,7 +409,8 @@ def uid_pids(uid: int, *, zombies=False) -> list:
 
 def processes(uid: int) -> tuple:
     """``(live, zombies)``: the pids of ``uid``'s processes, from one pass over ``/proc``."""
-    live, dead = [], []
+    live: list = []
+    dead: list = []
     for name in os.listdir("/proc"):
         if not name.isdigit():
             continue
