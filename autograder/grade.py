@@ -165,7 +165,7 @@ class Hung:
 
     def __init__(self):
         self._lock = threading.Lock()
-        self._where: dict = {}  # call target (or IMPORT) -> (function, the check where it timed out)
+        self._where: dict = {}  # call (its function, or IMPORT) -> (function, the check where it timed out)
 
     IMPORT = "<import>"
 
@@ -173,8 +173,8 @@ class Hung:
         if child.status != "timeout" or "budget" in _first_error(child):
             return
         calls = task.expected.calls if task.expected is not None else []
-        if 0 <= child.running < len(calls):
-            key, function = calls[child.running].target, calls[child.running].function
+        if 0 <= child.running < len(calls):  # a framework task is told apart by its label (its method)
+            key = function = calls[child.running].function
         else:  # it hung before the first call: loading the implementation
             key, function = self.IMPORT, "loading your code"
         with self._lock:
@@ -182,7 +182,7 @@ class Hung:
 
     def blocked(self, calls) -> str:
         with self._lock:
-            for key in [self.IMPORT] + [call.target for call in calls]:
+            for key in [self.IMPORT] + [call.function for call in calls]:
                 if key in self._where:
                     function, check = self._where[key]
                     return f"not run: {function} timed out in {check!r}, so this check would too"

@@ -70,7 +70,8 @@ def test_a_folder_not_laid_out_like_exercises_is_pytests(pytester):
     shutil.copyfile(INI, pytester.path / "pytest.ini")
     pytester.makepyfile(**{"exercises/__init__.py": "", "exercises/damping.py": "",
                            "exercises/test_mine.py": "def test_it():\n    pass\n"})
-    pytester.runpytest().assert_outcomes(passed=1)
+    # importlib mode: the name `exercises` may already be taken in this process by the repository's package
+    pytester.runpytest("--import-mode=importlib").assert_outcomes(passed=1)
 
 
 def test_stubs_fail_with_the_not_implemented_feedback_and_k_runs_only_damping(pytester):
