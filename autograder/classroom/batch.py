@@ -157,8 +157,13 @@ def main(argv=None) -> int:
         seconds = sum(r.seconds for r in results)
         data = gradebook.record(sub, results, seconds, located[sub.id], grading)
         text = report.table(results, f"{sub.id} ({sub.name})", seconds, args.jobs, which)
-        (results_dir / f"{sub.id}.txt").write_text(text + "\n")
-        gradebook.save(results_dir, data)
+        try:
+            (results_dir / f"{sub.id}.txt").write_text(text + "\n")
+            gradebook.save(results_dir, data)
+        except OSError as exc:  # e.g. a full disk: this student is graded again by the next run
+            log(f"{sub.id}: graded, but the record could not be written ({exc}); run again to grade it")
+            print(f"autograder: {sub.id}: the record could not be written ({exc})", file=sys.stderr)
+            return
         log(f"{sub.id}: {data['extra_data']['status']}, {data['score']:g} points, {seconds:.1f} s")
 
     if graded:
