@@ -7,14 +7,20 @@ points, each seen by 2 to 4 cameras (observations shuffled), distortion that mat
 perturbed by pixel noise; for the normal equations and the Schur step, the reference
 Jacobians of that problem (so each exercise is graded alone) and LM damping; hidden
 inputs: another problem of the same kind from the hidden seed.
+
+The residual function is also called with every camera's parameter j (and every point's
+coordinate i) moved by +h and -h: a wrong Jacobian's feedback then says whether it agrees
+with central differences of the student's own r (the derivative is right for the model they
+wrote: the model is wrong) or not (the derivative is wrong), and which columns differ.
 """
 
 from functools import cache
 
 import numpy as np
 
-from autograder.checks import Call
+from autograder.checks import Call, Verdict
 from autograder.checks.common import check, values
+from autograder.feedback import fields_of
 
 MODULES = ("bundle_adjustment",)
 RESIDUALS = "bundle_adjustment.reprojection_residuals_and_jacobians"
@@ -69,11 +75,40 @@ def _where(g) -> str:
             f"points and {len(g['camera_index'])} observations")
 
 
+#: the camera parameters (J_cam's columns) and the point coordinates (J_point's), as feedback names them
+CAMERA_COLUMNS = ("w_x", "w_y", "w_z", "t_x", "t_y", "t_z", "f", "k1", "k2")
+POINT_COLUMNS = ("X", "Y", "Z")
+#: J_cam's blocks of columns, for feedback
+CAMERA_BLOCKS = (("the rotation columns (w)", slice(0, 3)), ("the translation columns (t)", slice(3, 6)),
+                 ("the focal-length column (f)", slice(6, 7)), ("the distortion columns (k1, k2)", slice(7, 9)))
+POINT_BLOCKS = (("the X column", slice(0, 1)), ("the Y column", slice(1, 2)), ("the Z column", slice(2, 3)))
+#: relative step of the central differences
+STEP = 1e-6
+
+
+def steps(values):
+    """The step per column of ``values`` (N, n): ``STEP max(1, max |column|)``."""
+    return STEP * np.maximum(1.0, np.max(np.abs(values), axis=0))
+
+
 def _residual_calls(seed=None):
+    """The residuals at the problem, then (for central differences) with every camera's
+    parameter j moved by +-h_j, then every point's coordinate i by +-h_i: 1 + 2 (9 + 3) calls."""
     g = problem(seed)
-    args = (g["cameras"], g["points"], g["camera_index"], g["point_index"], g["observations"])
-    return [Call(f"bundle_adjustment:{RESIDUALS.split('.')[1]}", args, returns=("r", "J_cam", "J_point"),
-                 where=_where(g))]
+    target = f"bundle_adjustment:{RESIDUALS.split('.')[1]}"
+    cameras, points = g["cameras"], g["points"]
+    rest = (g["camera_index"], g["point_index"], g["observations"])
+    calls = [Call(target, (cameras, points, *rest), returns=("r", "J_cam", "J_point"), where=_where(g))]
+    for what, base, names in (("camera", cameras, CAMERA_COLUMNS), ("point", points, POINT_COLUMNS)):
+        for column, h in enumerate(steps(base)):
+            for sign in (1.0, -1.0):
+                moved = base.copy()
+                moved[:, column] += sign * h
+                args = (moved, points) if what == "camera" else (cameras, moved)
+                calls.append(Call(target, (*args, *rest), returns=("r", "J_cam", "J_point"),
+                                  where=_where(g) + f", every {what}'s {names[column]} {'+' if sign > 0 else '-'} "
+                                                    f"{h:.3g} (for central differences of r)"))
+    return calls
 
 
 @cache
@@ -123,6 +158,67 @@ def _values(names, rtol, atol, labels, cause):
     return values(names, rtol, atol, cause, labels, atol_scaled=True)
 
 
+def own_differences(ctx, name: str):
+    """The central differences of the student's own r (K, 2, n) for the Jacobian ``name``, from
+    the calls that move the cameras (J_cam) or the points (J_point); None when a call failed."""
+    first, count = (1, len(CAMERA_COLUMNS)) if name == "J_cam" else (1 + 2 * len(CAMERA_COLUMNS), len(POINT_COLUMNS))
+    h = steps(ctx.calls[0].args[0 if name == "J_cam" else 1])  # as the calls moved them
+    columns = []
+    for column in range(count):
+        k = first + 2 * column
+        (plus, bad_plus), (minus, bad_minus) = (fields_of(ctx.student[k], ctx.calls[k]),
+                                                fields_of(ctx.student[k + 1], ctx.calls[k + 1]))
+        if bad_plus or bad_minus or "r" not in plus or "r" not in minus:
+            return None
+        r_plus, r_minus = np.asarray(plus["r"], float), np.asarray(minus["r"], float)
+        if r_plus.shape != r_minus.shape or r_plus.ndim != 2:
+            return None
+        columns.append((r_plus - r_minus) / (2.0 * h[column]))
+    return np.stack(columns, axis=-1)
+
+
+def residual_or_jacobian(name: str, label: str, blocks, judge):
+    """``judge`` of the Jacobian ``name``; when it finds the student's Jacobian wrong, the
+    feedback also says whether it agrees with central differences of the student's own r (the
+    model is wrong, not the derivative) or not (the derivative is wrong), and which blocks of
+    columns differ from the reference."""
+
+    def judged(ctx):
+        verdict = judge(ctx)
+        if verdict.fraction >= 1.0 or verdict.not_implemented or ctx.student[0].error is not None:
+            return verdict
+        student, bad = fields_of(ctx.student[0], ctx.calls[0])
+        reference, _ = fields_of(ctx.reference[0], ctx.calls[0])
+        if bad:
+            return verdict
+        got, want, fd = student.get(name), reference.get(name), own_differences(ctx, name)
+        if got is None or want is None or fd is None or np.shape(got) != np.shape(want) or fd.shape != np.shape(got):
+            return verdict
+        got, want = np.asarray(got, float), np.asarray(want, float)
+        scale = max(1.0, float(np.max(np.abs(want))))
+        differ = [text for text, cols in blocks
+                  if not np.allclose(got[..., cols], want[..., cols], rtol=1e-6, atol=1e-8 * scale)]
+        where = f" ({', '.join(differ)} differ from the reference)" if differ else ""
+        r_want = np.asarray(reference["r"], float)
+        r_got = np.asarray(student.get("r", np.nan), float)
+        r_right = r_got.shape == r_want.shape and np.allclose(r_got, r_want, rtol=1e-8,
+                                                              atol=1e-10 * max(1.0, float(np.max(np.abs(r_want)))))
+        gap = np.abs(got - fd) - 1e-4 * (np.abs(fd) + scale)
+        if not np.isfinite(gap).all() or (gap > 0).any():
+            index = tuple(int(k) for k in np.unravel_index(int(np.nanargmax(gap)), gap.shape))
+            said = (f"\nResidual or Jacobian: your {label} does not agree with central differences of your own r "
+                    f"either ({label}{list(index)} = {got[index]:.6g}, your r's differences give {fd[index]:.6g}): "
+                    f"the derivative is wrong{where}" + ("; your r is right." if r_right else
+                                                          "; your r is wrong too (see the residuals check)."))
+        else:
+            said = (f"\nResidual or Jacobian: your {label} agrees with central differences of your own r{where}: the "
+                    "derivative is right for the r you compute, so the model itself is wrong: fix r first "
+                    "(the residuals check), then the Jacobians that follow from it.")
+        return Verdict(verdict.fraction, verdict.message + said, verdict.not_implemented)
+
+    return judged
+
+
 _RES_LABELS = {"r": "r[{}]", "J_cam": "J_cam[{}]", "J_point": "J_point[{}]"}
 _NORMAL_LABELS = {"U": "U[{}]", "V": "V[{}]", "W": "W[{}]", "g_cam": "g_cam[{}]", "g_point": "g_point[{}]",
                   "chi2": "chi2"}
@@ -131,10 +227,13 @@ _SCHUR_LABELS = {"dx_cam": "dx_cam[{}]", "dx_point": "dx_point[{}]"}
 CHECKS = [
     check(RESIDUALS, "residuals r", 2, _residual_calls, _values(("r",), 1e-8, 1e-10, _RES_LABELS,
           "r = f d p - observed with P = R(w) X + t, p = -P[:2] / P[2], d = 1 + k1 |p|^2 + k2 |p|^4")),
-    check(RESIDUALS, "camera Jacobian J_cam", 3, _residual_calls, _values(("J_cam",), 1e-6, 1e-8, _RES_LABELS,
-          "J_cam[k] = d r_k / d (w, t, f, k1, k2), the exact derivative of R(w) X in w")),
-    check(RESIDUALS, "point Jacobian J_point", 2, _residual_calls, _values(("J_point",), 1e-6, 1e-8, _RES_LABELS,
-          "J_point[k] = d r_k / d X = (d predicted / d P) R(w)")),
+    check(RESIDUALS, "camera Jacobian J_cam", 3, _residual_calls, residual_or_jacobian(
+        "J_cam", "J_cam", CAMERA_BLOCKS, _values(("J_cam",), 1e-6, 1e-8, _RES_LABELS,
+                                                 "J_cam[k] = d r_k / d (w, t, f, k1, k2), the exact derivative of "
+                                                 "R(w) X in w"))),
+    check(RESIDUALS, "point Jacobian J_point", 2, _residual_calls, residual_or_jacobian(
+        "J_point", "J_point", POINT_BLOCKS, _values(("J_point",), 1e-6, 1e-8, _RES_LABELS,
+                                                    "J_point[k] = d r_k / d X = (d predicted / d P) R(w)"))),
     check(NORMAL, "camera blocks U, point blocks V, coupling W", 3, _normal_calls,
           _values(("U", "V", "W"), 1e-10, 1e-12, _NORMAL_LABELS,
                  "U_c = sum J_cam^T J_cam over camera c's observations, V_p likewise, W_k = J_cam_k^T J_point_k")),

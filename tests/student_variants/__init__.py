@@ -463,6 +463,24 @@ BUGS_BUNDLE_ADJUSTMENT = {
     "ba_focal_column_without_distortion": V(
         "bundle_adjustment.py", [], "J_cam[:, :, 6] = d[:, None] * p", "J_cam[:, :, 6] = p",
         {BA_JC}, "d predicted / d f = d p"),
+    # a slip in d p / d P_z alone: both Jacobians disagree with central differences of the (right) r
+    "ba_projection_derivative_z_sign": V(
+        "bundle_adjustment.py", [], "dp_dP[:, :, 2] = P[:, :2] / (z * z)[:, None]",
+        "dp_dP[:, 0, 2] = P[:, 0] / (z * z)\n    dp_dP[:, 1, 2] = -P[:, 1] / (z * z)",
+        {BA_JC, BA_JP}, "does not agree with central differences of your own r either"),
+    # the pinhole projection p = +P[:2] / P[2] throughout, derivative included: a wrong model with a
+    # consistent Jacobian
+    "ba_pinhole_projection_consistently": V(
+        "bundle_adjustment.py", [],
+        "p = -P[:, :2] / z[:, None]\n    n = np.sum(p * p, axis=1)\n    f, k1, k2 = cam[:, 6], cam[:, 7], cam[:, 8]\n"
+        "    d = 1.0 + k1 * n + k2 * n * n\n    r = (f * d)[:, None] * p - observations\n\n    K = len(r)\n"
+        "    dp_dP = np.zeros((K, 2, 3))\n    dp_dP[:, 0, 0] = dp_dP[:, 1, 1] = -1.0 / z\n"
+        "    dp_dP[:, :, 2] = P[:, :2] / (z * z)[:, None]",
+        "p = P[:, :2] / z[:, None]\n    n = np.sum(p * p, axis=1)\n    f, k1, k2 = cam[:, 6], cam[:, 7], cam[:, 8]\n"
+        "    d = 1.0 + k1 * n + k2 * n * n\n    r = (f * d)[:, None] * p - observations\n\n    K = len(r)\n"
+        "    dp_dP = np.zeros((K, 2, 3))\n    dp_dP[:, 0, 0] = dp_dP[:, 1, 1] = 1.0 / z\n"
+        "    dp_dP[:, :, 2] = -P[:, :2] / (z * z)[:, None]",
+        {BA_R, BA_JC, BA_JP}, "agrees with central differences of your own r"),
     "ba_camera_blocks_by_fancy_index": V(
         "bundle_adjustment.py", [],
         "U = np.stack([np.dot(rows[lo:hi].T, rows[lo:hi]) for lo, hi in zip(bounds[:-1], bounds[1:])])",
