@@ -84,6 +84,8 @@ CAMERA_BLOCKS = (("the rotation columns (w)", slice(0, 3)), ("the translation co
 POINT_BLOCKS = (("the X column", slice(0, 1)), ("the Y column", slice(1, 2)), ("the Z column", slice(2, 3)))
 #: relative step of the central differences
 STEP = 1e-6
+#: what the moved calls' ``where`` ends with (their known mistakes are not needed: feedback names call 0's)
+DIFFERENCES = "(for central differences of r)"
 
 
 def steps(values):
@@ -107,7 +109,7 @@ def _residual_calls(seed=None):
                 args = (moved, points) if what == "camera" else (cameras, moved)
                 calls.append(Call(target, (*args, *rest), returns=("r", "J_cam", "J_point"),
                                   where=_where(g) + f", every {what}'s {names[column]} {'+' if sign > 0 else '-'} "
-                                                    f"{h:.3g} (for central differences of r)"))
+                                                    f"{h:.3g} {DIFFERENCES}"))
     return calls
 
 

@@ -5,7 +5,7 @@ at a time, dense matrices), with one slip or none."""
 
 import numpy as np
 
-from autograder.checks.bundle_adjustment import NORMAL, RESIDUALS, SCHUR
+from autograder.checks.bundle_adjustment import DIFFERENCES, NORMAL, RESIDUALS, SCHUR
 from course.geometry.so3 import skew, so3_exp
 
 
@@ -59,6 +59,9 @@ def jacobians(call, *, point="R", rotation="exact", dd=True, df="dp", sign=1.0):
 
 
 def residual_mistakes(call, ref):
+    if call.where.endswith(DIFFERENCES):  # the moved inputs: feedback names the first call's mistakes
+        return {}
+
     def jac(**slip):
         return dict(zip(("J_cam", "J_point"), jacobians(call, **slip)))
 
