@@ -17,7 +17,8 @@ graded again, so a killed run restarts where it stopped; ``--regrade`` grades ev
 again. ``--shard i/n`` grades the students whose id hashes to ``i`` (1-based) of ``n``,
 the same split on every machine; ``python -m autograder merge`` joins the parts.
 
-Exit status 0 when grading ran, 2 for usage errors (a missing folder, a malformed export).
+Exit status 0 when grading ran, 2 for usage errors (a missing folder, a malformed export) or
+when the grader cannot run here (stale expected data, no safe way to isolate the children).
 """
 
 import argparse
@@ -167,10 +168,20 @@ def main(argv=None) -> int:
         log(f"{sub.id}: {data['extra_data']['status']}, {data['score']:g} points, {seconds:.1f} s")
 
     if graded:
+        from autograder.expected import ExpectedDataError
+        from autograder.isolation import IsolationError
+
         notices: list = []
-        grade_many([str(out / "submissions" / sub.id) for sub in graded], args.only, timeout=args.timeout,
-                   memory_mb=args.memory_mb, workers=args.jobs, which=which, budget=args.budget,
-                   notices=notices, on_done=done, on_check=lambda index, result: bar.update(1))
+        try:
+            grade_many([str(out / "submissions" / sub.id) for sub in graded], args.only, timeout=args.timeout,
+                       memory_mb=args.memory_mb, workers=args.jobs, which=which, budget=args.budget,
+                       notices=notices, on_done=done, on_check=lambda index, result: bar.update(1))
+        except (ExpectedDataError, IsolationError) as exc:  # the grader cannot run here: nobody was graded
+            bar.close()
+            log(f"batch: could not grade ({exc})")
+            log.close()
+            print(f"autograder: {exc}", file=sys.stderr)
+            return 2
         for line in notices:
             print(f"autograder: {line}", file=sys.stderr)
     bar.close()
