@@ -22,7 +22,8 @@ releases with CPython 3.10 wheels, the Python of Gradescope's Ubuntu 22.04 image
   gets results.
 
 This module imports only the standard library (and ``course``, whose ``__init__`` sets
-the BLAS threads), so that ``finish`` still works when grading could not start.
+the BLAS threads, and ``autograder.submission``, standard library only), so that ``finish``
+still works when grading could not start.
 """
 
 import argparse
