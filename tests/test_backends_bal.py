@@ -13,7 +13,16 @@ from course.backends import registry
 from course.backends.bal import common as bal_common
 from course.backends.bal import scipy as scipy_bal
 from course.core import peers
-from course.problems.bal.dataset import behind_camera, cost, load_bal, residuals, synthetic, write_bal
+from course.problems.bal.dataset import (
+    behind_camera,
+    camera_frame_points,
+    cost,
+    in_front,
+    load_bal,
+    residuals,
+    synthetic,
+    write_bal,
+)
 
 #: scipy with its tolerances far below the recipe's ftol = 1e-4
 TIGHT = {"ftol": 1e-15, "xtol": 1e-15, "gtol": 1e-15}
@@ -157,6 +166,32 @@ def test_colmap_on_ladybug_removes_the_points_behind_the_cameras():
     assert result.peer_initial_cost == pytest.approx(850802.09, rel=1e-6)  # without the 31 observations
     assert result.iterations == 2 and result.stop_reason.startswith("max_iterations")
     assert result.final_cost < 0.1 * result.initial_cost
+
+
+def test_the_front_variant_is_the_problem_without_the_points_behind_a_camera():
+    problem = ladybug()
+    front = load_bal("ladybug-49:front")
+    assert (problem.num_points - front.num_points, problem.num_observations - front.num_observations) == (10, 31)
+    assert behind_camera(front) == 0 and front.num_cameras == problem.num_cameras
+    assert front.name == "ladybug-49:front" and "without the 10 points (and their 31 observations)" in front.source
+    assert cost(front) == pytest.approx(850802.09, rel=1e-6)  # Ceres' start on ladybug-49, as pycolmap reports it
+    # the points kept, renumbered in order, with their observations
+    kept = np.setdiff1d(np.arange(problem.num_points), np.unique(problem.point_index[
+        camera_frame_points(problem.cameras, problem.points, problem.camera_index, problem.point_index)[:, 2] >= 0]))
+    np.testing.assert_array_equal(front.points, problem.points[kept])
+    np.testing.assert_array_equal(front.points[front.point_index], problem.points[problem.point_index][
+        np.isin(problem.point_index, kept)])
+    assert load_bal("dubrovnik-3-7:front").num_points == load_bal("dubrovnik-3-7").num_points  # nothing behind
+
+
+@needs("pycolmap")
+def test_colmap_on_the_front_variant_deletes_nothing():
+    from course.backends.bal import colmap as colmap_bal
+
+    front = in_front(ladybug())
+    result = colmap_bal.solve(front, max_iterations=2)
+    assert (result.removed_points, result.removed_observations) == (0, 0)
+    assert result.peer_initial_cost == pytest.approx(result.initial_cost, rel=1e-6)  # as its report prints it
 
 
 # ---------------------------------------------------------------- GTSAM

@@ -335,9 +335,11 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
 
 def is_bal_name(name: str) -> bool:
     """A named BAL problem, ``bal-synthetic:CAMS:POINTS[:seed]``, or a file whose first line is a
-    BAL header (three integers)."""
-    from course.problems.bal.dataset import bal_names
+    BAL header (three integers); any of them with ``:front`` appended."""
+    from course.problems.bal.dataset import FRONT, bal_names
 
+    if name.endswith(FRONT) and len(name) > len(FRONT):
+        return is_bal_name(name[: -len(FRONT)])
     if name in bal_names() or name.startswith("bal-synthetic:"):
         return True
     path = Path(name)
@@ -362,7 +364,8 @@ def _bal_runner(dataset, impl=None, methods=None, backends=None, **options):
 RUNNERS: tuple[Runner, ...] = (
     Runner("curve", is_curve_name, _curve_runner, "y = exp(a x^2 + b x + c), 100 generated points (chapter 1)"),
     Runner("bal", is_bal_name, _bal_runner,
-           "a BAL problem: ladybug-49, dubrovnik-3-7, bal-synthetic:CAMS:POINTS[:seed] or a BAL file"),
+           "a BAL problem: ladybug-49, dubrovnik-3-7, bal-synthetic:CAMS:POINTS[:seed] or a BAL file, "
+           "each also as NAME:front (without the points behind a camera at the start)"),
     Runner("posegraph", is_posegraph_name, _posegraph_runner,
            "a named pose graph (python -m course datasets), manhattan:N, or a TORO/g2o file"),
 )

@@ -20,7 +20,9 @@ A point is in front of the camera when ``P[2] < 0``. The BAL cost is
 
 Named problems (``load_bal``): ``ladybug-49`` (the data folder), ``dubrovnik-3-7`` (the gtsam
 wheel's ``Data/``), ``bal-synthetic:CAMS:POINTS[:seed]`` (the generator :func:`synthetic`),
-or a file path.
+or a file path; any of them with ``:front`` appended is the same problem without the points
+that have an observation behind its camera at the start (:func:`in_front`): the problem every
+back end solves as it is (Ceres, through pycolmap, deletes such points before it solves).
 """
 
 from __future__ import annotations
@@ -128,6 +130,26 @@ def behind_camera(problem: BALProblem, cameras=None, points=None) -> int:
     points = problem.points if points is None else points
     P = camera_frame_points(cameras, points, problem.camera_index, problem.point_index)
     return int(np.count_nonzero(P[:, 2] >= 0.0))
+
+
+def in_front(problem: BALProblem) -> BALProblem:
+    """``problem`` without the points that have an observation behind (or on the plane of) its
+    camera at the start, ``P_z >= 0``, and without those points' observations; the points kept
+    are renumbered in order. The name gains ``:front``; the source says how many went."""
+    P = camera_frame_points(problem.cameras, problem.points, problem.camera_index, problem.point_index)
+    dropped = np.unique(problem.point_index[P[:, 2] >= 0.0])
+    keep_point = np.ones(problem.num_points, dtype=bool)
+    keep_point[dropped] = False
+    keep = keep_point[problem.point_index]
+    renumber = np.cumsum(keep_point) - 1
+    truth = problem.ground_truth
+    return BALProblem(problem.cameras.copy(), problem.points[keep_point].copy(), problem.camera_index[keep].copy(),
+                      renumber[problem.point_index[keep]].astype(np.int64), problem.observations[keep].copy(),
+                      name=f"{problem.name}:front",
+                      source=f"{problem.source}, without the {len(dropped)} points (and their "
+                             f"{int(np.count_nonzero(~keep))} observations) with an observation behind a camera "
+                             "at the start",
+                      ground_truth=None if truth is None else (truth[0], truth[1][keep_point]))
 
 
 # ---------------------------------------------------------------------------------------
@@ -315,6 +337,10 @@ _NAMED = {
 }
 
 
+#: the suffix of a problem's variant without the points behind a camera at the start
+FRONT = ":front"
+
+
 def bal_names() -> list[str]:
     """The names ``load_bal`` knows (besides ``bal-synthetic:CAMS:POINTS[:seed]`` and paths)."""
     return list(_NAMED)
@@ -337,11 +363,16 @@ def catalogue() -> list[tuple[str, str, str, str]]:
         rows.append((name, f"{cams} cameras, {points} points, {obs} obs", origin(where, rel), reason))
     rows.append(("bal-synthetic:C:P[:seed]", "C cameras, P points", "generator course.problems.bal.dataset.synthetic",
                  ""))
+    rows.append(("NAME:front", "NAME without its points behind a camera at the start",
+                 "course.problems.bal.dataset.in_front", ""))
     return rows
 
 
 def load_bal(name: str) -> BALProblem:
-    """A named BAL problem (``bal_names()``), ``bal-synthetic:CAMS:POINTS[:seed]`` or a file path."""
+    """A named BAL problem (``bal_names()``), ``bal-synthetic:CAMS:POINTS[:seed]`` or a file path;
+    with ``:front`` appended, that problem :func:`in_front`."""
+    if name.endswith(FRONT) and len(name) > len(FRONT):
+        return in_front(load_bal(name[: -len(FRONT)]))
     if name in _NAMED:
         return read_bal(_locate(name), name=name)
     if name.startswith("bal-synthetic:"):
