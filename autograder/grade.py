@@ -170,7 +170,7 @@ class Hung:
     IMPORT = "<import>"
 
     def record(self, task: "Task", child) -> None:
-        if child.status != "timeout" or "budget" in _first_error(child):
+        if child.status != "timeout" or child.by_budget:
             return
         calls = task.expected.calls if task.expected is not None else []
         if 0 <= child.running < len(calls):  # a framework task is told apart by its label (its method)
@@ -187,11 +187,6 @@ class Hung:
                     function, check = self._where[key]
                     return f"not run: {function} timed out in {check!r}, so this check would too"
         return ""
-
-
-def _first_error(child) -> str:
-    errors = [outcome.error for outcome in child.outcomes if outcome.error is not None]
-    return errors[0].message if errors else ""
 
 
 def skipped(task: "Task", why: str) -> CheckResult:

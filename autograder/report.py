@@ -12,7 +12,8 @@ def _short(text: str, width: int) -> str:
     return line if len(line) <= width else line[: width - 3] + "..."
 
 
-def _points(x: float) -> str:
+def points(x: float) -> str:
+    """A score as the table prints it: 3, 2.5 -> "2.50"."""
     return f"{x:g}" if abs(x - round(x)) < 1e-9 else f"{x:.2f}"
 
 
@@ -28,7 +29,7 @@ def not_implemented(results) -> list:
 
 def total(results) -> str:
     """The points of ``results`` as the table's last lines print them: ``"14 / 30"``."""
-    return f"{_points(sum(r.score for r in results))} / {_points(sum(r.max_score for r in results))}"
+    return f"{points(sum(r.score for r in results))} / {points(sum(r.max_score for r in results))}"
 
 
 def summary(results) -> str:
@@ -60,17 +61,17 @@ def table(results, impl: str, seconds: float, workers: int, which: str = "public
     for exercise in exercises:
         rows = [r for r in results if r.exercise == exercise]
         score, maximum = sum(r.score for r in rows), sum(r.max_score for r in rows)
-        out.append(f"{exercise:<{NAME_WIDTH}} {_points(score):>6} {_points(maximum):>5}")
+        out.append(f"{exercise:<{NAME_WIDTH}} {points(score):>6} {points(maximum):>5}")
         for r in rows:
             name = _short("  " + r.title, NAME_WIDTH)
-            out.append(f"{name:<{NAME_WIDTH}} {_points(r.score):>6} {_points(r.max_score):>5}  "
+            out.append(f"{name:<{NAME_WIDTH}} {points(r.score):>6} {points(r.max_score):>5}  "
                        f"{_short(r.message, message_width)}")
     out.append("-" * min(width, NAME_WIDTH + 16 + message_width))
     details = [r for r in results if not r.full and not r.not_implemented]
     if details:
         out += ["", "Details:"]
         for r in details:
-            out.append(f"* {r.name} ({_points(r.score)}/{_points(r.max_score)})")
+            out.append(f"* {r.name} ({points(r.score)}/{points(r.max_score)})")
             out += [f"    {line}" for line in r.message.splitlines()]
     out += ["", summary(results)]
     out.append(f"Elapsed: {seconds:.1f} s ({len(results)} checks, {workers} workers)")

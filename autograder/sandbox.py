@@ -78,6 +78,7 @@ class ChildRun:
     status: str = "ok"  # ok | timeout | crashed
     running: int = -1  # index of the call in progress when it hung or died
     returncode: int | None = None
+    by_budget: bool = False  # timed out because the run's time budget ran out, not the check's limit
 
 
 def child_env() -> dict:
@@ -277,7 +278,9 @@ class Session:
             if remaining <= 0.05:
                 error = ErrorInfo("Timeout", f"the grading time budget of {self.budget:g} s ran out "
                                              "before this check could run")
-                return _all_failed(calls, -1, error, "", 0.0, "timeout", None)
+                spent = _all_failed(calls, -1, error, "", 0.0, "timeout", None)
+                spent.by_budget = True
+                return spent
             if remaining < timeout:
                 timeout, by_budget = remaining, True
         if not self.isolate:
@@ -403,8 +406,10 @@ class Session:
             else:
                 message = (f"did not finish within the time limit of {timeout:g} s: "
                            "an infinite loop, or a very slow computation?")
-            return _all_failed(calls, running, ErrorInfo("Timeout", message), printed, seconds, status,
-                               proc.returncode)
+            timed_out = _all_failed(calls, running, ErrorInfo("Timeout", message), printed, seconds, status,
+                                    proc.returncode)
+            timed_out.by_budget = by_budget
+            return timed_out
         outcomes, problem = _read(out_path, len(calls), token=token, owner=owner)
         if outcomes is None:
             return _all_failed(calls, running, ErrorInfo("Crash", _crash_message(proc.returncode, problem)), printed,

@@ -32,8 +32,7 @@ from pathlib import Path
 
 from autograder import report, sandbox, submission
 from autograder.classroom import gradebook, intake
-
-REPO_ROOT = Path(__file__).resolve().parents[2]
+from course.core.impl import REPO_ROOT
 
 
 def parser() -> argparse.ArgumentParser:
@@ -190,8 +189,7 @@ def main(argv=None) -> int:
     if not args.no_report:
         from autograder.classroom import report as class_report
 
-        class_report.write_report(out, REPO_ROOT / "exercises",
-                            REPO_ROOT / "solutions" if reference_available() else None)
+        class_report.write_for_this_tree(out)
     per = f", {elapsed / len(graded):.1f} s per submission" if graded else ""
     log(f"batch: graded {len(graded)} in {elapsed:.1f} s{per}")
     log.close()

@@ -13,8 +13,6 @@ from pathlib import Path
 
 from autograder.classroom import gradebook
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
-
 
 def merge(parts, out: Path) -> int:
     """Copy the parts' records and submissions into ``out``; returns the number of records."""
@@ -54,9 +52,7 @@ def main(argv=None) -> int:
     gradebook.write_table(Path(args.out))
     if not args.no_report:
         from autograder.classroom import report
-        from autograder.grade import reference_available
 
-        report.write_report(Path(args.out), REPO_ROOT / "exercises",
-                            REPO_ROOT / "solutions" if reference_available() else None)
+        report.write_for_this_tree(Path(args.out))
     print(f"merged {count} records into {Path(args.out) / 'grades.csv'}")
     return 0

@@ -26,6 +26,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from autograder.classroom import similarity
+from autograder.report import points
 
 #: a check scored within this of its maximum has full marks
 TOLERANCE = 1e-9
@@ -57,10 +58,6 @@ class Student:
 
 def _e(value) -> str:
     return html.escape(str(value), quote=True)
-
-
-def _points(x: float) -> str:
-    return f"{x:g}" if abs(x - round(x)) < 1e-9 else f"{x:.2f}"
 
 
 def load_students(out_dir: Path) -> tuple:
@@ -108,7 +105,7 @@ def histogram_png(totals: list, maximum: float) -> str:
     ax = fig.add_subplot()
     top = max([maximum, *totals, 1.0])
     ax.hist(totals, bins=min(20, max(5, len(totals))), range=(0.0, top), color="#4878a8", edgecolor="white")
-    ax.set_xlabel(f"total points (out of {_points(maximum)})")
+    ax.set_xlabel(f"total points (out of {points(maximum)})")
     ax.set_ylabel("students")
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlim(0.0, top)
@@ -171,10 +168,16 @@ def _headline(students: list) -> str:
     statuses = {status: sum(1 for s in students if s.status == status) for status in PROBLEMS}
     extra = ", ".join(f"{n} {status}" for status, n in statuses.items() if n)
     return (f"<p><strong>{len(students)} students</strong>; mean total {mean:.1f}, median {median:.1f}, "
-            f"out of {_points(maximum)} points; lowest {_points(min(totals))}, highest {_points(max(totals))}"
+            f"out of {points(maximum)} points; lowest {points(min(totals))}, highest {points(max(totals))}"
             f"{'; ' + _e(extra) if extra else ''}.</p>\n"
             f'<p><img alt="histogram of the totals" src="data:image/png;base64,'
             f'{histogram_png(totals, maximum)}"></p>')
+
+
+def _table(intro: str, headers, rows: str) -> str:
+    """An introducing sentence, then a table with ``headers`` over the ``rows`` (HTML ``<tr>`` lines)."""
+    head = "".join(f"<th>{_e(h)}</th>" for h in headers)
+    return f"<p>{intro}</p>\n<table><tr>{head}</tr>\n{rows}</table>"
 
 
 def _checks_table(students: list) -> str:
@@ -184,9 +187,8 @@ def _checks_table(students: list) -> str:
     body = "".join(f"<tr><td>{_e(name)}</td><td>{_e(exercise)}</td><td>{'hidden' if hidden else 'public'}</td>"
                    f'<td>{full} / {size}</td><td class="num">{100.0 * full / max(size, 1):.0f}%</td></tr>\n'
                    for name, exercise, hidden, full, size in rows)
-    return ("<p>The share of the class with full marks on each check, hardest first. Hidden checks run on "
-            "inputs the students did not see.</p>\n<table><tr><th>Check</th><th>Exercise</th><th>Inputs</th>"
-            f"<th>Full marks</th><th>Share</th></tr>\n{body}</table>")
+    return _table("The share of the class with full marks on each check, hardest first. Hidden checks run on "
+                  "inputs the students did not see.", ("Check", "Exercise", "Inputs", "Full marks", "Share"), body)
 
 
 def _mistakes_table(students: list) -> str:
@@ -198,9 +200,8 @@ def _mistakes_table(students: list) -> str:
         for sentence, who in sorted(found[exercise].items(), key=lambda kv: (-len(kv[1]), kv[0])):
             body += (f"<tr><td>{_e(exercise)}</td><td>{_e(sentence)}</td><td>{len(who)}</td>"
                      f"<td>{_e(', '.join(_who(s) for s in who))}</td></tr>\n")
-    return ("<p>The known mistakes whose outputs the class's matched (a student counts once per mistake).</p>\n"
-            "<table><tr><th>Exercise</th><th>Likely cause</th><th>Students</th><th>Who</th></tr>\n"
-            f"{body}</table>")
+    return _table("The known mistakes whose outputs the class's matched (a student counts once per mistake).",
+                  ("Exercise", "Likely cause", "Students", "Who"), body)
 
 
 def _problems_table(students: list) -> str:
@@ -217,10 +218,9 @@ def _problems_table(students: list) -> str:
         else:
             concerned = "; ".join(f"{name} ({status})" for name, status in bad) or "none recorded"
         body += (f"<tr><td>{_e(_who(student))}</td><td>{_e(student.status)}</td>"
-                 f'<td class="num">{_points(student.score)}</td><td>{_e(concerned)}</td></tr>\n')
-    return ("<p>The submissions that timed out, crashed or sent no files, and the checks that did not run "
-            "to the end.</p>\n<table><tr><th>Student</th><th>Status</th><th>Total</th><th>Checks concerned</th>"
-            f"</tr>\n{body}</table>")
+                 f'<td class="num">{points(student.score)}</td><td>{_e(concerned)}</td></tr>\n')
+    return _table("The submissions that timed out, crashed or sent no files, and the checks that did not run "
+                  "to the end.", ("Student", "Status", "Total", "Checks concerned"), body)
 
 
 def _shown_lines(path: Path, ranges: list) -> str:
@@ -326,6 +326,15 @@ def write_report(out_dir, stubs_dir, reference_dir=None) -> Path:
     path = Path(out_dir) / "report.html"
     path.write_text(render(out_dir, stubs_dir, reference_dir), encoding="utf-8")
     return path
+
+
+def write_for_this_tree(out_dir) -> Path:
+    """:func:`write_report` with this tree's stubs (``exercises/``) and, where it has it, its
+    reference (``solutions/``): what ``batch`` and ``merge`` write at the end."""
+    from autograder.grade import reference_available
+    from course.core.impl import REPO_ROOT
+
+    return write_report(out_dir, REPO_ROOT / "exercises", REPO_ROOT / "solutions" if reference_available() else None)
 
 
 def main(argv=None) -> int:
