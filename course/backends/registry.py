@@ -24,6 +24,11 @@ POSE_GRAPH_PEERS: dict[str, tuple[str, tuple[str, ...]]] = {
     "ceres": ("course.backends.posegraph.ceres", ("levenberg-marquardt", "dogleg")),
     "gtsam": ("course.backends.posegraph.gtsam", ("gauss-newton", "levenberg-marquardt", "dogleg")),
 }
+#: the 3D pose graphs' peers (chapter 6): backend -> (module, methods)
+POSE_GRAPH_3D_PEERS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "g2o": ("course.backends.posegraph3d.g2o", ("gauss-newton", "levenberg")),
+    "gtsam": ("course.backends.posegraph3d.gtsam", ("gauss-newton", "levenberg-marquardt")),
+}
 #: bundle adjustment's peers (chapter 4, BAL problems): backend -> (module, methods)
 BAL_PEERS: dict[str, tuple[str, tuple[str, ...]]] = {
     "ceres": ("course.backends.bal.colmap", ("levenberg-marquardt", "dogleg")),
@@ -36,7 +41,8 @@ LIBRARY = {"ceres": "pyceres", "g2o": "g2opy", "gtsam": "gtsam", "scipy": "scipy
 #: runs through pycolmap (a C++ cost), not pyceres
 KIND_LIBRARY: dict[str, dict[str, str]] = {"bal": {"ceres": "pycolmap"}}
 PEERS: dict[str, dict[str, tuple[str, tuple[str, ...]]]] = {
-    "curve": CURVE_PEERS, "posegraph": POSE_GRAPH_PEERS, "bal": BAL_PEERS}
+    "curve": CURVE_PEERS, "posegraph": POSE_GRAPH_PEERS, "posegraph3d": POSE_GRAPH_3D_PEERS,
+    "bal": BAL_PEERS}
 
 
 def pairs(kind: str) -> list:

@@ -62,3 +62,51 @@ def right_jacobian(phi) -> np.ndarray:
         b, c = (1.0 - np.cos(t)) / t2, (t - np.sin(t)) / (t2 * t)
     W = skew(phi)
     return np.eye(3) - b * W + c * (W @ W)
+
+
+# ---------------------------------------------------------------- vectorized over K rotations
+
+
+def exp_many(phi) -> np.ndarray:
+    """``Exp(phi_k)`` (K, 3, 3) for rotation vectors phi (K, 3); the formula of :func:`so3_exp`."""
+    phi = np.asarray(phi, dtype=float).reshape(-1, 3)
+    t2 = np.einsum("ki,ki->k", phi, phi)
+    t = np.sqrt(t2)
+    small = t < SMALL_ANGLE
+    safe = np.where(small, 1.0, t)
+    a = np.where(small, 1.0 - t2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    W = skew(phi)
+    return np.eye(3) + a[:, None, None] * W + b[:, None, None] * np.matmul(W, W)
+
+
+def log_many(R) -> np.ndarray:
+    """``Log(R_k)`` (K, 3) for rotations R (K, 3, 3), angles in [0, pi]; the method of
+    :func:`so3_log` (stable at 0 and near pi)."""
+    R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
+    cos_t = np.clip((np.einsum("kii->k", R) - 1.0) / 2.0, -1.0, 1.0)
+    w = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1) / 2.0
+    sin_t = np.linalg.norm(w, axis=1)
+    t = np.arctan2(sin_t, cos_t)
+    small = t < SMALL_ANGLE
+    scale = np.where(small, 1.0 + t * t / 6.0, t / np.where(small, 1.0, sin_t))
+    out = w * scale[:, None]
+    for k in np.flatnonzero(t >= np.pi - 1e-3):  # rare: sin t carries no accuracy there
+        out[k] = so3_log(R[k])
+    return out
+
+
+def right_jacobian_inverse_many(phi) -> np.ndarray:
+    """``J_r(phi_k)^-1 = I + [phi]/2 + (1/t^2 - (1 + cos t) / (2 t sin t)) [phi]^2`` (K, 3, 3).
+
+    ``Log(Exp(phi) Exp(d)) = phi + J_r(phi)^-1 d + O(|d|^2)``; defined for t < pi.
+    """
+    phi = np.asarray(phi, dtype=float).reshape(-1, 3)
+    t2 = np.einsum("ki,ki->k", phi, phi)
+    t = np.sqrt(t2)
+    small = t < SMALL_ANGLE
+    safe = np.where(small, 1.0, t)
+    c = np.where(small, 1.0 / 12.0 + t2 / 720.0,
+                 1.0 / (safe * safe) - (1.0 + np.cos(safe)) / (2.0 * safe * np.sin(safe)))
+    W = skew(phi)
+    return np.eye(3) + 0.5 * W + c[:, None, None] * np.matmul(W, W)

@@ -1,0 +1,1 @@
+"""Chapter 6: 3D pose graphs (SE(3))."""

@@ -1,0 +1,46 @@
+"""Chapter 6 exercise: the SE(3) pose-graph edge, its Jacobians on the manifold, and the
+retraction, vectorized over edges and poses.
+
+A pose is ``T = (R, t)`` (``x_world = R x_body + t``); N poses are ``t`` (N, 3) and ``R``
+(N, 3, 3); M edges ``i -> j`` measure ``Z = (R_z, t_z)``, pose j seen from pose i. With
+``D = Z^-1 T_i^-1 T_j`` the error (translation first, as in g2o files) is::
+
+    d   = R_i^T (t_j - t_i)
+    e   = [R_z^T (d - t_z);  Log(R_z^T R_i^T R_j)]                       (M, 6)
+
+A step ``delta = (rho, phi)`` (6,) moves a pose on the right::
+
+    T (+) delta = (R Exp(phi), t + R rho)
+
+and the Jacobians are taken in that perturbation (``J_r^-1`` is the inverse right Jacobian
+of SO(3), at ``e_phi = e[3:]``)::
+
+    A = de/d delta_i = [[-R_z^T,  R_z^T [d]x              ],
+                        [ 0,      -J_r^-1(e_phi) R_j^T R_i  ]]             (M, 6, 6)
+    B = de/d delta_j = [[ D_R,    0                        ],
+                        [ 0,      J_r^-1(e_phi)             ]]             (M, 6, 6)
+
+with ``D_R = R_z^T R_i^T R_j``. g2o's ``EdgeSE3`` error is ``[D_t; vec(q(D_R))]``, about
+half our rotation part (``vec(q) = sin(theta/2) u``); GTSAM's ``BetweenFactor<Pose3>`` is
+``Logmap(D)``, rotation first, whose translation part ``V(phi)^-1 D_t`` equals ours to
+first order.
+
+Given (``course.geometry``): ``so3.skew`` (K, 3) -> (K, 3, 3), ``so3.exp_many``,
+``so3.log_many`` and ``so3.right_jacobian_inverse_many``, all vectorized over K.
+"""
+
+import numpy as np
+
+from course.geometry.so3 import exp_many, log_many, right_jacobian_inverse_many, skew
+
+
+def edge_errors_and_jacobians(t, R, edges_i, edges_j, t_z, R_z):
+    """``e`` (M, 6), ``A = de/d delta_i`` (M, 6, 6), ``B = de/d delta_j`` (M, 6, 6) of all
+    edges at once, no Python loop over edges (formulas in the module docstring)."""
+    raise NotImplementedError("TODO pose_graph_3d.edge_errors_and_jacobians: not implemented yet")
+
+
+def retract(t, R, delta):
+    """The poses moved by ``delta`` (N, 6), one ``(rho, phi)`` per pose: ``(t + R rho, R Exp(phi))``,
+    shapes (N, 3) and (N, 3, 3)."""
+    raise NotImplementedError("TODO pose_graph_3d.retract: not implemented yet")

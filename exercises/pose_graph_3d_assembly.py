@@ -1,0 +1,39 @@
+"""Chapter 6 exercise: the normal equations of a 3D pose graph, assembled in 6x6 blocks into
+a sparsity pattern computed once.
+
+Edge k (``i -> j``) contributes, with ``J_k = [A_k  B_k]`` (6, 12) and ``Omega_k`` (6, 6)::
+
+    H[i, i] += A^T Omega A    H[i, j] += A^T Omega B    H[j, j] += B^T Omega B
+    b[i]    += A^T Omega e    b[j]    += B^T Omega e    chi2    += e^T Omega e
+
+(blocks of 6 rows and columns: pose p's are ``6p .. 6p + 5``, translation then rotation).
+Only H's upper triangle is stored (CSC, diagonal included), as in chapter 2. A fixed pose
+keeps an identity diagonal block and zero rows, columns and b, so its step is zero.
+"""
+
+import numpy as np
+import scipy.sparse as sp
+
+
+class SparseAssembler3D:
+    """Scatter-add edge blocks into the upper triangle of a sparse H whose pattern is fixed.
+
+    ``__init__`` finds, once, where each edge's entries go: for every edge, the position in
+    ``H.data`` of each of the 144 entries of ``J^T Omega J`` (12, 12) that lands in the
+    upper triangle (78 of them: 21 + 21 on the two diagonal blocks, 36 off it), and the
+    pattern itself. ``assemble`` then costs batched products and one ``np.bincount``.
+
+    Attribute ``diagonal_positions`` (6N,): where H's diagonal entries sit in ``H.data``
+    (the LM loop adds its damping there).
+    """
+
+    def __init__(self, num_poses, edges_i, edges_j, fixed):
+        raise NotImplementedError("TODO pose_graph_3d_assembly.SparseAssembler3D.__init__: not implemented yet")
+
+    def assemble(self, e, A, B, information):
+        """Upper-triangular ``H`` (CSC, (6N, 6N)), ``b`` (6N,) and ``chi2`` (float).
+
+        Args: e (M, 6), A, B (M, 6, 6) from ``pose_graph_3d.edge_errors_and_jacobians``;
+        information (M, 6, 6).
+        """
+        raise NotImplementedError("TODO pose_graph_3d_assembly.SparseAssembler3D.assemble: not implemented yet")
