@@ -67,6 +67,8 @@ LOADED_BY = {
     "parallel_assembly.py": ("parallel_assembly",),
     "marginalisation.py": ("marginalisation",),
     "imu_preintegration.py": ("imu_preintegration",),
+    "pose_graph_3d.py": ("pose_graph_3d.",),
+    "pose_graph_3d_assembly.py": ("pose_graph_3d_assembly",),
 }
 
 
@@ -901,11 +903,93 @@ ALTERNATIVES_IMU_PREINTEGRATION = {
         "r_v = np.linalg.solve(R_i, v_j - v_i - g * T) - dv", set()),
 }
 
+P3_E, P3_A, P3_B = ("pose_graph_3d.edge_errors_and_jacobians: " + t for t in (
+    "error e", "Jacobian A = de/d delta_i", "Jacobian B = de/d delta_j"))
+P3_RETRACT = "pose_graph_3d.retract: the retraction T (+) delta"
+P3_ASM = "pose_graph_3d_assembly.SparseAssembler3D: H (upper, CSC), b, chi2 in 6x6 blocks"
+BUGS_POSE_GRAPH_3D = {
+    "p3_translation_unrotated": V(
+        "pose_graph_3d.py", [], 'e[:, :3] = np.einsum("mab,mb->ma", RzT, d - t_z)', "e[:, :3] = d - t_z",
+        {P3_E}, "rotated into the measurement's frame"),
+    "p3_measurement_last": V(
+        "pose_graph_3d.py", [], "D_R = np.matmul(RzT, np.matmul(RiT, Rj))", "D_R = np.matmul(np.matmul(RiT, Rj), RzT)",
+        {P3_E, P3_A, P3_B}, "the measurement's inverse comes first"),
+    # e, A and B all negated: the Jacobians agree with the student's own e, so the feedback says to fix e first
+    "p3_error_negated": V(
+        "pose_graph_3d.py", [], "return e, A, B", "return -e, -A, -B", {P3_E, P3_A, P3_B}, "fix e first"),
+    "p3_log_small_angle": V(
+        "pose_graph_3d.py", [], "e[:, 3:] = log_many(D_R)",
+        "e[:, 3:] = np.stack([D_R[:, 2, 1] - D_R[:, 1, 2], D_R[:, 0, 2] - D_R[:, 2, 0], "
+        "D_R[:, 1, 0] - D_R[:, 0, 1]], axis=1) / 2", {P3_E, P3_A, P3_B}, "sin(theta) u"),
+    "p3_no_jr_inverse": V(
+        "pose_graph_3d.py", [], "Jr_inv = right_jacobian_inverse_many(e[:, 3:])",
+        "Jr_inv = np.tile(np.eye(3), (len(edges_i), 1, 1))", {P3_A, P3_B}, "J_r^-1(e_phi) is missing"),
+    "p3_jr_forward": V(
+        "pose_graph_3d.py", [], "Jr_inv = right_jacobian_inverse_many(e[:, 3:])",
+        "Jr_inv = np.linalg.inv(right_jacobian_inverse_many(e[:, 3:]))", {P3_A, P3_B},
+        "J_r(e_phi) where J_r^-1(e_phi) belongs"),
+    "p3_a_rotation_without_relative_rotation": V(
+        "pose_graph_3d.py", [], "A[:, 3:, 3:] = -np.matmul(Jr_inv, np.matmul(Rj.transpose(0, 2, 1), Ri))",
+        "A[:, 3:, 3:] = -Jr_inv", {P3_A}, "d e_phi / d phi_i = -J_r^-1 R_j^T R_i"),
+    "p3_cross_product_sign": V(
+        "pose_graph_3d.py", [], "A[:, :3, 3:] = np.matmul(RzT, skew(d))", "A[:, :3, 3:] = -np.matmul(RzT, skew(d))",
+        {P3_A}, "+R_z^T [d]x"),
+    "p3_b_translation_identity": V(
+        "pose_graph_3d.py", [], "B[:, :3, :3] = D_R", "B[:, :3, :3] = np.eye(3)", {P3_B},
+        "d e_t / d rho_j = R_z^T R_i^T R_j"),
+    # not in the catalogue: J_r^-T is J_l^-1, the left perturbation's; the feedback still says the derivative is
+    # wrong (not the model) and in which block
+    "p3_b_rotation_transposed": V(
+        "pose_graph_3d.py", [], "B[:, 3:, 3:] = Jr_inv", "B[:, 3:, 3:] = Jr_inv.transpose(0, 2, 1)", {P3_B},
+        "does not agree with central differences of your own e either"),
+    "p3_retract_world_translation": V(
+        "pose_graph_3d.py", ["def retract"], 't + np.einsum("nab,nb->na", R, delta[:, :3])', "t + delta[:, :3]",
+        {P3_RETRACT}, "t + R rho, not t + rho"),
+    "p3_retract_left": V(
+        "pose_graph_3d.py", ["def retract"], "np.matmul(R, exp_many(delta[:, 3:]))",
+        "np.matmul(exp_many(delta[:, 3:]), R)", {P3_RETRACT}, "R Exp(phi), not Exp(phi) R"),
+}
+ALTERNATIVES_POSE_GRAPH_3D = {
+    "p3_relative_rotation_by_einsum": V(
+        "pose_graph_3d.py", [], "D_R = np.matmul(RzT, np.matmul(RiT, Rj))",
+        'D_R = np.einsum("mba,mcb,mcd->mad", R_z, Ri, Rj)', set()),
+    "p3_a_rotation_transposed_product": V(
+        "pose_graph_3d.py", [], "A[:, 3:, 3:] = -np.matmul(Jr_inv, np.matmul(Rj.transpose(0, 2, 1), Ri))",
+        "A[:, 3:, 3:] = -Jr_inv @ np.matmul(RiT, Rj).transpose(0, 2, 1)", set()),
+    "p3_retract_by_einsum": V(
+        "pose_graph_3d.py", ["def retract"], "np.matmul(R, exp_many(delta[:, 3:]))",
+        'np.einsum("nab,nbc->nac", R, exp_many(delta[:, 3:]))', set()),
+}
+BUGS_POSE_GRAPH_3D_ASSEMBLY = {
+    "p3a_no_information": V(
+        "pose_graph_3d_assembly.py", [], "JtO = np.matmul(J.transpose(0, 2, 1), information)",
+        "JtO = J.transpose(0, 2, 1)", {P3_ASM}, "weigh every edge by its information"),
+    "p3a_lower_triangle": V(
+        "pose_graph_3d_assembly.py", [], "upper = rows <= cols", "upper = rows >= cols", {P3_ASM},
+        "H holds the lower triangle"),
+    "p3a_b_sign": V(
+        "pose_graph_3d_assembly.py", [], "b = np.bincount(", "b = -np.bincount(", {P3_ASM},
+        "b has the opposite sign"),
+    "p3a_fixed_poses_free": V(
+        "pose_graph_3d_assembly.py", [], "data[self._dead] = 0.0\n        data[self._fixed_diagonal] = 1.0",
+        "pass", {P3_ASM}, "a fixed pose keeps an identity diagonal block"),
+    "p3a_chi2_unweighted": V(
+        "pose_graph_3d_assembly.py", [], 'chi2 = float(np.einsum("mi,mij,mj->", e, information, e))',
+        "chi2 = float(np.sum(e * e))", {P3_ASM}, "weighted by the information"),
+}
+ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY = {
+    "p3a_add_at": V(
+        "pose_graph_3d_assembly.py", [], "data = np.bincount(self._positions, weights=H_edges, minlength=self.nnz)",
+        "data = np.zeros(self.nnz)\n        np.add.at(data, self._positions, H_edges)", set()),
+}
+
 VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION,
             **BUGS_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS, **ALTERNATIVES_ROBUST_KERNELS,
             **BUGS_GAUGE, **ALTERNATIVES_GAUGE, **BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY,
             **BUGS_MARGINALISATION, **ALTERNATIVES_MARGINALISATION,
-            **BUGS_IMU_PREINTEGRATION, **ALTERNATIVES_IMU_PREINTEGRATION}
+            **BUGS_IMU_PREINTEGRATION, **ALTERNATIVES_IMU_PREINTEGRATION,
+            **BUGS_POSE_GRAPH_3D, **ALTERNATIVES_POSE_GRAPH_3D, **BUGS_POSE_GRAPH_3D_ASSEMBLY,
+            **ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY}
 
 
 def apply(text: str, variant: Variant) -> str:

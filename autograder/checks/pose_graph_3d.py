@@ -1,0 +1,180 @@
+"""Checks of ``pose_graph_3d``: the SE(3) edge error, its Jacobians on the manifold, and the
+retraction, each graded alone.
+
+Public inputs: 6 poses turned far from each other and 11 edges (some written from the
+larger index to the smaller), one edge whose residual rotation is 2.9 rad, one whose residual
+is 1e-9 rad (the small-angle branch); the retraction with steps of about 0.4, one zero and one
+of 1e-10 rad; hidden inputs: the same kind from the hidden seed.
+
+The edge function is also called on the same edges split apart (every edge its own two
+poses) with every first pose, then every second pose, moved by ``+-h`` along each of the
+six tangent directions (the right perturbation ``T (Exp(phi), rho)``): a wrong Jacobian's
+feedback then says whether it agrees with central differences of the student's own e (the
+model is wrong) or not (the derivative is wrong), and which of its blocks differ.
+"""
+
+from functools import cache
+
+import numpy as np
+
+from autograder.checks import Call, Verdict
+from autograder.checks.common import check, values
+from autograder.feedback import fields_of
+from course.geometry import se3
+from course.geometry.so3 import exp_many
+
+MODULES = ("pose_graph_3d",)
+EDGES = "pose_graph_3d.edge_errors_and_jacobians"
+RETRACT = "pose_graph_3d.retract"
+#: what the moved calls' ``where`` ends with (the known mistakes skip them)
+DIFFERENCES = "(for central differences of e)"
+STEP = 1e-6
+#: the four 3x3 blocks of A and B, as feedback names them
+BLOCKS = (("d e_t / d rho (translation rows, translation columns)", slice(0, 3), slice(0, 3)),
+          ("d e_t / d phi (translation rows, rotation columns)", slice(0, 3), slice(3, 6)),
+          ("d e_phi / d rho (rotation rows, translation columns)", slice(3, 6), slice(0, 3)),
+          ("d e_phi / d phi (rotation rows, rotation columns)", slice(3, 6), slice(3, 6)))
+
+
+@cache
+def graph(seed=None) -> dict:
+    """``t`` (6, 3), ``R`` (6, 3, 3), ``edges_i``, ``edges_j`` (11,), ``t_z`` (11, 3), ``R_z``
+    (11, 3, 3); the measurements near the truth except the chosen large residuals."""
+    rng = np.random.default_rng(71 if seed is None else [seed, 271])
+    n = 6
+    t = rng.normal(0, 2.0, (n, 3))
+    R = exp_many(rng.normal(0, 1.0, (n, 3)))
+    pairs = [(0, 1), (1, 2), (2, 3), (3, 4), (4, 5), (5, 0), (2, 0), (4, 1), (1, 3), (5, 2), (3, 5)]
+    ei, ej = (np.array(v) for v in zip(*pairs))
+    t_rel, R_rel = se3.between(t[ei], R[ei], t[ej], R[ej])
+    # the measurements: the relative poses moved by small noise, then three chosen residuals
+    noise = rng.normal(0, 0.05, (len(ei), 6))
+    noise[3, 3:] = 1e-9 * rng.normal(size=3)  # the small-angle case
+    axis = rng.normal(size=3)
+    noise[7, 3:] = 2.9 * axis / np.linalg.norm(axis)  # a residual rotation near pi
+    R_z = np.matmul(R_rel, exp_many(-noise[:, 3:]))
+    t_z = t_rel + noise[:, :3]
+    return {"t": t, "R": R, "edges_i": ei, "edges_j": ej, "t_z": t_z, "R_z": R_z}
+
+
+def _where(g) -> str:
+    return (f"on a graph of {len(g['t'])} poses and {len(g['edges_i'])} edges (edge 3's residual rotation "
+            "1e-9 rad, edge 7's 2.9 rad)")
+
+
+def split(g) -> dict:
+    """The same edges, each with its own two poses: edge k joins pose k and pose M + k."""
+    m = len(g["edges_i"])
+    return {"t": np.concatenate([g["t"][g["edges_i"]], g["t"][g["edges_j"]]]),
+            "R": np.concatenate([g["R"][g["edges_i"]], g["R"][g["edges_j"]]]),
+            "edges_i": np.arange(m), "edges_j": np.arange(m, 2 * m), "t_z": g["t_z"], "R_z": g["R_z"]}
+
+
+def _args(g):
+    return (g["t"], g["R"], g["edges_i"], g["edges_j"], g["t_z"], g["R_z"])
+
+
+def _edge_calls(seed=None):
+    """The edges, then the split edges with every first (then second) pose moved by +-h along
+    each tangent direction: 1 + 2 * 2 * 6 calls."""
+    g = graph(seed)
+    target = "pose_graph_3d:edge_errors_and_jacobians"
+    calls = [Call(target, _args(g), returns=("e", "A", "B"), where=_where(g))]
+    s, m = split(g), len(g["edges_i"])
+    for side, poses in (("first", slice(0, m)), ("second", slice(m, 2 * m))):
+        for direction in range(6):
+            for sign in (1.0, -1.0):
+                delta = np.zeros((2 * m, 6))
+                delta[poses, direction] = sign * STEP
+                t, R = se3.retract(s["t"], s["R"], delta)
+                name = ("rho_x", "rho_y", "rho_z", "phi_x", "phi_y", "phi_z")[direction]
+                calls.append(Call(target, (t, R, *_args(s)[2:]), returns=("e", "A", "B"),
+                                  where=_where(g) + f", every edge's {side} pose moved by {name} "
+                                                    f"{'+' if sign > 0 else '-'}{STEP:g} {DIFFERENCES}"))
+    return calls
+
+
+def _retract_calls(seed=None):
+    g = graph(seed)
+    rng = np.random.default_rng(7 if seed is None else [seed, 272])
+    delta = rng.normal(0, 0.4, (len(g["t"]), 6))
+    delta[0] = 0.0
+    delta[1, 3:] = [1e-10, 0.0, 0.0]  # the small-angle case
+    return [Call("pose_graph_3d:retract", (g["t"], g["R"], delta), returns=("t", "R"),
+                 where=f"on {len(g['t'])} poses, pose 0's step zero, pose 1's rotation 1e-10 rad")]
+
+
+def own_differences(ctx, name: str):
+    """(M, 6, 6): central differences of the student's own e along each tangent direction of
+    the first (``name == "A"``) or second pose; None when a call failed."""
+    first = 1 if name == "A" else 13
+    columns = []
+    for direction in range(6):
+        k = first + 2 * direction
+        (plus, bad_plus), (minus, bad_minus) = (fields_of(ctx.student[k], ctx.calls[k]),
+                                                fields_of(ctx.student[k + 1], ctx.calls[k + 1]))
+        if bad_plus or bad_minus or "e" not in plus or "e" not in minus:
+            return None
+        e_plus, e_minus = np.asarray(plus["e"], float), np.asarray(minus["e"], float)
+        if e_plus.shape != e_minus.shape or e_plus.ndim != 2 or e_plus.shape[1] != 6:
+            return None
+        difference = e_plus - e_minus
+        difference[:, 3:] = (difference[:, 3:] + np.pi) % (2 * np.pi) - np.pi  # a Log that jumps at pi
+        columns.append(difference / (2 * STEP))
+    return np.stack(columns, axis=-1)
+
+
+def residual_or_jacobian(name: str, judge):
+    """``judge`` of the Jacobian ``name`` ("A" or "B"); when the student's is wrong, the
+    feedback also says whether it agrees with central differences of their own e (the model
+    is wrong, not the derivative) or not, and which 3x3 blocks differ from the reference."""
+
+    def judged(ctx):
+        verdict = judge(ctx)
+        if verdict.fraction >= 1.0 or verdict.not_implemented or ctx.student[0].error is not None:
+            return verdict
+        student, bad = fields_of(ctx.student[0], ctx.calls[0])
+        reference, _ = fields_of(ctx.reference[0], ctx.calls[0])
+        fd = own_differences(ctx, name)
+        got, want = student.get(name), reference.get(name)
+        if bad or got is None or want is None or fd is None or np.shape(got) != np.shape(want) \
+                or fd.shape != np.shape(got):
+            return verdict
+        got, want = np.asarray(got, float), np.asarray(want, float)
+        differ = [text for text, rows, cols in BLOCKS
+                  if not np.allclose(got[:, rows, cols], want[:, rows, cols], rtol=1e-6, atol=1e-8)]
+        where = f" ({'; '.join(differ)} differ from the reference)" if differ else ""
+        e_got = np.asarray(student.get("e", np.nan), float)
+        e_want = np.asarray(reference["e"], float)
+        e_right = e_got.shape == e_want.shape and np.allclose(e_got, e_want, rtol=1e-8, atol=1e-10)
+        gap = np.abs(got - fd) - 1e-4 * (np.abs(fd) + 1.0)
+        if not np.isfinite(gap).all() or (gap > 0).any():
+            index = tuple(int(k) for k in np.unravel_index(int(np.nanargmax(gap)), gap.shape))
+            said = (f"\nResidual or Jacobian: your {name} does not agree with central differences of your own e "
+                    f"either ({name}{list(index)} = {got[index]:.6g}, your e's differences give {fd[index]:.6g}): "
+                    f"the derivative is wrong{where}" + ("; your e is right." if e_right else
+                                                          "; your e is wrong too (see the error check)."))
+        else:
+            said = (f"\nResidual or Jacobian: your {name} agrees with central differences of your own e{where}: "
+                    "the derivative is right for the e you compute, so the error itself is wrong: fix e first "
+                    "(the error check), then the Jacobians that follow from it.")
+        return Verdict(verdict.fraction, verdict.message + said, verdict.not_implemented)
+
+    return judged
+
+
+_LABELS = {"e": "e[{}]", "A": "A[{}]", "B": "B[{}]", "t": "t[{}]", "R": "R[{}]"}
+
+CHECKS = [
+    check(EDGES, "error e", 2, _edge_calls, values(("e",), 1e-8, 1e-10, "e = [R_z^T (R_i^T (t_j - t_i) - t_z); "
+                                                                "Log(R_z^T R_i^T R_j)]", _LABELS)),
+    check(EDGES, "Jacobian A = de/d delta_i", 3, _edge_calls, residual_or_jacobian("A", values(
+        ("A",), 1e-6, 1e-8, "A = [[-R_z^T, R_z^T [d]x], [0, -J_r^-1(e_phi) R_j^T R_i]] for the right "
+                            "perturbation T (Exp(phi), rho)", _LABELS))),
+    check(EDGES, "Jacobian B = de/d delta_j", 2, _edge_calls, residual_or_jacobian("B", values(
+        ("B",), 1e-6, 1e-8, "B = [[R_z^T R_i^T R_j, 0], [0, J_r^-1(e_phi)]] for the right perturbation "
+                            "T (Exp(phi), rho)", _LABELS))),
+    check(RETRACT, "the retraction T (+) delta", 1, _retract_calls, values(
+        ("t", "R"), 1e-10, 1e-12, "T (+) (rho, phi) = (R Exp(phi), t + R rho): the step is in the pose's own frame",
+        _LABELS)),
+]
