@@ -26,7 +26,7 @@ from course.geometry.so3 import exp_many
 MODULES = ("pose_graph_3d",)
 EDGES = "pose_graph_3d.edge_errors_and_jacobians"
 RETRACT = "pose_graph_3d.retract"
-#: what the moved calls' ``where`` ends with (the known mistakes skip them)
+#: what the moved calls' ``where`` ends with (feedback names the first call's causes only)
 DIFFERENCES = "(for central differences of e)"
 STEP = 1e-6
 #: the four 3x3 blocks of A and B, as feedback names them

@@ -1,3 +1,4 @@
+# RELEASE: omit
 """Known mistakes in ``pose_graph_3d`` (see ``autograder.mistakes``): the SE(3) edge written
 with one slip, and the retraction in the wrong frame or off the manifold."""
 

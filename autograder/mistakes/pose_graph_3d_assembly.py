@@ -1,3 +1,4 @@
+# RELEASE: omit
 """Known mistakes in ``pose_graph_3d_assembly`` (see ``autograder.mistakes``)."""
 
 import numpy as np
