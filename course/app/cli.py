@@ -174,6 +174,9 @@ def cmd_demo(args) -> int:
         pose_written, pose_todo = _demo_pose_graphs(impl, out, args.init)
         written += pose_written
         todo += pose_todo
+        pose3d_written, pose3d_todo = _demo_pose_graphs_3d(impl, out)
+        written += pose3d_written
+        todo += pose3d_todo
         bal_written, bal_todo = _demo_bundle_adjustment(impl, out)
         written += bal_written
         todo += bal_todo
@@ -224,6 +227,38 @@ def _demo_pose_graphs(impl, out, init="file") -> tuple:
     return written, todo
 
 
+#: chapter 6 in the demo: pose3example ships with gtsam (no download); smallGrid3D where the data folder is
+DEMO_3D = ("pose3example", "smallGrid3D")
+#: under every 3D table: what its final chi2 column means
+NOTE_3D = ("final chi2 is our error, [D_t; Log(D_R)], on every back end's solution: g2o minimises its own "
+           "(rotation part vec(q), about half the angle) and GTSAM its Logmap, so where residual rotations are "
+           "large their minima are not ours")
+
+
+def _demo_pose_graphs_3d(impl, out) -> tuple:
+    """Every method and peer on ``DEMO_3D`` from the file's poses; returns (paths written, the runs
+    that stopped at a TODO)."""
+    from course.app import compare
+    from course.problems.posegraph3d import dataset as datasets
+
+    written, todo = [], []
+    for name in DEMO_3D:
+        try:
+            graph = datasets.load_dataset(name)
+        except DatasetError as exc:
+            print(f"\n{name} skipped: {exc}")
+            continue
+        progress = _progress("posegraph3d", None, None, name)
+        runs = compare.run_posegraph3d(graph, impl=impl, unimplemented="row", progress=progress)
+        progress.close()
+        todo += _todo(runs)
+        print("\n" + compare.format_table(runs, title=f"{name} (3D): {graph.num_poses} poses, {graph.num_edges} edges; "
+                                                      f"impl {impl}; init file"))
+        print(NOTE_3D)
+        written.append(write_json(out / f"{name}.json", compare.to_json(name, runs)))
+    return written, todo
+
+
 #: chapter 4's demo problem: generated (no download), every back end in a few seconds
 DEMO_BAL = "bal-synthetic:10:200"
 
@@ -264,7 +299,8 @@ def _progress(kind, methods, backends, label):
     from course.app import compare
     from course.core.progress import Progress
 
-    plan = {"curve": compare.curve_plan, "bal": compare.bal_plan}.get(kind, compare.posegraph_plan)(methods, backends)
+    plan = {"curve": compare.curve_plan, "bal": compare.bal_plan,
+            "posegraph3d": compare.posegraph3d_plan}.get(kind, compare.posegraph_plan)(methods, backends)
     return Progress(len(plan), label=label)
 
 
@@ -275,7 +311,7 @@ def cmd_compare(args) -> int:
     impl = args.impl or default_impl()
     methods, backends = _names(args.methods), _names(args.backends)
     init = {}
-    if runner.kind == "posegraph":
+    if runner.kind in ("posegraph", "posegraph3d"):
         init = {"init": args.init}
     elif args.init != "file":
         raise ValueError(f"--init {args.init}: only pose graphs have an initialisation; "
@@ -286,6 +322,8 @@ def cmd_compare(args) -> int:
     progress.close()
     where = f"impl {impl}; init {args.init}" if init else f"impl {impl}"
     print(compare.format_table(runs, title=f"{args.dataset} ({where})"))
+    if runner.kind == "posegraph3d":
+        print(NOTE_3D)
     if runner.kind == "posegraph":
         ate = compare.format_ate(runs)
         if ate:
@@ -297,6 +335,8 @@ def cmd_compare(args) -> int:
     if args.plot:
         from course.app import plot
 
+        if runner.kind == "posegraph3d":
+            raise ValueError("--plot: the 3D pose graphs have no plot yet")
         if runner.kind == "posegraph":
             from course.problems.posegraph import dataset as datasets
 
@@ -310,10 +350,11 @@ def cmd_compare(args) -> int:
 
 def cmd_datasets(args) -> int:
     from course.problems.posegraph import dataset as datasets
+    from course.problems.posegraph3d import dataset as datasets3d
 
     print(f"data folder: {data_dir()} (override with COURSE_DATA)")
     print(f"{'name':18} {'poses':>6} {'edges':>6}  {'format':9}  where")
-    for info in datasets.list_datasets():
+    for info in [*datasets.list_datasets(), *datasets3d.list_datasets()]:
         poses = "?" if info.poses is None else info.poses
         edges = "?" if info.edges is None else info.edges
         where = info.origin if info.available else f"{info.origin} (missing: {info.reason})"

@@ -357,15 +357,80 @@ def _bal_runner(dataset, impl=None, methods=None, backends=None, **options):
     return run_bal(load_bal(dataset), impl=impl, methods=methods, backends=backends, **options)
 
 
+# ---------------------------------------------------------------- 3D pose graphs (chapter 6)
+
+def posegraph3d_plan(methods=None, backends=None) -> list:
+    """The ``(backend, method)`` pairs to run on a 3D pose graph, filtered, in table order."""
+    return filter_pairs(registry.pairs("posegraph3d"), methods, backends, "3D pose graphs")
+
+
+def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
+                    unimplemented="raise", progress=None, init="file") -> list:
+    """Every method and peer on one ``PoseGraph3D`` from the file's poses, same fixed poses.
+
+    Returns ``list[RunResult]`` (``params`` the packed poses (12N,), ``final_chi2`` our error
+    for every back end, see ``course.geometry.se3``). Arguments as in ``run_posegraph``; the
+    only start so far is the file's.
+    """
+    from course.problems.posegraph3d.problem import PoseGraph3DProblem
+    from course.solver import SolverOptions, minimize
+
+    if init != "file":
+        raise ValueError(f"--init {init}: 3D pose graphs start from the file's poses so far (use --init file)")
+    impl = _tree_impl(impl)
+    options = SolverOptions(max_iterations=max_iterations)
+
+    def ours(method, callback):
+        return minimize(PoseGraph3DProblem(graph, impl), method, impl=impl, options=options, callback=callback)
+
+    def peer(backend, method):
+        return _run_peer("posegraph3d", backend, graph, method, max_iterations)
+
+    results = _run_pairs(posegraph3d_plan(methods, backends), ours, peer, repeat, unimplemented, progress)
+    for result in results:
+        result.init, result.init_seconds = init, 0.0
+    return results
+
+
+#: the tags a 3D graph file starts with
+TAGS_3D = ("VERTEX_SE3:QUAT", "EDGE_SE3:QUAT", "VERTEX3", "EDGE3")
+
+
+def is_posegraph3d_name(name: str) -> bool:
+    """A named 3D graph, or a file whose first record is a 3D vertex or edge."""
+    from course.problems.posegraph3d import dataset as datasets
+
+    if name in datasets.dataset_names():
+        return True
+    path = Path(name)
+    if not path.is_file():
+        return False
+    with open(path, encoding="utf-8", errors="replace") as f:
+        for line in f:
+            parts = line.split()
+            if parts and not parts[0].startswith("#"):
+                return parts[0] in TAGS_3D
+    return False
+
+
+def _posegraph3d_runner(dataset, impl=None, methods=None, backends=None, **options):
+    from course.problems.posegraph3d import dataset as datasets
+
+    return run_posegraph3d(datasets.load_dataset(dataset), impl=impl, methods=methods, backends=backends, **options)
+
+
 # ---------------------------------------------------------------- the dataset kinds, in the order tried
 
-#: ``find_runner`` takes the first that matches: ``bal`` before ``posegraph``, whose matcher takes
-#: any existing path
+#: ``find_runner`` takes the first that matches: ``bal`` and ``posegraph3d`` before ``posegraph``,
+#: whose matcher takes any existing path
 RUNNERS: tuple[Runner, ...] = (
     Runner("curve", is_curve_name, _curve_runner, "y = exp(a x^2 + b x + c), 100 generated points (chapter 1)"),
     Runner("bal", is_bal_name, _bal_runner,
            "a BAL problem: ladybug-49, dubrovnik-3-7, bal-synthetic:CAMS:POINTS[:seed] or a BAL file, "
            "each also as NAME:front (without the points behind a camera at the start)"),
+    Runner("posegraph3d", is_posegraph3d_name, _posegraph3d_runner,
+           "a named 3D pose graph (sphere2500, torus3D, parking-garage, smallGrid3D, tinyGrid3D, "
+           "sphere_smallnoise, pose3example) or a g2o SE(3) / .graph file (chapter 6)"),
     Runner("posegraph", is_posegraph_name, _posegraph_runner,
            "a named pose graph (python -m course datasets), manhattan:N, or a TORO/g2o file"),
 )

@@ -249,7 +249,7 @@ _NAMED = {
     "parking-garage": ("data", "se3/parking-garage.g2o", "g2o SE3", 1661, 6275),
     "smallGrid3D": ("data", "se3/smallGrid3D.g2o", "g2o SE3", 125, 297),
     "tinyGrid3D": ("data", "se3/tinyGrid3D.g2o", "g2o SE3", 9, 11),
-    "sphere_smallnoise": ("gtsam", "sphere_smallnoise.graph", "graph (Euler, no information)", 2200, 8647),
+    "sphere_smallnoise": ("gtsam", "sphere_smallnoise.graph", "graph Euler", 2200, 8647),
     "pose3example": ("gtsam", "pose3example.txt", "g2o SE3", 5, 6),
 }
 
