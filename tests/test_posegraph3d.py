@@ -3,8 +3,8 @@ reference, and the g2o and GTSAM peers on the same graph (our error on every sol
 
 import numpy as np
 import pytest
-
 from conftest import needs
+
 from course.core.errors import DatasetError
 from course.geometry import quaternion, se3, so3
 from course.problems.posegraph3d.dataset import load_dataset, read_graph, write_g2o
