@@ -366,19 +366,29 @@ def posegraph3d_plan(methods=None, backends=None) -> list:
 
 def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
                     unimplemented="raise", progress=None, init="file") -> list:
-    """Every method and peer on one ``PoseGraph3D`` from the file's poses, same fixed poses.
+    """Every method and peer on one ``PoseGraph3D``, same start, same fixed poses.
 
     Returns ``list[RunResult]`` (``params`` the packed poses (12N,), ``final_chi2`` our error
-    for every back end, see ``course.geometry.se3``). Arguments as in ``run_posegraph``; the
-    only start so far is the file's.
+    for every back end, see ``course.geometry.se3``). Arguments as in ``run_posegraph``;
+    ``init`` is ``file`` or ``chordal`` (the implementation's ``chordal_3d``, computed once and
+    shared by every back end, its time in each result's ``init_seconds``).
     """
+    from course.problems.posegraph3d.initialise import initialise
     from course.problems.posegraph3d.problem import PoseGraph3DProblem
     from course.solver import SolverOptions, minimize
 
-    if init != "file":
-        raise ValueError(f"--init {init}: 3D pose graphs start from the file's poses so far (use --init file)")
     impl = _tree_impl(impl)
     options = SolverOptions(max_iterations=max_iterations)
+    plan = posegraph3d_plan(methods, backends)
+    try:
+        graph, init_seconds = initialise(graph, init, impl)
+    except NotImplementedError as exc:
+        if unimplemented != "row":
+            raise
+        rows = [RunResult.skipped(backend, method, not_implemented_reason(exc)) for backend, method in plan]
+        for row in rows:
+            row.init = init
+        return rows
 
     def ours(method, callback):
         return minimize(PoseGraph3DProblem(graph, impl), method, impl=impl, options=options, callback=callback)
@@ -386,9 +396,9 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
     def peer(backend, method):
         return _run_peer("posegraph3d", backend, graph, method, max_iterations)
 
-    results = _run_pairs(posegraph3d_plan(methods, backends), ours, peer, repeat, unimplemented, progress)
+    results = _run_pairs(plan, ours, peer, repeat, unimplemented, progress)
     for result in results:
-        result.init, result.init_seconds = init, 0.0
+        result.init, result.init_seconds = init, init_seconds
     return results
 
 

@@ -1,0 +1,119 @@
+"""Chapter 6 exercise: chordal initialisation of a 3D pose graph.
+
+From the file's poses (odometry composed, drifting) Gauss-Newton may not reach the global
+minimum, or takes many iterations. The chordal start (Carlone, Tron, Daniilidis, Dellaert,
+ICRA 2015; GTSAM's ``InitializePose3``) needs no start at all:
+
+1. ``relaxed_rotations``: every edge says ``R_j = R_i R_z``, which is linear in the nine
+   entries of the R's. Drop the constraint that each R is a rotation and solve one sparse
+   linear least-squares problem for the nine entries of every pose's R (one pose, the
+   anchor, held at a given rotation).
+2. ``project_to_so3``: the nearest rotation to each 3x3 result (SVD, determinant fixed).
+3. ``translations_given_rotations``: with the rotations fixed, the edges' translation
+   errors are linear in the positions: a second sparse linear least squares.
+
+``chordal_poses`` (given) chains the three. Conventions as in ``pose_graph_3d``: a pose is
+``(R, t)``, edge k measures ``Z_k = (R_z, t_z)``, pose j seen from pose i; the information
+(M, 6, 6) is for the error ``[D_t; Log(D_R)]``, translation first.
+"""
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+from scipy.sparse.linalg import splu
+
+
+def check_graph(num_poses, edges_i, edges_j, anchor):
+    """``(num_poses, edges_i, edges_j, anchor)`` validated: indices in range, the anchor a
+    vertex, every vertex reached from the anchor (else the systems below are singular)."""
+    num_poses = int(num_poses)
+    edges_i, edges_j = np.asarray(edges_i, dtype=np.int64), np.asarray(edges_j, dtype=np.int64)
+    if edges_i.shape != edges_j.shape or edges_i.ndim != 1:
+        raise ValueError(f"edges_i and edges_j must be (M,) arrays alike, got {edges_i.shape} and {edges_j.shape}")
+    for name, edges in (("edges_i", edges_i), ("edges_j", edges_j)):
+        if edges.size and (edges.min() < 0 or edges.max() >= num_poses):
+            bad = int(np.flatnonzero((edges < 0) | (edges >= num_poses))[0])
+            raise ValueError(f"{name}[{bad}] = {edges[bad]} is not a vertex index in [0, {num_poses})")
+    if not 0 <= int(anchor) < num_poses:
+        raise ValueError(f"anchor must be a vertex index in [0, {num_poses}), got {anchor!r}")
+    adjacency = sp.coo_matrix((np.ones(len(edges_i)), (edges_i, edges_j)), shape=(num_poses, num_poses)).tocsr()
+    reached = csgraph.breadth_first_order(adjacency, int(anchor), directed=False, return_predecessors=False)
+    if len(reached) < num_poses:
+        lost = np.setdiff1d(np.arange(num_poses), reached)
+        raise ValueError(f"disconnected graph: {len(lost)} vertex(es) not reached from the anchor {anchor}, "
+                         f"e.g. {lost[:10].tolist()}")
+    return num_poses, edges_i, edges_j, int(anchor)
+
+
+def unknowns(num_poses, anchor):
+    """Every pose's index among the unknowns (all poses but the anchor, in order; -1 for the
+    anchor), (N,)."""
+    index = np.arange(num_poses) - (np.arange(num_poses) > anchor)
+    index[anchor] = -1
+    return index
+
+
+def relaxed_rotations(num_poses, edges_i, edges_j, R_z, weights, R_anchor, anchor=0):
+    """The relaxation's 3x3 matrices (N, 3, 3), not yet rotations; row ``anchor`` is ``R_anchor``.
+
+    Row a of ``R_j = R_i R_z`` reads, for the rows ``r^a`` of the R's as column vectors,
+    ``r_j^a - R_z^T r_i^a = 0`` (3,): the same linear system for each of the three rows a.
+    Minimize ``sum_k w_k ||r_j^a - R_z^T r_i^a||^2`` over every pose but the anchor. Its
+    normal equations ``H X = G`` (H (3N, 3N), one column of X per row a): with
+    ``J_i = -R_z^T`` and ``J_j = I`` (3, 3), edge k adds::
+
+        H_ii += w I     H_jj += w I     H_ij += -w R_z     H_ji += -w R_z^T
+
+    Eliminate the anchor: ``H_FF X_F = -H_FA X_A`` with ``X_A = R_anchor^T`` (its rows as
+    columns). Solve it sparse (``splu``), then ``R_k[a, :] = X[3k:3k+3, a]``.
+
+    Args: ``weights`` (M,) the rotation weight of each edge (``chordal_poses`` gives
+    ``trace(Omega_rot) / 3``); ``R_z`` (M, 3, 3); ``R_anchor`` (3, 3).
+    Hint: build H with one ``scipy.sparse.coo_matrix((data, (rows, cols)), shape).tocsc()``
+    (duplicates are summed), no Python loop over edges.
+    """
+    num_poses, edges_i, edges_j, anchor = check_graph(num_poses, edges_i, edges_j, anchor)
+    R_anchor = np.asarray(R_anchor, dtype=float)
+    if num_poses == 1:
+        return R_anchor[None].copy()
+    raise NotImplementedError("TODO chordal_3d.relaxed_rotations: not implemented yet")
+
+
+def project_to_so3(M):
+    """The rotation nearest to each M (K, 3, 3) in the Frobenius norm, (K, 3, 3).
+
+    With the SVD ``M = U S V^T`` it is ``U diag(1, 1, d) V^T``, ``d = det(U V^T)`` (+-1):
+    ``U V^T`` alone is the nearest orthogonal matrix, a reflection when d = -1.
+    """
+    raise NotImplementedError("TODO chordal_3d.project_to_so3: not implemented yet")
+
+
+def translations_given_rotations(num_poses, edges_i, edges_j, t_z, R_z, information, R, t_anchor, anchor=0):
+    """Positions t (N, 3) given the rotations R (N, 3, 3); row ``anchor`` is ``t_anchor``.
+
+    The translation error ``e_t = R_z^T (R_i^T (t_j - t_i) - t_z) = (R_i R_z)^T r_k`` with the
+    world-frame residual ``r_k = t_j - t_i - c_k``, ``c_k = R_i t_z``, is linear in t. Minimize
+    ``sum_k r_k^T W_k r_k``, ``W_k = (R_i R_z) Omega_tt (R_i R_z)^T`` (``Omega_tt =
+    information[k, :3, :3]``; the rotation-translation cross terms are ignored, the rotations
+    being fixed), over every position but the anchor's. Normal equations ``H t = g``::
+
+        H_ii += W    H_jj += W    H_ij += -W    H_ji += -W    g_i -= W c    g_j += W c
+
+    then ``H_FF t_F = g_F - H_FA t_anchor``, solved sparse.
+    """
+    num_poses, edges_i, edges_j, anchor = check_graph(num_poses, edges_i, edges_j, anchor)
+    t_anchor = np.asarray(t_anchor, dtype=float)
+    if num_poses == 1:
+        return t_anchor[None].copy()
+    raise NotImplementedError("TODO chordal_3d.translations_given_rotations: not implemented yet")
+
+
+def chordal_poses(num_poses, edges_i, edges_j, t_z, R_z, information, t_anchor, R_anchor, anchor=0):
+    """``(t (N, 3), R (N, 3, 3))``: relaxed rotations (weights ``trace(Omega_rot) / 3``),
+    projected, then the translations given them; the anchor held at ``(t_anchor, R_anchor)``."""
+    information = np.asarray(information, dtype=float)
+    weights = np.trace(information[:, 3:, 3:], axis1=1, axis2=2) / 3.0
+    R = project_to_so3(relaxed_rotations(num_poses, edges_i, edges_j, R_z, weights, R_anchor, anchor))
+    R[anchor] = R_anchor
+    t = translations_given_rotations(num_poses, edges_i, edges_j, t_z, R_z, information, R, t_anchor, anchor)
+    return t, R
