@@ -85,8 +85,8 @@ def relaxed_rotations(num_poses, edges_i, edges_j, R_z, weights, R_anchor, ancho
     eye = np.eye(3)
     block_rows = np.concatenate([np.arange(n), edges_i, edges_j])
     block_cols = np.concatenate([np.arange(n), edges_j, edges_i])
-    blocks = np.concatenate([diagonal[:, None, None] * eye, -w[:, None, None] * R_z,
-                             -w[:, None, None] * R_z.transpose(0, 2, 1)])
+    H_ij, H_ji = -w[:, None, None] * R_z, -w[:, None, None] * R_z.transpose(0, 2, 1)
+    blocks = np.concatenate([diagonal[:, None, None] * eye, H_ij, H_ji])
     a, b = np.divmod(np.arange(9), 3)
     rows = (3 * block_rows[:, None] + a).ravel()
     cols = (3 * block_cols[:, None] + b).ravel()

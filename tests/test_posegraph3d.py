@@ -136,3 +136,23 @@ def test_the_peers_end_where_we_do_in_our_error(data_folder, backend, method):
         ours = minimize(PoseGraph3DProblem(g), "gauss-newton").final_chi2
         theirs = solve(g, method).final_chi2
         assert ours <= theirs * (1 + 1e-9) and theirs == pytest.approx(ours, rel=rel), (name, ours, theirs)
+
+
+def test_the_chordal_start_recovers_a_noise_free_graph_and_shortens_the_solve(data_folder):
+    from course.problems.posegraph3d.initialise import initialise
+
+    t, R = RNG.normal(0, 3.0, (6, 3)), so3.exp_many(RNG.normal(0, 1.5, (6, 3)))
+    ei, ej = np.array([0, 1, 2, 3, 4, 5, 0, 3]), np.array([1, 2, 3, 4, 5, 0, 3, 1])
+    t_z, R_z = se3.between(t[ei], R[ei], t[ej], R[ej])
+    from course.problems.posegraph3d.graph import PoseGraph3D
+
+    exact = PoseGraph3D(np.zeros((6, 3)), np.tile(np.eye(3), (6, 1, 1)), ei, ej, t_z, R_z, np.tile(np.eye(6), (8, 1, 1)))
+    exact.t[0], exact.R[0] = t[0], R[0]
+    start, seconds = initialise(exact, "chordal")
+    np.testing.assert_allclose(start.R, R, atol=1e-10)
+    np.testing.assert_allclose(start.t, t, atol=1e-10)
+    g = load_dataset("smallGrid3D")
+    from_file = minimize(PoseGraph3DProblem(g), "gauss-newton")
+    from_chordal = minimize(PoseGraph3DProblem(initialise(g, "chordal")[0]), "gauss-newton")
+    assert from_chordal.final_chi2 == pytest.approx(from_file.final_chi2, rel=1e-9)
+    assert from_chordal.iterations < from_file.iterations

@@ -69,6 +69,7 @@ LOADED_BY = {
     "imu_preintegration.py": ("imu_preintegration",),
     "pose_graph_3d.py": ("pose_graph_3d.",),
     "pose_graph_3d_assembly.py": ("pose_graph_3d_assembly",),
+    "chordal_3d.py": ("chordal_3d",),
 }
 
 
@@ -983,13 +984,60 @@ ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY = {
         "data = np.zeros(self.nnz)\n        np.add.at(data, self._positions, H_edges)", set()),
 }
 
+C3_REL = "chordal_3d.relaxed_rotations: the relaxation's 3x3 matrices"
+C3_PROJ = "chordal_3d.project_to_so3: the nearest rotation (SVD, determinant fixed)"
+C3_T = "chordal_3d.translations_given_rotations: positions given the rotations"
+BUGS_CHORDAL_3D = {
+    "c3_measurement_not_transposed": V(
+        "chordal_3d.py", [], "H_ij, H_ji = -w[:, None, None] * R_z, -w[:, None, None] * R_z.transpose(0, 2, 1)",
+        "H_ij, H_ji = -w[:, None, None] * R_z.transpose(0, 2, 1), -w[:, None, None] * R_z", {C3_REL}, "(R_z transposed)"),
+    "c3_unweighted": V(
+        "chordal_3d.py", [], "n, w = num_poses, np.asarray(weights, dtype=float)",
+        "n, w = num_poses, np.ones(len(edges_i))", {C3_REL}, "weigh each edge by its weight"),
+    "c3_columns_for_rows": V(
+        "chordal_3d.py", [], "out[index >= 0] = X.reshape(n - 1, 3, 3).transpose(0, 2, 1)",
+        "out[index >= 0] = X.reshape(n - 1, 3, 3)", {C3_REL}, "you returned R^T"),
+    "c3_anchor_sign": V(
+        "chordal_3d.py", [], "rhs = -(H[free][:, fixed] @ R_anchor.T)", "rhs = H[free][:, fixed] @ R_anchor.T",
+        {C3_REL}, "with a minus"),
+    "c3_no_determinant_fix": V(
+        "chordal_3d.py", [], "U[:, :, 2] *= d[:, None]", "U[:, :, 2] *= 1.0", {C3_PROJ}, "is a reflection"),
+    "c3_determinant_on_the_first_column": V(
+        "chordal_3d.py", [], "U[:, :, 2] *= d[:, None]", "U[:, :, 0] *= d[:, None]", {C3_PROJ},
+        "smallest singular value"),
+    "c3_qr_instead_of_svd": V(
+        "chordal_3d.py", ["def project_to_so3"], "    return np.matmul(U, Vt)",
+        "    return np.linalg.qr(np.asarray(M, dtype=float))[0]", {C3_PROJ}, "Gram-Schmidt"),
+    "c3_translation_measurement_unrotated": V(
+        "chordal_3d.py", [], 'c = np.einsum("mab,mb->ma", R[edges_i], t_z)', "c = t_z", {C3_T},
+        "t_z is in pose i's frame"),
+    "c3_translation_weight_unrotated": V(
+        "chordal_3d.py", [], "W = np.matmul(Q, np.matmul(np.asarray(information, dtype=float)[:, :3, :3], "
+                             "Q.transpose(0, 2, 1)))",
+        "W = np.asarray(information, dtype=float)[:, :3, :3]", {C3_T}, "in the world frame the weight is"),
+    "c3_gradient_sign": V(
+        "chordal_3d.py", [], "Wc = np.einsum(\"mab,mb->ma\", W, c)", "Wc = -np.einsum(\"mab,mb->ma\", W, c)",
+        {C3_T}, "g has the opposite sign"),
+}
+ALTERNATIVES_CHORDAL_3D = {
+    "c3_dense_solve": V(
+        "chordal_3d.py", [], 'X = splu(H[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A").solve(np.asarray(rhs))',
+        "X = np.linalg.solve(H[free][:, free].toarray(), np.asarray(rhs))", set()),
+    "c3_determinant_of_m": V(
+        "chordal_3d.py", [], "d = np.linalg.det(np.matmul(U, Vt))", "d = np.sign(np.linalg.det(np.asarray(M)))",
+        set()),
+    "c3_translations_by_lsqr_normal_equations": V(
+        "chordal_3d.py", [], "t[index >= 0] = splu(H[free][:, free].tocsc(), permc_spec=\"MMD_AT_PLUS_A\").solve(rhs)",
+        "t[index >= 0] = sp.linalg.spsolve(H[free][:, free].tocsc(), rhs)", set()),
+}
+
 VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION,
             **BUGS_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS, **ALTERNATIVES_ROBUST_KERNELS,
             **BUGS_GAUGE, **ALTERNATIVES_GAUGE, **BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY,
             **BUGS_MARGINALISATION, **ALTERNATIVES_MARGINALISATION,
             **BUGS_IMU_PREINTEGRATION, **ALTERNATIVES_IMU_PREINTEGRATION,
             **BUGS_POSE_GRAPH_3D, **ALTERNATIVES_POSE_GRAPH_3D, **BUGS_POSE_GRAPH_3D_ASSEMBLY,
-            **ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY}
+            **ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY, **BUGS_CHORDAL_3D, **ALTERNATIVES_CHORDAL_3D}
 
 
 def apply(text: str, variant: Variant) -> str:

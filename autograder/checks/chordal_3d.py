@@ -1,0 +1,90 @@
+"""Checks of ``chordal_3d``: the relaxed rotations (one sparse least squares in the nine entries
+of every R), their projection to SO(3), and the translations given the rotations, each graded
+alone.
+
+Public inputs: 7 poses turned far from each other, 12 edges (a loop and chords, some written
+from the larger index to the smaller), measurements with noise so that the relaxation is not
+exact, the anchor pose 2 (not the first), weights from 0.5 to 5; the projection on 8 matrices
+(general ones, two with a negative determinant, near-rotations, a rotation, a reflection);
+the translations with full, correlated 3x3 information blocks; hidden inputs: the same kind
+from the hidden seed.
+"""
+
+from functools import cache
+
+import numpy as np
+
+from autograder.checks import Call
+from autograder.checks.common import check, values
+from course.geometry import se3
+from course.geometry.so3 import exp_many
+
+MODULES = ("chordal_3d",)
+RELAXED = "chordal_3d.relaxed_rotations"
+PROJECT = "chordal_3d.project_to_so3"
+TRANSLATIONS = "chordal_3d.translations_given_rotations"
+ANCHOR = 2
+
+
+@cache
+def graph(seed=None) -> dict:
+    """Truth ``t`` (7, 3), ``R``; ``edges_i``, ``edges_j`` (12,); noisy ``t_z``, ``R_z``; ``weights``
+    (12,); ``information`` (12, 6, 6) full and positive definite."""
+    rng = np.random.default_rng(81 if seed is None else [seed, 281])
+    n = 7
+    t, R = rng.normal(0, 3.0, (n, 3)), exp_many(rng.normal(0, 1.2, (n, 3)))
+    pairs = [(0, 1), (1, 2), (3, 2), (3, 4), (4, 5), (5, 6), (6, 0), (0, 3), (5, 1), (2, 6), (4, 0), (6, 3)]
+    ei, ej = (np.array(v) for v in zip(*pairs))
+    t_z, R_z = se3.between(t[ei], R[ei], t[ej], R[ej])
+    R_z = np.matmul(R_z, exp_many(rng.normal(0, 0.08, (len(ei), 3))))
+    t_z = t_z + rng.normal(0, 0.2, t_z.shape)
+    L = rng.normal(0, 1.0, (len(ei), 6, 6)) + np.eye(6) * rng.uniform(1.0, 3.0, (len(ei), 6, 1))
+    return {"t": t, "R": R, "edges_i": ei, "edges_j": ej, "t_z": t_z, "R_z": R_z,
+            "weights": rng.uniform(0.5, 5.0, len(ei)), "information": np.matmul(L, L.transpose(0, 2, 1))}
+
+
+def _where(g) -> str:
+    return f"on a graph of {len(g['t'])} poses and {len(g['edges_i'])} edges, anchor {ANCHOR}"
+
+
+def _relaxed_calls(seed=None):
+    g = graph(seed)
+    args = (len(g["t"]), g["edges_i"], g["edges_j"], g["R_z"], g["weights"], g["R"][ANCHOR])
+    return [Call("chordal_3d:relaxed_rotations", args, {"anchor": ANCHOR}, where=_where(g))]
+
+
+def _project_calls(seed=None):
+    rng = np.random.default_rng(83 if seed is None else [seed, 283])
+    M = rng.normal(0, 1.0, (8, 3, 3))
+    for k in (0, 1):  # a negative determinant: U V^T alone is a reflection
+        if np.linalg.det(M[k]) > 0:
+            M[k, :, 0] *= -1.0
+    R = exp_many(rng.normal(0, 1.0, (4, 3)))
+    M[4:6] = R[:2] + rng.normal(0, 0.1, (2, 3, 3))  # near rotations, as the relaxation gives
+    M[6] = R[2]  # a rotation: stays
+    M[7] = -R[3]  # a reflection
+    return [Call("chordal_3d:project_to_so3", (M,), where="on 8 matrices: 0-3 general (0 and 1 with a negative "
+                                                          "determinant), 4-5 near rotations, 6 a rotation, "
+                                                          "7 a reflection")]
+
+
+def _translation_calls(seed=None):
+    g = graph(seed)
+    rng = np.random.default_rng(85 if seed is None else [seed, 285])
+    R = np.matmul(g["R"], exp_many(rng.normal(0, 0.03, (len(g["t"]), 3))))  # rotations near the truth
+    R[ANCHOR] = g["R"][ANCHOR]
+    args = (len(g["t"]), g["edges_i"], g["edges_j"], g["t_z"], g["R_z"], g["information"], R, g["t"][ANCHOR])
+    return [Call("chordal_3d:translations_given_rotations", args, {"anchor": ANCHOR},
+                 where=_where(g) + ", full 3x3 translation information, rotations near the truth")]
+
+
+CHECKS = [
+    check(RELAXED, "the relaxation's 3x3 matrices", 3, _relaxed_calls, values(
+        ("value",), 1e-7, 1e-9, "minimize sum w ||r_j^a - R_z^T r_i^a||^2 over the rows r^a of every R but the "
+                                "anchor's, then R_k[a, :] = X[3k:3k+3, a]", {"value": "R[{}]"})),
+    check(PROJECT, "the nearest rotation (SVD, determinant fixed)", 2, _project_calls, values(
+        ("value",), 1e-9, 1e-11, "U diag(1, 1, det(U V^T)) V^T from the SVD M = U S V^T", {"value": "R[{}]"})),
+    check(TRANSLATIONS, "positions given the rotations", 3, _translation_calls, values(
+        ("value",), 1e-7, 1e-9, "minimize sum r^T W r, r = t_j - t_i - R_i t_z, W = (R_i R_z) Omega_tt (R_i R_z)^T, "
+                                "the anchor held", {"value": "t[{}]"})),
+]
