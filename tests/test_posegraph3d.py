@@ -8,6 +8,7 @@ from conftest import needs
 from course.core.errors import DatasetError
 from course.geometry import quaternion, se3, so3
 from course.problems.posegraph3d.dataset import load_dataset, read_graph, write_g2o
+from course.problems.posegraph3d.graph import PoseGraph3D
 from course.problems.posegraph3d.problem import PoseGraph3DProblem, unpack
 from course.solver.minimizer import minimize
 
@@ -144,9 +145,8 @@ def test_the_chordal_start_recovers_a_noise_free_graph_and_shortens_the_solve(da
     t, R = RNG.normal(0, 3.0, (6, 3)), so3.exp_many(RNG.normal(0, 1.5, (6, 3)))
     ei, ej = np.array([0, 1, 2, 3, 4, 5, 0, 3]), np.array([1, 2, 3, 4, 5, 0, 3, 1])
     t_z, R_z = se3.between(t[ei], R[ei], t[ej], R[ej])
-    from course.problems.posegraph3d.graph import PoseGraph3D
-
-    exact = PoseGraph3D(np.zeros((6, 3)), np.tile(np.eye(3), (6, 1, 1)), ei, ej, t_z, R_z, np.tile(np.eye(6), (8, 1, 1)))
+    exact = PoseGraph3D(np.zeros((6, 3)), np.tile(np.eye(3), (6, 1, 1)), ei, ej, t_z, R_z,
+                        np.tile(np.eye(6), (8, 1, 1)))
     exact.t[0], exact.R[0] = t[0], R[0]
     start, seconds = initialise(exact, "chordal")
     np.testing.assert_allclose(start.R, R, atol=1e-10)

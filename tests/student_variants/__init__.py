@@ -990,7 +990,8 @@ C3_T = "chordal_3d.translations_given_rotations: positions given the rotations"
 BUGS_CHORDAL_3D = {
     "c3_measurement_not_transposed": V(
         "chordal_3d.py", [], "H_ij, H_ji = -w[:, None, None] * R_z, -w[:, None, None] * R_z.transpose(0, 2, 1)",
-        "H_ij, H_ji = -w[:, None, None] * R_z.transpose(0, 2, 1), -w[:, None, None] * R_z", {C3_REL}, "(R_z transposed)"),
+        "H_ij, H_ji = -w[:, None, None] * R_z.transpose(0, 2, 1), -w[:, None, None] * R_z", {C3_REL},
+        "(R_z transposed)"),
     "c3_unweighted": V(
         "chordal_3d.py", [], "n, w = num_poses, np.asarray(weights, dtype=float)",
         "n, w = num_poses, np.ones(len(edges_i))", {C3_REL}, "weigh each edge by its weight"),
