@@ -3,7 +3,8 @@
 ``python -m course benchmark`` prints, on w10000 and m3500, our Gauss-Newton time per
 iteration over g2o's (g2opy), the time to solution of our chordal start plus Gauss-Newton
 over g2o's Gauss-Newton from the file's poses, SuperLU over qdldl on w10000, on intel the
-dense over the sparse solve of one Gauss-Newton system, on ladybug-49 our LM iteration over
+dense over the sparse solve of one Gauss-Newton system, the 3D graphs against g2o
+(:mod:`course.app.benchmark_3d`), on ladybug-49 our LM iteration over
 Ceres' (pycolmap), GTSAM's and scipy's and our time to solution (:mod:`course.app.benchmark_bal`),
 and the parallel assembly's speed-up (:mod:`course.app.parallel_speedup`). Nothing here is a test: the
 machine is shared and noisy. A graph or peer missing here is one line saying so, and the
@@ -116,12 +117,13 @@ def dense_vs_sparse(name="intel", repeats=5, impl="solutions"):
 
 
 def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal=("ladybug-49",), solvers=True,
-         parallel=True):
+         parallel=True, graphs3d=("sphere2500", "torus3D", "parking-garage")):
     """Print the benchmarks of ``impl``; what cannot run here (a graph, g2opy) is one line.
 
     ``bal``: the bundle-adjustment problems of :mod:`course.app.benchmark_bal`; ``solvers``: the
     sparse and dense solves (SuperLU against qdldl on w10000, dense against sparse on intel);
-    ``parallel``: the parallel assembly against the serial one."""
+    ``parallel``: the parallel assembly against the serial one; ``graphs3d``: chapter 6's 3D graphs
+    (:mod:`course.app.benchmark_3d`, medians of ``min(repeats, 3)``: g2o takes minutes on torus3D)."""
     out(f"Gauss-Newton seconds per iteration, ours over g2o (g2opy), median of {repeats}; impl {impl}:")
     out(f"{'graph':10} {'ours ms/it':>11} {'g2o ms/it':>10} {'ratio':>6} {'ours chi2':>14} {'g2o chi2':>14}")
     for name in graphs:
@@ -152,6 +154,10 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal
             f"{r_g2o.iterations:7d} {r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")
     if solvers:
         _solvers(repeats, impl, out)
+    if graphs3d:
+        from course.app import benchmark_3d
+
+        benchmark_3d.main(graphs3d, repeats=min(repeats, 3), impl=impl, out=out)
     # chapter 4: one LM iteration of bundle adjustment against the peers', and our time to solution
     from course.app import benchmark_bal
 
