@@ -70,6 +70,7 @@ LOADED_BY = {
     "pose_graph_3d.py": ("pose_graph_3d.",),
     "pose_graph_3d_assembly.py": ("pose_graph_3d_assembly",),
     "chordal_3d.py": ("chordal_3d",),
+    "gnc.py": ("gnc",),
 }
 
 
@@ -1032,13 +1033,45 @@ ALTERNATIVES_CHORDAL_3D = {
         "t[index >= 0] = sp.linalg.spsolve(H[free][:, free].tocsc(), rhs)", set()),
 }
 
+G_TLS = "gnc.tls_weights: the truncated-least-squares weights"
+G_GM = "gnc.gm_weights: the Geman-McClure weights"
+G_LOOP = "gnc.gnc: the outer loop: mu schedule, weights"
+# a wrong weight function also costs the loop's check: the loop runs with the student's own weights
+BUGS_GNC = {
+    "gnc_tls_without_square_root": V(
+        "gnc.py", [], "w = np.sqrt(c2 * mu * (mu + 1.0) / np.maximum(s, 1e-300)) - mu",
+        "w = c2 * mu * (mu + 1.0) / np.maximum(s, 1e-300) - mu", {G_TLS, G_LOOP}, "the square root is missing"),
+    "gnc_tls_bounds_swapped": V(
+        "gnc.py", [], "lower, upper = mu / (mu + 1.0) * c2, (mu + 1.0) / mu * c2",
+        "upper, lower = mu / (mu + 1.0) * c2, (mu + 1.0) / mu * c2", {G_TLS, G_LOOP}, "the bounds are swapped"),
+    "gnc_gm_not_squared": V(
+        "gnc.py", [], "return (mu * c2 / (np.asarray(s, dtype=float) + mu * c2)) ** 2",
+        "return mu * c2 / (np.asarray(s, dtype=float) + mu * c2)", {G_GM, G_LOOP}, "weight is squared"),
+    "gnc_known_inliers_not_forced": V(
+        "gnc.py", [], "weights[known] = 1.0", "pass", {G_LOOP}, "known inliers keep weight 1"),
+    "gnc_gm_mu_grows": V(
+        "gnc.py", [], "mu = max(mu / factor, 1.0)", "mu = mu * factor", {G_LOOP}, "mu shrinks toward 1"),
+    "gnc_no_new_solve": V(
+        "gnc.py", ["for _ in range(max_iterations)"], "s = np.asarray(solve(weights), dtype=float)", "pass",
+        {G_LOOP}, "solve again after every new set of weights"),
+}
+ALTERNATIVES_GNC = {
+    "gnc_tls_clipped": V(
+        "gnc.py", [], "return np.where(s <= lower, 1.0, np.where(s >= upper, 0.0, w))", "return np.clip(w, 0.0, 1.0)",
+        set()),
+    "gnc_gm_by_division": V(
+        "gnc.py", [], "return (mu * c2 / (np.asarray(s, dtype=float) + mu * c2)) ** 2",
+        "return 1.0 / (1.0 + np.asarray(s, dtype=float) / (mu * c2)) ** 2", set()),
+}
+
 VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION,
             **BUGS_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS, **ALTERNATIVES_ROBUST_KERNELS,
             **BUGS_GAUGE, **ALTERNATIVES_GAUGE, **BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY,
             **BUGS_MARGINALISATION, **ALTERNATIVES_MARGINALISATION,
             **BUGS_IMU_PREINTEGRATION, **ALTERNATIVES_IMU_PREINTEGRATION,
             **BUGS_POSE_GRAPH_3D, **ALTERNATIVES_POSE_GRAPH_3D, **BUGS_POSE_GRAPH_3D_ASSEMBLY,
-            **ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY, **BUGS_CHORDAL_3D, **ALTERNATIVES_CHORDAL_3D}
+            **ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY, **BUGS_CHORDAL_3D, **ALTERNATIVES_CHORDAL_3D,
+            **BUGS_GNC, **ALTERNATIVES_GNC}
 
 
 def apply(text: str, variant: Variant) -> str:

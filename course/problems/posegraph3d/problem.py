@@ -7,6 +7,12 @@ The point is ``x`` (12N,): per pose ``t`` (3) then ``R`` (9, row by row); the st
 the step comes from its chapter-2 ``sparse_solve.SparseCholeskySolver`` (or scipy's SuperLU
 where qdldl is not installed). ``chi2`` is always the framework's own
 (``course.geometry.se3``), so a wrong exercise cannot fake a low cost.
+
+Robust variants: ``weights`` (M,) scale every edge's information (GNC's inner problems,
+``course.problems.posegraph3d.robust``); a ``loss`` (chapter 4's ``course.solver.robust``,
+the implementation's ``robust_kernels``) replaces each edge's ``s_k = e_k^T Omega_k e_k`` by
+``rho(s_k)``: the edge is whitened by the Cholesky factor of its information (``r_k = L_k^T
+e_k``, ``Omega_k = L_k L_k^T``), reweighted, and handed to the assembler with unit information.
 """
 
 import numpy as np
@@ -14,7 +20,9 @@ import numpy as np
 from course.core import impl as impl_loader
 from course.core import peers
 from course.core.errors import SingularSystemError, check_array
+from course.geometry import se3
 from course.problems.posegraph3d.graph import PoseGraph3D
+from course.solver import robust
 from course.solver.linearization import Linearization
 from course.solver.superlu import SuperLUSolver
 
@@ -33,11 +41,23 @@ def unpack(x):
 class PoseGraph3DProblem:
     """``linearize`` / ``chi2`` / ``solve`` / ``retract`` for one 3D graph and implementation."""
 
-    def __init__(self, graph: PoseGraph3D, impl="solutions", solver=None):
+    def __init__(self, graph: PoseGraph3D, impl="solutions", solver=None, weights=None, loss=None):
         """``solver``: an object with ``solve(H_upper, b) -> dx`` (default: the implementation's
-        sparse Cholesky, or SuperLU without qdldl)."""
+        sparse Cholesky, or SuperLU without qdldl); ``weights`` (M,) >= 0 and ``loss``
+        (``(kernel, scale)``, scale in units of sqrt(s)) as in the module docstring."""
         self.graph = graph
         self.impl = impl_loader.load(impl)
+        self.information = graph.information
+        if weights is not None:
+            weights = np.asarray(weights, dtype=float)
+            if weights.shape != (graph.num_edges,) or not np.all(np.isfinite(weights)) or np.any(weights < 0):
+                raise ValueError(f"weights must be {graph.num_edges} finite numbers >= 0")
+            self.information = graph.information * weights[:, None, None]
+        self.loss = robust.RobustLoss.of(loss)
+        if self.loss is not None:
+            self.kernels = self.impl.module("robust_kernels")
+            self._root = np.linalg.cholesky(self.information)  # L with Omega = L L^T (M, 6, 6)
+            self._unit = np.broadcast_to(np.eye(6), self.information.shape)
         self.x0 = pack(graph.t, graph.R)
         self.num_poses = graph.num_poses
         self._edges = self.impl.module("pose_graph_3d")
@@ -52,8 +72,16 @@ class PoseGraph3DProblem:
             graph.num_poses, graph.edges_i, graph.edges_j, graph.fixed)
         self._fixed_dof = (6 * graph.fixed[:, None] + np.arange(6)).ravel()
 
+    def squared_residuals(self, x) -> np.ndarray:
+        """``s_k = e_k^T Omega_k e_k`` (M,) at x, with the graph's own information (no weights)."""
+        e = self.graph.errors(*unpack(x))
+        return np.einsum("mi,mij,mj->m", e, self.graph.information, e)
+
     def chi2(self, x) -> float:
-        return self.graph.chi2(*unpack(x))
+        e = self.graph.errors(*unpack(x))
+        if self.loss is None:
+            return se3.weighted_chi2(e, self.information)
+        return robust.robust_chi2(self.kernels, self.loss, np.einsum("mba,mb->ma", self._root, e))
 
     def linearize(self, x) -> Linearization:
         g = self.graph
@@ -63,7 +91,14 @@ class PoseGraph3DProblem:
         e = check_array(e, (g.num_edges, 6), where, "e")
         A = check_array(A, (g.num_edges, 6, 6), where, "A")
         B = check_array(B, (g.num_edges, 6, 6), where, "B")
-        H, b, chi2 = self._assembler.assemble(e, A, B, g.information)
+        information, robust_chi2 = self.information, None
+        if self.loss is not None:  # whitened, then reweighted: unit information from here on
+            LT = self._root.transpose(0, 2, 1)
+            e, (A, B), robust_chi2 = robust.reweight(self.kernels, self.loss, np.einsum("mab,mb->ma", LT, e),
+                                                     (np.matmul(LT, A), np.matmul(LT, B)))
+            information = self._unit
+        H, b, chi2 = self._assembler.assemble(e, A, B, information)
+        chi2 = chi2 if robust_chi2 is None else robust_chi2
         return Linearization(H=H, b=check_array(b, (6 * g.num_poses,), "SparseAssembler3D.assemble", "b"),
                              chi2=float(chi2), upper=True,
                              diagonal_positions=getattr(self._assembler, "diagonal_positions", None))

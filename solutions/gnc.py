@@ -1,0 +1,85 @@
+"""Chapter 6 exercise: graduated non-convexity (GNC) against wrong loop closures.
+
+A wrong loop closure (perceptual aliasing) pulls a least-squares solution as hard as it is
+wrong. A robust cost ``rho(s_k)`` of each edge's ``s_k = e_k^T Omega_k e_k`` ignores large
+residuals, but is not convex: a solver started far away falls in a local minimum. GNC (Yang,
+Antonante, Tzoumas, Carlone, "Graduated non-convexity for robust spatial perception", RA-L
+2020) solves a sequence of weighted least-squares problems, from a convex surrogate of the
+robust cost (control ``mu``) to the robust cost itself, each one's weights in closed form:
+
+Truncated least squares (TLS) with threshold ``c2`` on s, mu growing from ``c2 / (2 s_max -
+c2)`` by ``factor`` each round (``s_max`` the largest s of the least-squares solution)::
+
+    w = 1                               for s <= mu / (mu + 1) c2
+    w = sqrt(c2 mu (mu + 1) / s) - mu   in between
+    w = 0                               for s >= (mu + 1) / mu c2
+
+Geman-McClure (GM), mu shrinking from ``2 s_max / c2`` by ``factor`` down to 1::
+
+    w = (mu c2 / (s + mu c2))^2
+
+The outer loop (``gnc``) is problem-agnostic: it sees the problem only through
+``solve(weights) -> s``, the minimizer of ``sum_k w_k s_k`` (every solve warm-started by the
+caller from the last).
+"""
+
+import numpy as np
+
+SURROGATES = ("tls", "gm")
+
+
+def tls_weights(s, mu, c2):
+    """The TLS surrogate's weights (M,) in [0, 1] at control ``mu`` > 0 for squared residuals s (M,)."""
+    # BEGIN SOLUTION
+    s = np.asarray(s, dtype=float)
+    lower, upper = mu / (mu + 1.0) * c2, (mu + 1.0) / mu * c2
+    w = np.sqrt(c2 * mu * (mu + 1.0) / np.maximum(s, 1e-300)) - mu
+    return np.where(s <= lower, 1.0, np.where(s >= upper, 0.0, w))
+    # END SOLUTION
+
+
+def gm_weights(s, mu, c2):
+    """The Geman-McClure surrogate's weights (M,) in (0, 1] at control ``mu`` >= 1."""
+    # BEGIN SOLUTION
+    return (mu * c2 / (np.asarray(s, dtype=float) + mu * c2)) ** 2
+    # END SOLUTION
+
+
+def gnc(solve, num_edges, c2, surrogate="tls", known_inliers=None, factor=1.4, max_iterations=100):
+    """``(weights (M,), mus)``: GNC's outer loop.
+
+    1. ``s = solve(ones)``: plain least squares. If ``max s <= c2`` over the edges not known
+       to be inliers, every edge is an inlier: return the ones and ``[]``.
+    2. ``mu`` from the largest s of the edges not known inliers (module docstring).
+    3. Repeat at most ``max_iterations`` times: weights from ``s`` and ``mu`` (``known_inliers``,
+       a boolean mask (M,) or None, keep weight 1); ``s = solve(weights)``; record mu in
+       ``mus``; then stop when converged, else update mu:
+       TLS: converged when every weight is 0 or 1 to 1e-6 (``sum w (1 - w) < 1e-6``), else
+       ``mu *= factor``; GM: converged when ``mu == 1``, else ``mu = max(mu / factor, 1)``.
+    """
+    if surrogate not in SURROGATES:
+        raise ValueError(f"unknown surrogate {surrogate!r}; choose one of {SURROGATES}")
+    known = np.zeros(num_edges, dtype=bool) if known_inliers is None else np.asarray(known_inliers, dtype=bool)
+    # BEGIN SOLUTION
+    weights = np.ones(num_edges)
+    s = np.asarray(solve(weights), dtype=float)
+    s_max = float(np.max(s[~known], initial=0.0))
+    if s_max <= c2:
+        return weights, []
+    mu = c2 / (2.0 * s_max - c2) if surrogate == "tls" else 2.0 * s_max / c2
+    mus = []
+    for _ in range(max_iterations):
+        weights = tls_weights(s, mu, c2) if surrogate == "tls" else gm_weights(s, mu, c2)
+        weights[known] = 1.0
+        s = np.asarray(solve(weights), dtype=float)
+        mus.append(mu)
+        if surrogate == "tls":
+            if np.sum(weights * (1.0 - weights)) < 1e-6:
+                break
+            mu *= factor
+        else:
+            if mu == 1.0:
+                break
+            mu = max(mu / factor, 1.0)
+    return weights, mus
+    # END SOLUTION
