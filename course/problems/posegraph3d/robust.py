@@ -18,7 +18,7 @@ from course.geometry.so3 import log_many
 from course.problems.posegraph3d.graph import PoseGraph3D
 from course.problems.posegraph3d.initialise import initialise
 from course.problems.posegraph3d.outliers import odometry
-from course.problems.posegraph3d.problem import PoseGraph3DProblem, pack, unpack
+from course.problems.posegraph3d.problem import PoseGraph3DProblem, unpack
 from course.solver import SolverOptions, minimize
 
 #: chi-square with 6 degrees of freedom, 0.99 quantile
@@ -62,7 +62,7 @@ def least_squares(graph: PoseGraph3D, impl="solutions", loss=None) -> RobustRun:
 def gnc(graph: PoseGraph3D, surrogate="tls", impl="solutions", c2=C2_6DOF_99) -> RobustRun:
     """GNC with the implementation's ``gnc`` module; the edges kept are those of weight > 0.5."""
     module = impl_loader.load(impl).module("gnc")
-    state = {"x": None, "inner": 0, "seconds": 0.0}
+    state: dict = {"x": None, "inner": 0, "seconds": 0.0}
 
     def solve(weights):
         weighted = _weighted(graph, weights)
@@ -103,4 +103,3 @@ def precision_recall(kept, outliers) -> tuple:
     return precision, recall
 
 
-__all__ = ["C2_6DOF_99", "RobustRun", "least_squares", "gnc", "errors_against", "precision_recall", "pack"]
