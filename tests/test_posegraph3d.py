@@ -156,3 +156,39 @@ def test_the_chordal_start_recovers_a_noise_free_graph_and_shortens_the_solve(da
     from_chordal = minimize(PoseGraph3DProblem(initialise(g, "chordal")[0]), "gauss-newton")
     assert from_chordal.final_chi2 == pytest.approx(from_file.final_chi2, rel=1e-9)
     assert from_chordal.iterations < from_file.iterations
+
+
+@pytest.mark.parametrize("loss, weights", [(None, "random"), (("cauchy", 2.0), None)])
+def test_a_weighted_or_robust_problems_gradient_is_half_the_gradient_of_its_chi2(data_folder, loss, weights):
+    g = load_dataset("tinyGrid3D")
+    w = RNG.uniform(0.0, 2.0, g.num_edges) if weights else None
+    problem = PoseGraph3DProblem(g, weights=w, loss=loss)
+    x = problem.retract(problem.x0, RNG.normal(0, 0.05, 6 * g.num_poses))
+    lin = problem.linearize(x)
+    assert lin.chi2 == pytest.approx(problem.chi2(x), rel=1e-12)
+    h, gradient = 1e-6, np.zeros(6 * g.num_poses)
+    for k in range(6 * g.num_poses):
+        step = np.zeros(6 * g.num_poses)
+        step[k] = h
+        gradient[k] = (problem.chi2(problem.retract(x, step)) - problem.chi2(problem.retract(x, -step))) / (2 * h)
+    free = np.ones(6 * g.num_poses, dtype=bool)
+    free[:6] = False  # the fixed pose
+    np.testing.assert_allclose(lin.b[free], gradient[free] / 2, rtol=1e-5, atol=1e-6)
+
+
+def test_gnc_rejects_the_wrong_loop_closures_that_least_squares_keeps(data_folder):
+    """20% of smallGrid3D's loop closures replaced by random ones: GNC (TLS) rejects at least 95% of
+    them and keeps at least 95% of the right ones; least squares, judged by the same threshold on
+    its residuals, keeps most of neither."""
+    from course.problems.posegraph3d import robust
+    from course.problems.posegraph3d.outliers import odometry, with_wrong_loop_closures
+
+    graph = with_wrong_loop_closures(load_dataset("smallGrid3D"), 0.2, seed=1)
+    right = ~graph.outliers & ~odometry(graph)
+    assert graph.outliers.sum() == 35 and not np.any(graph.outliers & odometry(graph))
+    gnc = robust.gnc(graph, "tls")
+    precision, recall = robust.precision_recall(gnc.kept, graph.outliers)
+    assert recall >= 0.95 and np.mean(gnc.kept[right]) >= 0.95, (precision, recall)
+    assert np.all(gnc.kept[odometry(graph)])
+    plain = robust.least_squares(graph)
+    assert np.mean(plain.kept[right]) < 0.95

@@ -102,3 +102,26 @@ def solve(graph: PoseGraph3D, method: str, max_iterations: int = 100, *, relativ
     return RunResult(backend="gtsam", method=method, params=pack(t, R), initial_chi2=initial_chi2,
                      final_chi2=graph.chi2(t, R), iterations=iterations, seconds=seconds, trace=trace,
                      stop_reason=reason)
+
+
+def solve_gnc(graph: PoseGraph3D, surrogate: str = "tls", c2: float = 16.811893829770927, known_inliers=None):
+    """GTSAM's ``GncLMOptimizer`` on ``graph`` from its poses: ``(t, R, weights (M,), seconds)``.
+
+    ``surrogate`` "tls" or "gm"; ``c2`` our threshold on ``s = e^T Omega e`` (GTSAM's factor
+    error is ``s / 2``, so its inlier cost threshold is ``c2 / 2``); ``known_inliers`` (M,) bool,
+    e.g. the odometry. The prior factors that fix poses are known inliers too.
+    """
+    import gtsam
+
+    factors, values = build_factor_graph(graph)
+    params = gtsam.GncLMParams()
+    params.setLossType(gtsam.GncLossType.TLS if surrogate == "tls" else gtsam.GncLossType.GM)
+    known = [] if known_inliers is None else np.flatnonzero(known_inliers).tolist()
+    params.setKnownInliers(known + list(range(graph.num_edges, factors.size())))
+    optimizer = gtsam.GncLMOptimizer(factors, values, params)
+    optimizer.setInlierCostThresholds(c2 / 2.0)
+    start = time.perf_counter()
+    result = optimizer.optimize()
+    seconds = time.perf_counter() - start
+    t, R = poses_of(result, graph.num_poses)
+    return t, R, np.asarray(optimizer.getWeights())[:graph.num_edges], seconds
