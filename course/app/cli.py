@@ -99,6 +99,15 @@ def build_parser() -> argparse.ArgumentParser:
     ape.add_argument("--json", metavar="FILE", help="write {rmse, median, mean, std, max, min, pairs} (metres)")
     ape.set_defaults(func=cmd_ape)
 
+    outliers = sub.add_parser("outliers3d", help="chapter 6: wrong loop closures against least squares, a Cauchy "
+                                                 "kernel and GNC, ours and GTSAM's (course.app.outliers3d)")
+    outliers.add_argument("dataset", nargs="?", default="sphere2500", help="a 3D graph (default sphere2500)")
+    outliers.add_argument("--shares", default="0.1,0.2,0.5", help="shares of loop closures replaced (default "
+                                                                  "0.1,0.2,0.5)")
+    outliers.add_argument("--seed", type=int, default=1)
+    outliers.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
+    outliers.set_defaults(func=cmd_outliers3d)
+
     vio = sub.add_parser("vio", help="chapter 5: the sliding window with and without the marginalisation prior, "
                                      "the batch, and GTSAM's, on simulated visual-inertial data (APE, time per solve)")
     vio.add_argument("name", nargs="?", default="vio-sim:12:0", help="vio-sim[:seconds[:seed]] (default vio-sim:12:0)")
@@ -350,6 +359,14 @@ def cmd_compare(args) -> int:
         else:
             plot.chi2_per_iteration(_ran(runs), args.plot, title=f"{args.dataset}: chi2 per iteration")
         print(f"wrote {args.plot}")
+    return 0
+
+
+def cmd_outliers3d(args) -> int:
+    from course.app import outliers3d
+
+    shares = tuple(float(v) for v in args.shares.split(",") if v.strip())
+    outliers3d.main(args.dataset, shares, args.seed, args.impl or default_impl())
     return 0
 
 

@@ -254,6 +254,24 @@ _NAMED = {
 }
 
 
+#: ground truth where it is known: the gtsam wheel's noise-free edges of sphere2500, composed from
+#: pose 0 at the origin (as the file's pose 0)
+_TRUTH = {"sphere2500": ("gtsam", "sphere2500_groundtruth.txt")}
+
+
+def ground_truth(name: str):
+    """``(t (N, 3), R (N, 3, 3))`` of a named graph's true poses, or None where unknown or absent
+    (the truth of sphere2500 ships with gtsam)."""
+    if name not in _TRUTH:
+        return None
+    try:
+        truth = read_graph(locate(f"the truth of {name!r}", *_TRUTH[name]))
+    except DatasetError:
+        return None
+    order = np.argsort(truth.ids)  # ids 0..N-1 in the file's order of appearance: put them in id order
+    return truth.t[order], truth.R[order]
+
+
 def dataset_names() -> list:
     """The names ``load_dataset`` knows (besides file paths)."""
     return list(_NAMED)
@@ -275,7 +293,9 @@ def load_dataset(name: str) -> PoseGraph3D:
     """A named 3D graph (``dataset_names``) or a file path."""
     if name in _NAMED:
         where, rel, *_ = _NAMED[name]
-        return read_graph(locate(f"dataset {name!r}", where, rel), name=name)
+        graph = read_graph(locate(f"dataset {name!r}", where, rel), name=name)
+        graph.ground_truth = ground_truth(name)
+        return graph
     if Path(name).is_file():
         return read_graph(name)
     raise DatasetError(f"unknown 3D dataset {name!r} and no such file; known names: {', '.join(_NAMED)}")
