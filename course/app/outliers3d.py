@@ -17,6 +17,8 @@ from course.problems.posegraph3d import robust
 from course.problems.posegraph3d.initialise import initialise
 from course.problems.posegraph3d.outliers import odometry, with_wrong_loop_closures
 
+#: the Cauchy kernel's scale: sqrt(c2), the same threshold as GNC's
+CAUCHY = ("cauchy", float(np.sqrt(robust.C2_6DOF_99)))
 HEADER = (f"{'share':>5} {'method':18} {'t rmse':>8} {'R rmse':>8} {'precision':>9} {'recall':>7} "
           f"{'right kept':>10} {'outer':>5} {'inner':>5} {'seconds':>8}")
 
@@ -42,8 +44,7 @@ def run(name, shares=(0.1, 0.2, 0.5), seed=1, impl="solutions", peers=True) -> t
         outliers, right = corrupted.outliers, ~corrupted.outliers & ~odometry(corrupted)
         methods = [("least squares", lambda g: robust.least_squares(g, impl))]
         if share > 0:
-            cauchy = ("cauchy", float(np.sqrt(robust.C2_6DOF_99)))
-            methods += [("cauchy", lambda g: robust.least_squares(g, impl, loss=cauchy)),
+            methods += [("cauchy", lambda g: robust.least_squares(g, impl, loss=CAUCHY)),
                         ("GNC TLS", lambda g: robust.gnc(g, "tls", impl)),
                         ("GNC GM", lambda g: robust.gnc(g, "gm", impl))]
         for method, solve in methods:
