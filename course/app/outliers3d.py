@@ -41,7 +41,8 @@ def run(name, shares=(0.1, 0.2, 0.5), seed=1, impl="solutions", peers=True) -> t
     rows = []
     for share in [0.0, *shares]:
         corrupted = with_wrong_loop_closures(graph, share, seed)
-        outliers, right = corrupted.outliers, ~corrupted.outliers & ~odometry(corrupted)
+        outliers = np.asarray(corrupted.outliers, dtype=bool)
+        right = ~outliers & ~odometry(corrupted)
         methods = [("least squares", lambda g: robust.least_squares(g, impl))]
         if share > 0:
             methods += [("cauchy", lambda g: robust.least_squares(g, impl, loss=CAUCHY)),

@@ -268,7 +268,7 @@ def ground_truth(name: str):
         truth = read_graph(locate(f"the truth of {name!r}", *_TRUTH[name]))
     except DatasetError:
         return None
-    order = np.argsort(truth.ids)  # ids 0..N-1 in the file's order of appearance: put them in id order
+    order = np.argsort(np.asarray(truth.ids))  # ids 0..N-1 in the file's order of appearance: put them in id order
     return truth.t[order], truth.R[order]
 
 
