@@ -16,7 +16,9 @@ against the peers on ladybug-49, rank deficiency, points behind the camera, dens
 Schur, robust kernels, the parallel assembly, the gauge), chapter 5 a sliding-window
 visual-inertial back end (the fill-in of H when a keyframe is marginalised, the window's
 cost and the prior's size, the APE over time of the window with and without the prior,
-the batch and GTSAM's, the source's EuRoC MH_05 table).
+the batch and GTSAM's, the source's EuRoC MH_05 table), chapter 6 3D pose graphs (every back
+end from the file's poses and the chordal start, the trajectories, the spectrum of rotation
+errors, wrong loop closures against least squares, a Cauchy kernel and GNC).
 
 Each notebook's source is a jupytext py:percent file next to it (``chapter2_pose_graphs.py``
 for ``chapter2_pose_graphs.ipynb``); edit the source, then rebuild. A cell starts with
@@ -64,10 +66,11 @@ CHAPTER3 = HERE / "chapter3_dogleg.ipynb"
 CHAPTER3B = HERE / "chapter3b_initialisation.ipynb"
 CHAPTER4 = HERE / "chapter4_bundle_adjustment.ipynb"
 CHAPTER5 = HERE / "chapter5_vio.ipynb"
+CHAPTER6 = HERE / "chapter6_pose_graphs_3d.ipynb"
 
 #: each notebook and its py:percent source
 NOTEBOOKS = {path: path.with_suffix(".py")
-             for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B, CHAPTER4, CHAPTER5)}
+             for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B, CHAPTER4, CHAPTER5, CHAPTER6)}
 
 #: the tag of the cells a reader writes in (kept by ``build`` when the notebook is rebuilt)
 ANSWER_TAG = "answer"

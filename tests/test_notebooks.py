@@ -47,7 +47,7 @@ def test_source_round_trips_with_ids_and_tags(path, tmp_path):
     assert [(c.id, c.source, c.metadata) for c in again.cells] == [(c.id, c.source, c.metadata) for c in nb.cells]
     tagged = {cell.id for cell in nb.cells if build.ANSWER_TAG in cell.metadata.get("tags", [])}
     assert tagged == ({"answer-1", "answer-2"} if path in (build.CHAPTER2, build.CHAPTER3B, build.CHAPTER4,
-                                                           build.CHAPTER5) else set())
+                                                           build.CHAPTER5, build.CHAPTER6) else set())
     assert all(set(cell.metadata) <= {"tags"} for cell in nb.cells)
 
 
@@ -323,3 +323,21 @@ def test_reference_answers_stay_out_of_the_student_tree():
         assert (answers / f"{chapter}.md").is_file(), chapter
     files = release.render(REPO_ROOT / "solutions")
     assert not [name for name in files if name.startswith("answers")]
+
+
+@pytest.mark.slow
+def test_chapter6_executes_small(data_folder):
+    import time
+
+    start = time.perf_counter()
+    nb, text, images = _execute_small(build.CHAPTER6)
+    assert time.perf_counter() - start < 90, "the quick setting should take well under a minute"
+    assert "Traceback" not in text and "not implemented" not in text
+    for words in ("smallGrid3D from file: 125 poses, 297 edges", "smallGrid3D from chordal", "462.4825302",
+                  "start: chordal initialisation", "chordal start  median", "errors against our solution without "
+                  "outliers", "ours GNC TLS", "ours cauchy", "20% ours least squares"):
+        assert words in text, words
+    assert "sphere2500" not in text and "torus3D" not in text  # the full setting only
+    assert len(images) == 2  # the trajectories and the spectrum of smallGrid3D
+    markdown = {c.get("id"): c.source for c in nb.cells if c.cell_type == "markdown"}
+    assert "Question 1" in markdown["questions-md"] and "Your answer to question 2" in markdown["answer-2"]
