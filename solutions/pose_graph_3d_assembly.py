@@ -64,9 +64,9 @@ class SparseAssembler3D:
         """
         # BEGIN SOLUTION
         J = np.concatenate([A, B], axis=2)  # (M, 6, 12)
-        JtO = np.matmul(J.transpose(0, 2, 1), information)  # (M, 12, 6)
-        H_edges = np.matmul(JtO, J).ravel()[self._take]
-        g_edges = np.matmul(JtO, e[:, :, None]).ravel()
+        OJ = np.matmul(information, J)  # (M, 6, 12); Omega symmetric: J^T Omega = (Omega J)^T
+        H_edges = np.einsum("mai,maj->mij", J, OJ, optimize=True).ravel()[self._take]  # J^T Omega J (M, 12, 12)
+        g_edges = np.einsum("mai,ma->mi", OJ, e).ravel()  # J^T Omega e (M, 12)
         data = np.bincount(self._positions, weights=H_edges, minlength=self.nnz)
         data[self._dead] = 0.0
         data[self._fixed_diagonal] = 1.0

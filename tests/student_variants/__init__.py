@@ -964,8 +964,8 @@ ALTERNATIVES_POSE_GRAPH_3D = {
 }
 BUGS_POSE_GRAPH_3D_ASSEMBLY = {
     "p3a_no_information": V(
-        "pose_graph_3d_assembly.py", [], "JtO = np.matmul(J.transpose(0, 2, 1), information)",
-        "JtO = J.transpose(0, 2, 1)", {P3_ASM}, "weigh every edge by its information"),
+        "pose_graph_3d_assembly.py", [], "OJ = np.matmul(information, J)", "OJ = J", {P3_ASM},
+        "weigh every edge by its information"),
     "p3a_lower_triangle": V(
         "pose_graph_3d_assembly.py", [], "upper = rows <= cols", "upper = rows >= cols", {P3_ASM},
         "H holds the lower triangle"),
