@@ -31,14 +31,22 @@ def _row(share, method, t, R, kept, truth, outliers, right, outer, inner, second
             "seconds": seconds}
 
 
-def run(name, shares=(0.1, 0.2, 0.5), seed=1, impl="solutions", peers=True) -> tuple:
-    """``(rows, truth_label)``: one dict per (share, method); see the module docstring."""
+def run(name, shares=(0.1, 0.2, 0.5), seed=1, impl="solutions", peers=True, on_row=None) -> tuple:
+    """``(rows, truth_label)``: one dict per (share, method); see the module docstring.
+    ``on_row(row, truth_label)`` is called as each row is ready (a long run shows its progress)."""
     graph = datasets.load_dataset(name)
     truth, label = graph.ground_truth, "the truth"
     if truth is None:
         clean = robust.least_squares(graph, impl)
         truth, label = (clean.t, clean.R), "our solution without outliers"
-    rows = []
+
+    class Rows(list):
+        def append(self, row):
+            super().append(row)
+            if on_row is not None:
+                on_row(row, label)
+
+    rows = Rows()
     for share in [0.0, *shares]:
         corrupted = with_wrong_loop_closures(graph, share, seed)
         outliers = np.asarray(corrupted.outliers, dtype=bool)
@@ -68,12 +76,23 @@ def run(name, shares=(0.1, 0.2, 0.5), seed=1, impl="solutions", peers=True) -> t
     return rows, label
 
 
-def main(name, shares=(0.1, 0.2, 0.5), seed=1, impl="solutions", out=print) -> list:
-    rows, label = run(name, shares, seed, impl)
-    out(f"{name}: loop closures replaced by random ones (seed {seed}); errors against {label}; every method from "
-        f"the chordal start of the corrupted graph; threshold c2 = {robust.C2_6DOF_99:.2f} on e^T Omega e")
-    out(HEADER)
-    for r in rows:
-        out(f"{r['share']:5.0%} {r['method']:18} {r['t_rmse']:8.4f} {r['R_rmse']:8.5f} {r['precision']:9.3f} "
+def format_row(r) -> str:
+    return (f"{r['share']:5.0%} {r['method']:18} {r['t_rmse']:8.4f} {r['R_rmse']:8.5f} {r['precision']:9.3f} "
             f"{r['recall']:7.3f} {r['right_kept']:10.3f} {r['outer']:5d} {r['inner']:5d} {r['seconds']:8.2f}")
-    return rows
+
+
+def main(name, shares=(0.1, 0.2, 0.5), seed=1, impl="solutions", out=print) -> list:
+    """Print the table row by row as the runs end (a full run on sphere2500 takes tens of minutes)."""
+    out(f"{name}: loop closures replaced by random ones (seed {seed}); every method from the chordal start of the "
+        f"corrupted graph; threshold c2 = {robust.C2_6DOF_99:.2f} on e^T Omega e")
+    printed: list = []
+
+    def show(row, label):
+        if not printed:
+            out(f"errors against {label}")
+            out(HEADER)
+        printed.append(row)
+        out(format_row(row))
+
+    rows, _ = run(name, shares, seed, impl, on_row=show)
+    return list(rows)

@@ -65,11 +65,6 @@ def rotation_errors_to_truth(R, R_true) -> np.ndarray:
 
 def outlier_table(rows) -> str:
     """The rows of ``course.app.outliers3d.run`` as a text table."""
-    from course.app.outliers3d import HEADER
+    from course.app.outliers3d import HEADER, format_row
 
-    lines = [HEADER]
-    for r in rows:
-        lines.append(f"{r['share']:5.0%} {r['method']:18} {r['t_rmse']:8.4f} {r['R_rmse']:8.5f} {r['precision']:9.3f} "
-                     f"{r['recall']:7.3f} {r['right_kept']:10.3f} {r['outer']:5d} {r['inner']:5d} "
-                     f"{r['seconds']:8.2f}")
-    return "\n".join(lines)
+    return "\n".join([HEADER, *(format_row(r) for r in rows)])
