@@ -48,9 +48,10 @@ def gm_weights(s, mu, c2):
 def gnc(solve, num_edges, c2, surrogate="tls", known_inliers=None, factor=1.4, max_iterations=100):
     """``(weights (M,), mus)``: GNC's outer loop.
 
-    1. ``s = solve(ones)``: plain least squares. If ``max s <= c2`` over the edges not known
-       to be inliers, every edge is an inlier: return the ones and ``[]``.
-    2. ``mu`` from the largest s of the edges not known inliers (module docstring).
+    1. ``s = solve(ones)``: plain least squares. If ``s_max = max s <= c2`` (over every edge:
+       least squares spreads a wrong edge's error over its neighbours, known inliers
+       included), every edge is an inlier: return the ones and ``[]``.
+    2. ``mu`` from ``s_max`` (module docstring).
     3. Repeat at most ``max_iterations`` times: weights from ``s`` and ``mu`` (``known_inliers``,
        a boolean mask (M,) or None, keep weight 1); ``s = solve(weights)``; record mu in
        ``mus``; then stop when converged, else update mu:
@@ -63,7 +64,7 @@ def gnc(solve, num_edges, c2, surrogate="tls", known_inliers=None, factor=1.4, m
     # BEGIN SOLUTION
     weights = np.ones(num_edges)
     s = np.asarray(solve(weights), dtype=float)
-    s_max = float(np.max(s[~known], initial=0.0))
+    s_max = float(np.max(s, initial=0.0))
     if s_max <= c2:
         return weights, []
     mu = c2 / (2.0 * s_max - c2) if surrogate == "tls" else 2.0 * s_max / c2

@@ -4,7 +4,9 @@ problem.
 Public inputs: squared residuals spanning the three TLS regions (inside, between and beyond
 the bounds) at three values of mu; the loop on a robust mean of 30 values, 8 of them wrong,
 the first 4 known inliers (one of them 4.5 sigma away: the surrogate alone would reject it),
-for each surrogate. Hidden: the same kind from the hidden seed.
+for each surrogate; and the same without the wrong values, where only the known inlier's s
+exceeds c2 (GNC still runs: least squares may hide a wrong edge's error in its neighbours).
+Hidden: the same kind from the hidden seed.
 The loop uses the student's own weights: a wrong weight function costs the loop's check too.
 """
 
@@ -47,10 +49,15 @@ def problem(seed=None) -> dict:
 
 def _loop_calls(seed=None):
     p = problem(seed)
-    return [Call("@autograder.tasks.gnc:robust_mean", (p["y"], 1.0, C2, surrogate, p["known"]), returns="dict",
-                 label=LOOP, where=f"with the {surrogate.upper()} surrogate on a robust mean of 30 values, 8 wrong, "
-                                   "the first 4 known inliers (value 0 4.5 sigma away), c2 = 9")
-            for surrogate in ("tls", "gm")]
+    calls = [Call("@autograder.tasks.gnc:robust_mean", (p["y"], 1.0, C2, surrogate, p["known"]), returns="dict",
+                  label=LOOP, where=f"with the {surrogate.upper()} surrogate on a robust mean of 30 values, 8 wrong, "
+                                    "the first 4 known inliers (value 0 4.5 sigma away), c2 = 9")
+             for surrogate in ("tls", "gm")]
+    clean = p["y"][:22]  # no wrong value: only the known inlier 4.5 sigma away exceeds c2
+    calls.append(Call("@autograder.tasks.gnc:robust_mean", (clean, 1.0, C2, "tls", p["known"][:22]), returns="dict",
+                      label=LOOP, where="with the TLS surrogate on a robust mean of 22 right values, the first 4 "
+                                        "known inliers (value 0 4.5 sigma away, the only s above c2 = 9)"))
+    return calls
 
 
 CHECKS = [
@@ -61,7 +68,7 @@ CHECKS = [
         ("value",), 1e-10, 1e-12, "w = (mu c2 / (s + mu c2))^2", {"value": "w[{}]"})),
     check(LOOP, "the outer loop: mu schedule, weights", 3, _loop_calls, values(
         ("mus", "weights", "x", "calls"), 1e-8, 1e-10,
-        {"mus": "mu from the largest s of the edges not known inliers (TLS c2/(2 s_max - c2), GM 2 s_max/c2), "
+        {"mus": "mu from the largest s of all edges (TLS c2/(2 s_max - c2), GM 2 s_max/c2), "
                 "then times (TLS) or over (GM, down to 1) the factor after each solve",
          "weights": "new weights from the last solve's s at the current mu; known inliers keep weight 1",
          "x": "solve again after every new set of weights", "calls": "one solve to start, then one per mu"},

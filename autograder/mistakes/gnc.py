@@ -54,7 +54,7 @@ def loop(call, *, slip=None):
 
     weights = np.ones(len(y))
     s = solve(weights)
-    s_max = float(np.max(s[~known]))
+    s_max = float(np.max(s if slip != "unknown_only" else s[~known]))
     if s_max <= c2:
         return {"weights": weights, "mus": np.zeros(0), "x": last[0], "calls": float(calls[0])}
     mu = c2 / (2 * s_max - c2) if surrogate == "tls" else 2 * s_max / c2
@@ -79,7 +79,9 @@ def loop(call, *, slip=None):
 
 def loop_mistakes(call, ref):
     known = {"mus": [], "weights": [], "x": [], "calls": []}
-    for slip, text in (("known", "known inliers keep weight 1 whatever their residual"),
+    for slip, text in (("unknown_only", "s_max is the largest s of every edge, known inliers included (least "
+                                        "squares spreads a wrong edge's error over its neighbours)"),
+                       ("known", "known inliers keep weight 1 whatever their residual"),
                        ("no_resolve", "solve again after every new set of weights (s must come from the new "
                                       "solution)"),
                        ("gm_up", "for Geman-McClure mu shrinks toward 1: mu = max(mu / factor, 1)")):

@@ -1049,6 +1049,9 @@ BUGS_GNC = {
         "return mu * c2 / (np.asarray(s, dtype=float) + mu * c2)", {G_GM, G_LOOP}, "weight is squared"),
     "gnc_known_inliers_not_forced": V(
         "gnc.py", [], "weights[known] = 1.0", "pass", {G_LOOP}, "known inliers keep weight 1"),
+    "gnc_largest_residual_of_the_unknown_edges_only": V(
+        "gnc.py", [], "s_max = float(np.max(s, initial=0.0))", "s_max = float(np.max(s[~known], initial=0.0))",
+        {G_LOOP}, "known inliers included"),
     "gnc_gm_mu_grows": V(
         "gnc.py", [], "mu = max(mu / factor, 1.0)", "mu = mu * factor", {G_LOOP}, "mu shrinks toward 1"),
     "gnc_no_new_solve": V(
