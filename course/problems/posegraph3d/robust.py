@@ -8,7 +8,8 @@ squared residuals ``s_k = e_k^T Omega_k e_k`` of every edge there. The odometry 
 known inliers. An edge whose weight is below ``DROP`` is left out of the inner problem (its
 share of the cost, ``w s``, is below ``DROP s``): random wrong closures join far-apart poses, and
 leaving them in keeps the fill-in they cause in the sparse Cholesky factor (on sphere2500 with
-20% of them, 3.8 million nonzeros in L against 1.5 million, 13x the factorization time). ``c2`` is the threshold on s: the 0.99 quantile of chi-square with 6 degrees
+20% of them, 3.8 million nonzeros in L against 1.5 million, 13x the factorization time).
+``c2`` is the threshold on s: the 0.99 quantile of chi-square with 6 degrees
 of freedom by default (16.81), what an inlier's s exceeds once in a hundred.
 """
 
