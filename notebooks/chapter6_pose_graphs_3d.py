@@ -69,7 +69,7 @@ print(f"implementation: {IMPL}; graphs: {', '.join(GRAPHS)}")
 # (`python -m course compare NAME --init chordal` runs every method).
 
 # %% id="compare"
-runs_by_graph = {}
+solved = {}  # name -> (graph, chordal start, our Gauss-Newton run from it), for the figures below
 for name in GRAPHS:
     graph = load3d(name)
     if graph is None:
@@ -77,18 +77,14 @@ for name in GRAPHS:
     for init in ("file", "chordal"):
         runs = compare.run_posegraph3d(graph, impl=IMPL, methods=["gauss-newton"], init=init,
                                        unimplemented="row")
-        runs_by_graph[(name, init)] = runs
         print(compare.format_table(runs, title=f"{name} from {init}: {graph.num_poses} poses, "
                                                f"{graph.num_edges} edges{not_run_note(runs)}"))
         print()
+        if init == "chordal" and not runs[0].not_run:
+            solved[name] = (graph, initialise(graph, "chordal", IMPL)[0], runs[0])
 
 # %% id="trajectories"
-for name in GRAPHS:
-    graph = load3d(name)
-    ours = runs_by_graph.get((name, "chordal"), [None])[0]
-    if graph is None or ours is None or ours.not_run:
-        continue
-    start = initialise(graph, "chordal", IMPL)[0]
+for name, (graph, start, ours) in solved.items():
     t_final, _ = unpack(ours.params)
     fig = poses_figure([("file's poses", graph.t), ("chordal start", start.t), ("Gauss-Newton", t_final)], title=name)
     display(Image(plot.to_png(fig)))
@@ -101,12 +97,7 @@ for name in GRAPHS:
 # chordal start removes most of them before any Gauss-Newton step.
 
 # %% id="spectrum"
-for name in GRAPHS:
-    graph = load3d(name)
-    ours = runs_by_graph.get((name, "chordal"), [None])[0]
-    if graph is None or ours is None or ours.not_run:
-        continue
-    start = initialise(graph, "chordal", IMPL)[0]
+for name, (graph, start, ours) in solved.items():
     curves = [("file's poses", residual_angles(graph, graph.t, graph.R)),
               ("chordal start", residual_angles(graph, start.t, start.R)),
               ("Gauss-Newton", residual_angles(graph, *unpack(ours.params)))]

@@ -18,8 +18,8 @@ from functools import cache
 
 import numpy as np
 
-from autograder.checks import Call, Verdict
-from autograder.checks.common import check, values
+from autograder.checks import Call
+from autograder.checks.common import check, residual_or_jacobian, values
 from autograder.feedback import fields_of
 
 MODULES = ("bundle_adjustment",)
@@ -179,46 +179,10 @@ def own_differences(ctx, name: str):
     return np.stack(columns, axis=-1)
 
 
-def residual_or_jacobian(name: str, label: str, blocks, judge):
-    """``judge`` of the Jacobian ``name``; when it finds the student's Jacobian wrong, the
-    feedback also says whether it agrees with central differences of the student's own r (the
-    model is wrong, not the derivative) or not (the derivative is wrong), and which blocks of
-    columns differ from the reference."""
-
-    def judged(ctx):
-        verdict = judge(ctx)
-        if verdict.fraction >= 1.0 or verdict.not_implemented or ctx.student[0].error is not None:
-            return verdict
-        student, bad = fields_of(ctx.student[0], ctx.calls[0])
-        reference, _ = fields_of(ctx.reference[0], ctx.calls[0])
-        if bad:
-            return verdict
-        got, want, fd = student.get(name), reference.get(name), own_differences(ctx, name)
-        if got is None or want is None or fd is None or np.shape(got) != np.shape(want) or fd.shape != np.shape(got):
-            return verdict
-        got, want = np.asarray(got, float), np.asarray(want, float)
-        scale = max(1.0, float(np.max(np.abs(want))))
-        differ = [text for text, cols in blocks
-                  if not np.allclose(got[..., cols], want[..., cols], rtol=1e-6, atol=1e-8 * scale)]
-        where = f" ({', '.join(differ)} differ from the reference)" if differ else ""
-        r_want = np.asarray(reference["r"], float)
-        r_got = np.asarray(student.get("r", np.nan), float)
-        r_right = r_got.shape == r_want.shape and np.allclose(r_got, r_want, rtol=1e-8,
-                                                              atol=1e-10 * max(1.0, float(np.max(np.abs(r_want)))))
-        gap = np.abs(got - fd) - 1e-4 * (np.abs(fd) + scale)
-        if not np.isfinite(gap).all() or (gap > 0).any():
-            index = tuple(int(k) for k in np.unravel_index(int(np.nanargmax(gap)), gap.shape))
-            said = (f"\nResidual or Jacobian: your {label} does not agree with central differences of your own r "
-                    f"either ({label}{list(index)} = {got[index]:.6g}, your r's differences give {fd[index]:.6g}): "
-                    f"the derivative is wrong{where}" + ("; your r is right." if r_right else
-                                                          "; your r is wrong too (see the residuals check)."))
-        else:
-            said = (f"\nResidual or Jacobian: your {label} agrees with central differences of your own r{where}: the "
-                    "derivative is right for the r you compute, so the model itself is wrong: fix r first "
-                    "(the residuals check), then the Jacobians that follow from it.")
-        return Verdict(verdict.fraction, verdict.message + said, verdict.not_implemented)
-
-    return judged
+def _residual_or_jacobian(name, blocks, judge):
+    """``common.residual_or_jacobian`` for BA: blocks of columns, differences of the student's r."""
+    return residual_or_jacobian(name, [(text, (Ellipsis, cols)) for text, cols in blocks], judge, own_differences,
+                                "r", "the residuals check", "model")
 
 
 _RES_LABELS = {"r": "r[{}]", "J_cam": "J_cam[{}]", "J_point": "J_point[{}]"}
@@ -229,12 +193,12 @@ _SCHUR_LABELS = {"dx_cam": "dx_cam[{}]", "dx_point": "dx_point[{}]"}
 CHECKS = [
     check(RESIDUALS, "residuals r", 2, _residual_calls, _values(("r",), 1e-8, 1e-10, _RES_LABELS,
           "r = f d p - observed with P = R(w) X + t, p = -P[:2] / P[2], d = 1 + k1 |p|^2 + k2 |p|^4")),
-    check(RESIDUALS, "camera Jacobian J_cam", 3, _residual_calls, residual_or_jacobian(
-        "J_cam", "J_cam", CAMERA_BLOCKS, _values(("J_cam",), 1e-6, 1e-8, _RES_LABELS,
+    check(RESIDUALS, "camera Jacobian J_cam", 3, _residual_calls, _residual_or_jacobian(
+        "J_cam", CAMERA_BLOCKS, _values(("J_cam",), 1e-6, 1e-8, _RES_LABELS,
                                                  "J_cam[k] = d r_k / d (w, t, f, k1, k2), the exact derivative of "
                                                  "R(w) X in w"))),
-    check(RESIDUALS, "point Jacobian J_point", 2, _residual_calls, residual_or_jacobian(
-        "J_point", "J_point", POINT_BLOCKS, _values(("J_point",), 1e-6, 1e-8, _RES_LABELS,
+    check(RESIDUALS, "point Jacobian J_point", 2, _residual_calls, _residual_or_jacobian(
+        "J_point", POINT_BLOCKS, _values(("J_point",), 1e-6, 1e-8, _RES_LABELS,
                                                     "J_point[k] = d r_k / d X = (d predicted / d P) R(w)"))),
     check(NORMAL, "camera blocks U, point blocks V, coupling W", 3, _normal_calls,
           _values(("U", "V", "W"), 1e-10, 1e-12, _NORMAL_LABELS,

@@ -5,7 +5,7 @@ and angles wrapped to [-pi, pi) (:func:`wrap`)."""
 import numpy as np
 
 from autograder.checks import Check, Verdict
-from autograder.feedback import TODO_PATTERN, first_error
+from autograder.feedback import TODO_PATTERN, call_fields, compare, fields_of, first_error
 from autograder.feedback import values as _feedback_values
 
 #: what a vectorized task adds to a stub's message when the per-edge loop would stand in
@@ -48,3 +48,84 @@ def values(*args, **kwargs):
 
 def check(exercise, title, points, calls, judge, **kwargs):
     return Check(f"{exercise}: {title}", exercise, points, calls, judge, **kwargs)
+
+
+def assembler_judge(cause: str, owner: str):
+    """The judge of a sparse assembler called twice (``autograder.tasks.common.assemble_each``):
+    H (upper triangle, ``atol`` 1e-10 of its largest entry), b and chi2 of each call against the
+    reference, then half the points when H is not CSC, and a note on ``diagonal_positions``
+    (read by ``owner``, the problem that adds damping there)."""
+
+    def judge(ctx):
+        triples, failure = call_fields(ctx, failed=failed)
+        if failure:
+            return failure
+        call, got, want = triples[0]
+        known = ctx.known(0)
+        for k in range(2):
+            where = f"{call.where} (call {k + 1})"
+            scale = float(np.max(np.abs(want[f"H{k}"])))
+            for name, label in ((f"H{k}", "H[{}]"), (f"b{k}", "b[{}]"), (f"chi2{k}", "chi2")):
+                atol = 1e-10 * (scale if name.startswith("H") else max(1.0, float(np.max(np.abs(want[name])))))
+                text = compare(got[name], want[name], label, 1e-9, atol, where, known.get(name, ()), cause)
+                if text:
+                    return Verdict(0.0, text)
+            if not got[f"csc{k}"]:
+                return Verdict(0.5, f"the values are right but H is not a scipy.sparse CSC matrix {where}")
+        note = ""
+        if not np.isfinite(got["diagonal_ok"]):
+            note = (f" (note: {owner} also reads diagonal_positions, the positions of the diagonal entries in "
+                    "H.data, to add damping; yours has none)")
+        elif not got["diagonal_ok"]:
+            note = " (note: diagonal_positions does not point at the diagonal entries of H.data)"
+        return Verdict(1.0, "ok" + note)
+
+    return judge
+
+
+def residual_or_jacobian(name: str, blocks, judge, differences, residual: str, residual_check: str, model: str):
+    """``judge`` of the Jacobian ``name``; when it finds the student's Jacobian wrong, the feedback
+    also says whether it agrees with central differences of the student's own ``residual`` (the
+    ``model`` is wrong, not the derivative) or not (the derivative is wrong), and which blocks
+    differ from the reference.
+
+    ``blocks``: ``(text, index)`` pairs, ``got[index]`` a block of the Jacobian; ``differences(ctx,
+    name)``: the central differences of the student's residual, shaped like the Jacobian, or None
+    when a call failed; call 0 is the one judged; ``residual_check`` names the residual's check.
+    """
+
+    def judged(ctx):
+        verdict = judge(ctx)
+        if verdict.fraction >= 1.0 or verdict.not_implemented or ctx.student[0].error is not None:
+            return verdict
+        student, bad = fields_of(ctx.student[0], ctx.calls[0])
+        reference, _ = fields_of(ctx.reference[0], ctx.calls[0])
+        if bad:
+            return verdict
+        got, want, fd = student.get(name), reference.get(name), differences(ctx, name)
+        if got is None or want is None or fd is None or np.shape(got) != np.shape(want) or fd.shape != np.shape(got):
+            return verdict
+        got, want = np.asarray(got, float), np.asarray(want, float)
+        scale = max(1.0, float(np.max(np.abs(want))))
+        differ = [text for text, index in blocks
+                  if not np.allclose(got[index], want[index], rtol=1e-6, atol=1e-8 * scale)]
+        where = f" ({'; '.join(differ)} differ from the reference)" if differ else ""
+        r_want = np.asarray(reference[residual], float)
+        r_got = np.asarray(student.get(residual, np.nan), float)
+        r_right = r_got.shape == r_want.shape and np.allclose(r_got, r_want, rtol=1e-8,
+                                                              atol=1e-10 * max(1.0, float(np.max(np.abs(r_want)))))
+        gap = np.abs(got - fd) - 1e-4 * (np.abs(fd) + scale)
+        if not np.isfinite(gap).all() or (gap > 0).any():
+            index = tuple(int(k) for k in np.unravel_index(int(np.nanargmax(gap)), gap.shape))
+            said = (f"\nResidual or Jacobian: your {name} does not agree with central differences of your own "
+                    f"{residual} either ({name}{list(index)} = {got[index]:.6g}, your {residual}'s differences give "
+                    f"{fd[index]:.6g}): the derivative is wrong{where}"
+                    + (f"; your {residual} is right." if r_right else
+                       f"; your {residual} is wrong too (see {residual_check})."))
+        else:
+            said = (f"\nResidual or Jacobian: your {name} agrees with central differences of your own {residual}"
+                    f"{where}: the derivative is right for the {residual} you compute, so the {model} itself is "
+                    f"wrong: fix {residual} first ({residual_check}), then the Jacobians that follow from it.")
+        return Verdict(verdict.fraction, verdict.message + said, verdict.not_implemented)
+
+    return judged

@@ -17,8 +17,8 @@ from functools import cache
 
 import numpy as np
 
-from autograder.checks import Call, Verdict
-from autograder.checks.common import check, values
+from autograder.checks import Call
+from autograder.checks.common import check, residual_or_jacobian, values
 from autograder.feedback import fields_of
 from course.geometry import se3
 from course.geometry.so3 import exp_many
@@ -124,43 +124,10 @@ def own_differences(ctx, name: str):
     return np.stack(columns, axis=-1)
 
 
-def residual_or_jacobian(name: str, judge):
-    """``judge`` of the Jacobian ``name`` ("A" or "B"); when the student's is wrong, the
-    feedback also says whether it agrees with central differences of their own e (the model
-    is wrong, not the derivative) or not, and which 3x3 blocks differ from the reference."""
-
-    def judged(ctx):
-        verdict = judge(ctx)
-        if verdict.fraction >= 1.0 or verdict.not_implemented or ctx.student[0].error is not None:
-            return verdict
-        student, bad = fields_of(ctx.student[0], ctx.calls[0])
-        reference, _ = fields_of(ctx.reference[0], ctx.calls[0])
-        fd = own_differences(ctx, name)
-        got, want = student.get(name), reference.get(name)
-        if bad or got is None or want is None or fd is None or np.shape(got) != np.shape(want) \
-                or fd.shape != np.shape(got):
-            return verdict
-        got, want = np.asarray(got, float), np.asarray(want, float)
-        differ = [text for text, rows, cols in BLOCKS
-                  if not np.allclose(got[:, rows, cols], want[:, rows, cols], rtol=1e-6, atol=1e-8)]
-        where = f" ({'; '.join(differ)} differ from the reference)" if differ else ""
-        e_got = np.asarray(student.get("e", np.nan), float)
-        e_want = np.asarray(reference["e"], float)
-        e_right = e_got.shape == e_want.shape and np.allclose(e_got, e_want, rtol=1e-8, atol=1e-10)
-        gap = np.abs(got - fd) - 1e-4 * (np.abs(fd) + 1.0)
-        if not np.isfinite(gap).all() or (gap > 0).any():
-            index = tuple(int(k) for k in np.unravel_index(int(np.nanargmax(gap)), gap.shape))
-            said = (f"\nResidual or Jacobian: your {name} does not agree with central differences of your own e "
-                    f"either ({name}{list(index)} = {got[index]:.6g}, your e's differences give {fd[index]:.6g}): "
-                    f"the derivative is wrong{where}" + ("; your e is right." if e_right else
-                                                          "; your e is wrong too (see the error check)."))
-        else:
-            said = (f"\nResidual or Jacobian: your {name} agrees with central differences of your own e{where}: "
-                    "the derivative is right for the e you compute, so the error itself is wrong: fix e first "
-                    "(the error check), then the Jacobians that follow from it.")
-        return Verdict(verdict.fraction, verdict.message + said, verdict.not_implemented)
-
-    return judged
+def _residual_or_jacobian(name, judge):
+    """``common.residual_or_jacobian`` for the edge: its 3x3 blocks, differences of the student's e."""
+    return residual_or_jacobian(name, [(text, (slice(None), rows, cols)) for text, rows, cols in BLOCKS], judge,
+                                own_differences, "e", "the error check", "error")
 
 
 _LABELS = {"e": "e[{}]", "A": "A[{}]", "B": "B[{}]", "t": "t[{}]", "R": "R[{}]"}
@@ -168,10 +135,10 @@ _LABELS = {"e": "e[{}]", "A": "A[{}]", "B": "B[{}]", "t": "t[{}]", "R": "R[{}]"}
 CHECKS = [
     check(EDGES, "error e", 2, _edge_calls, values(("e",), 1e-8, 1e-10, "e = [R_z^T (R_i^T (t_j - t_i) - t_z); "
                                                                 "Log(R_z^T R_i^T R_j)]", _LABELS)),
-    check(EDGES, "Jacobian A = de/d delta_i", 3, _edge_calls, residual_or_jacobian("A", values(
+    check(EDGES, "Jacobian A = de/d delta_i", 3, _edge_calls, _residual_or_jacobian("A", values(
         ("A",), 1e-6, 1e-8, "A = [[-R_z^T, R_z^T [d]x], [0, -J_r^-1(e_phi) R_j^T R_i]] for the right "
                             "perturbation T (Exp(phi), rho)", _LABELS))),
-    check(EDGES, "Jacobian B = de/d delta_j", 2, _edge_calls, residual_or_jacobian("B", values(
+    check(EDGES, "Jacobian B = de/d delta_j", 2, _edge_calls, _residual_or_jacobian("B", values(
         ("B",), 1e-6, 1e-8, "B = [[R_z^T R_i^T R_j, 0], [0, J_r^-1(e_phi)]] for the right perturbation "
                             "T (Exp(phi), rho)", _LABELS))),
     check(RETRACT, "the retraction T (+) delta", 1, _retract_calls, values(

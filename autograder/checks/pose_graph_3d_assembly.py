@@ -10,10 +10,9 @@ from functools import cache
 
 import numpy as np
 
-from autograder.checks import Call, Verdict
-from autograder.checks.common import check, failed
+from autograder.checks import Call
+from autograder.checks.common import assembler_judge, check
 from autograder.checks.pose_graph_3d import graph as edge_graph
-from autograder.feedback import call_fields, compare
 from course.geometry import se3
 
 MODULES = ("pose_graph_3d_assembly",)
@@ -49,30 +48,6 @@ def _calls(seed=None):
                                         "twice with new blocks")]
 
 
-def _judge(ctx):
-    triples, failure = call_fields(ctx, failed=failed)
-    if failure:
-        return failure
-    call, got, want = triples[0]
-    known = ctx.known(0)
-    for k in range(2):
-        where = f"{call.where} (call {k + 1})"
-        for name, label in ((f"H{k}", "H[{}]"), (f"b{k}", "b[{}]"), (f"chi2{k}", "chi2")):
-            scale = max(1.0, float(np.max(np.abs(want[name]))))
-            text = compare(got[name], want[name], label, 1e-9, 1e-10 * scale, where, known.get(name, ()),
-                           "H[i, i] += A^T Omega A, H[i, j] += A^T Omega B, H[j, j] += B^T Omega B (upper triangle "
-                           "only), b[i] += A^T Omega e, b[j] += B^T Omega e, fixed poses: identity block, zero b")
-            if text:
-                return Verdict(0.0, text)
-        if not got[f"csc{k}"]:
-            return Verdict(0.5, f"the values are right but H is not a scipy.sparse CSC matrix {where}")
-    note = ""
-    if not np.isfinite(got["diagonal_ok"]):
-        note = (" (note: the problem also reads SparseAssembler3D.diagonal_positions, the positions of the "
-                "diagonal entries in H.data, to add damping; yours has none)")
-    elif not got["diagonal_ok"]:
-        note = " (note: diagonal_positions does not point at the diagonal entries of H.data)"
-    return Verdict(1.0, "ok" + note)
-
-
-CHECKS = [check(ASSEMBLER, "H (upper, CSC), b, chi2 in 6x6 blocks", 3, _calls, _judge)]
+CHECKS = [check(ASSEMBLER, "H (upper, CSC), b, chi2 in 6x6 blocks", 3, _calls, assembler_judge(
+    "H[i, i] += A^T Omega A, H[i, j] += A^T Omega B, H[j, j] += B^T Omega B (upper triangle only), "
+    "b[i] += A^T Omega e, b[j] += B^T Omega e, fixed poses: identity block, zero b", "PoseGraph3DProblem"))]

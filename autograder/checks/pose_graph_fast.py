@@ -6,12 +6,10 @@ Public inputs: the 6-pose graph of the assembly checks with poses 0 and 3 fixed,
 second set of poses; hidden inputs: the hidden graph of the assembly checks.
 """
 
-import numpy as np
 
-from autograder.checks import Call, Verdict
-from autograder.checks.common import check, failed, values
+from autograder.checks import Call
+from autograder.checks.common import assembler_judge, check, values
 from autograder.checks.pose_graph_assembly import graph_at, reference_blocks, small_graph
-from autograder.feedback import call_fields, compare
 
 MODULES = ("pose_graph_fast",)
 FAST_EDGES = "pose_graph_fast.edge_errors_and_jacobians"
@@ -41,34 +39,9 @@ def _fast_assembler_calls(seed=None):
                  where=_where(seed, ", assemble called twice with new blocks"))]
 
 
-def _judge_fast_assembler(ctx):
-    triples, failure = call_fields(ctx, failed=failed)
-    if failure:
-        return failure
-    call, got, want = triples[0]
-    known = ctx.known(0)
-    note = ""
-    for k in range(2):
-        where = f"{call.where} (call {k + 1})"
-        scale = float(np.max(np.abs(want[f"H{k}"])))
-        for name, label in ((f"H{k}", "H[{}]"), (f"b{k}", "b[{}]"), (f"chi2{k}", "chi2")):
-            atol = 1e-10 * (scale if name.startswith("H") else max(1.0, float(np.max(np.abs(want[name])))))
-            text = compare(got[name], want[name], label, 1e-9, atol, where, known.get(name, ()),
-                           "the same H (upper triangle), b and chi2 as the per-edge loop")
-            if text:
-                return Verdict(0.0, text)
-        if not got[f"csc{k}"]:
-            return Verdict(0.5, f"the values are right but H is not a scipy.sparse CSC matrix {where}")
-    if not np.isfinite(got["diagonal_ok"]):
-        note = (" (note: PoseGraphProblem also reads SparseAssembler.diagonal_positions, the positions of the "
-                "diagonal entries in H.data, to add damping; yours has none)")
-    elif not got["diagonal_ok"]:
-        note = " (note: diagonal_positions does not point at the diagonal entries of H.data)"
-    return Verdict(1.0, "ok" + note)
-
-
 CHECKS = [
     check(FAST_EDGES, "e, A, B of all edges (optional)", 1, _fast_edge_calls,
           values(("e", "A", "B"), 1e-9, 1e-12, "the same e, A, B as pose_graph_edge, edge by edge")),
-    check(FAST_ASSEMBLER, "H (upper, CSC), b, chi2 (optional)", 1, _fast_assembler_calls, _judge_fast_assembler),
+    check(FAST_ASSEMBLER, "H (upper, CSC), b, chi2 (optional)", 1, _fast_assembler_calls,
+          assembler_judge("the same H (upper triangle), b and chi2 as the per-edge loop", "PoseGraphProblem")),
 ]

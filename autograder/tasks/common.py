@@ -1,6 +1,7 @@
 """What several tasks share: errors, strings as numbers, stubs, and a run as numbers."""
 
 import threading
+from typing import Any
 
 import numpy as np
 
@@ -74,3 +75,34 @@ def run_summary(result) -> dict:
         "trailing_rejections": float(trailing),
         "stop": stop_code(result.stop_reason),
     }
+
+
+def assemble_each(assembler, blocks, information) -> dict:
+    """``assembler.assemble(e, A, B, information)`` for each ``(e, A, B)`` of ``blocks``, on one
+    pattern (the sparse assemblers of chapters 2 and 6).
+
+    Fields per call k: ``H{k}`` (dense copy of the returned matrix), ``b{k}``, ``chi2{k}``,
+    ``csc{k}``; and ``diagonal_ok`` (1 when ``diagonal_positions`` points at the diagonal of
+    ``H.data``, 0 when it does not, NaN when there is none).
+    """
+    import scipy.sparse as sp
+
+    out: dict = {}
+    H: Any = None
+    for k, (e, A, B) in enumerate(blocks):
+        result = assembler.assemble(np.array(e), np.array(A), np.array(B), np.array(information))
+        if not isinstance(result, tuple) or len(result) != 3:
+            raise OutputError(f"returned {type(result).__name__}, expected a tuple (H, b, chi2)")
+        H, b, chi2 = result
+        out[f"H{k}"] = H.toarray() if sp.issparse(H) else np.asarray(H)
+        out[f"csc{k}"] = float(sp.issparse(H) and H.format == "csc")
+        out[f"b{k}"], out[f"chi2{k}"] = b, chi2
+    positions = getattr(assembler, "diagonal_positions", None)
+    if positions is None or not (sp.issparse(H) and H.format == "csc"):
+        out["diagonal_ok"] = float("nan")
+    else:
+        try:
+            out["diagonal_ok"] = float(np.array_equal(H.data[np.asarray(positions)], H.diagonal()))
+        except (IndexError, TypeError, ValueError):
+            out["diagonal_ok"] = 0.0
+    return out

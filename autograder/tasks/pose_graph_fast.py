@@ -1,9 +1,8 @@
 """The vectorized linearization: all edges at once, and the sparse assembler
 (``checks/pose_graph_fast.py``)."""
 
-import numpy as np
 
-from autograder.tasks.common import OutputError, stub_todo
+from autograder.tasks.common import OutputError, assemble_each, stub_todo
 
 
 def _fallback_note(impl, graph, exc):
@@ -36,12 +35,8 @@ def fast_assemble(graph, blocks, impl):
     """``pose_graph_fast.SparseAssembler``: built once, ``assemble`` called for each of
     ``blocks`` (``(e, A, B)`` of every edge, from the reference), on the same pattern.
 
-    Fields per call k: ``H{k}`` (dense copy of the returned matrix), ``b{k}``, ``chi2{k}``,
-    ``csc{k}``; and ``diagonal_ok`` (1 when ``diagonal_positions`` points at the diagonal
-    of ``H.data``, 0 when it does not, NaN when there is none).
+    Fields: as ``autograder.tasks.common.assemble_each``.
     """
-    import scipy.sparse as sp
-
     fast = impl.module("pose_graph_fast")
     cls = fast.SparseAssembler
     try:
@@ -50,22 +45,4 @@ def fast_assemble(graph, blocks, impl):
         e, A, B = blocks[0]
         todo = stub_todo(lambda: cls.assemble(object.__new__(cls), e, A, B, graph["information"]))
         raise NotImplementedError(_fallback_note(impl, graph, f"{exc}; {todo}" if todo else exc)) from None
-    out = {}
-    H = None
-    for k, (e, A, B) in enumerate(blocks):
-        result = assembler.assemble(np.array(e), np.array(A), np.array(B), np.array(graph["information"]))
-        if not isinstance(result, tuple) or len(result) != 3:
-            raise OutputError(f"returned {type(result).__name__}, expected a tuple (H, b, chi2)")
-        H, b, chi2 = result
-        out[f"H{k}"] = H.toarray() if sp.issparse(H) else np.asarray(H)
-        out[f"csc{k}"] = float(sp.issparse(H) and H.format == "csc")
-        out[f"b{k}"], out[f"chi2{k}"] = b, chi2
-    positions = getattr(assembler, "diagonal_positions", None)
-    if positions is None or not (sp.issparse(H) and H.format == "csc"):
-        out["diagonal_ok"] = float("nan")
-    else:
-        try:
-            out["diagonal_ok"] = float(np.array_equal(H.data[np.asarray(positions)], H.diagonal()))
-        except (IndexError, TypeError, ValueError):
-            out["diagonal_ok"] = 0.0
-    return out
+    return assemble_each(assembler, blocks, graph["information"])

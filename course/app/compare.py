@@ -122,6 +122,20 @@ def _run_peer(kind, backend, *args, **kwargs) -> RunResult:
     return registry.peer_solver(kind, backend)(*args, **kwargs)
 
 
+def _start_or_rows(initialise, graph, init, impl, plan, unimplemented):
+    """``initialise(graph, init, impl)`` (``(graph, seconds)``), or, when the start is an unwritten
+    TODO and ``unimplemented == "row"``, one row per pair of ``plan`` naming it."""
+    try:
+        return initialise(graph, init, impl)
+    except NotImplementedError as exc:
+        if unimplemented != "row":
+            raise
+        rows = [RunResult.skipped(backend, method, not_implemented_reason(exc)) for backend, method in plan]
+        for row in rows:
+            row.init = init
+        return rows
+
+
 def _median_run(solve, repeat: int) -> RunResult:
     """Run ``solve()`` ``repeat`` times and keep the run with the median time."""
     runs = [solve() for _ in range(max(int(repeat), 1))]
@@ -225,15 +239,10 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
     options = SolverOptions(max_iterations=max_iterations)
     plan = posegraph_plan(methods, backends)
     check_method(init)
-    try:
-        graph, init_seconds = initialise(graph, init, impl)
-    except NotImplementedError as exc:
-        if unimplemented != "row":
-            raise
-        rows = [RunResult.skipped(backend, method, not_implemented_reason(exc)) for backend, method in plan]
-        for row in rows:
-            row.init = init
-        return rows
+    started = _start_or_rows(initialise, graph, init, impl, plan, unimplemented)
+    if isinstance(started, list):
+        return started
+    graph, init_seconds = started
 
     def problem():
         try:
@@ -380,15 +389,10 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
     impl = _tree_impl(impl)
     options = SolverOptions(max_iterations=max_iterations)
     plan = posegraph3d_plan(methods, backends)
-    try:
-        graph, init_seconds = initialise(graph, init, impl)
-    except NotImplementedError as exc:
-        if unimplemented != "row":
-            raise
-        rows = [RunResult.skipped(backend, method, not_implemented_reason(exc)) for backend, method in plan]
-        for row in rows:
-            row.init = init
-        return rows
+    started = _start_or_rows(initialise, graph, init, impl, plan, unimplemented)
+    if isinstance(started, list):
+        return started
+    graph, init_seconds = started
 
     def ours(method, callback):
         return minimize(PoseGraph3DProblem(graph, impl), method, impl=impl, options=options, callback=callback)

@@ -42,14 +42,13 @@ def run(name, shares=(0.1, 0.2, 0.5), seed=1, impl="solutions", peers=True, on_r
     if truth is None:
         clean = robust.least_squares(graph, impl)
         truth, label = (clean.t, clean.R), "our solution without outliers"
+    rows: list = []
 
-    class Rows(list):
-        def append(self, row):
-            super().append(row)
-            if on_row is not None:
-                on_row(row, label)
+    def add(row):
+        rows.append(row)
+        if on_row is not None:
+            on_row(row, label)
 
-    rows = Rows()
     for share in [0.0, *shares]:
         corrupted = with_wrong_loop_closures(graph, share, seed)
         outliers = np.asarray(corrupted.outliers, dtype=bool)
@@ -62,7 +61,7 @@ def run(name, shares=(0.1, 0.2, 0.5), seed=1, impl="solutions", peers=True, on_r
                         ("GNC GM", lambda g: robust.gnc(g, "gm", impl))]
         for method, solve in methods:
             r = solve(corrupted)
-            rows.append(_row(share, f"ours {method}", r.t, r.R, r.kept, truth, outliers, right, r.outer, r.inner,
+            add(_row(share, f"ours {method}", r.t, r.R, r.kept, truth, outliers, right, r.outer, r.inner,
                              r.seconds))
         if share > 0 and peers:
             try:
@@ -75,7 +74,7 @@ def run(name, shares=(0.1, 0.2, 0.5), seed=1, impl="solutions", peers=True, on_r
             start, seconds = initialise(corrupted, "chordal", impl)
             for surrogate in ("tls", "gm"):
                 t, R, weights, gnc_seconds = solve_gnc(start, surrogate, known_inliers=odometry(corrupted))
-                rows.append(_row(share, f"gtsam GNC {surrogate.upper()}", t, R, weights > 0.5, truth, outliers,
+                add(_row(share, f"gtsam GNC {surrogate.upper()}", t, R, weights > 0.5, truth, outliers,
                                  right, 0, 0, seconds + gnc_seconds))
     return rows, label
 
@@ -98,5 +97,4 @@ def main(name, shares=(0.1, 0.2, 0.5), seed=1, impl="solutions", out=print) -> l
         printed.append(row)
         out(format_row(row))
 
-    rows, _ = run(name, shares, seed, impl, on_row=show)
-    return list(rows)
+    return run(name, shares, seed, impl, on_row=show)[0]

@@ -65,6 +65,11 @@ class PoseGraph3D:
         t, R = (self.t, self.R) if t is None else (t, R)
         return se3.edge_errors(t, R, self.edges_i, self.edges_j, self.t_z, self.R_z)
 
+    def squared_errors(self, t=None, R=None) -> np.ndarray:
+        """``s_k = e_k^T Omega_k e_k`` (M,) at ``(t, R)`` (default: the initial estimate)."""
+        e = self.errors(t, R)
+        return np.einsum("mi,mij,mj->m", e, self.information, e)
+
     def chi2(self, t=None, R=None) -> float:
         """``sum e^T Omega e`` at ``(t, R)`` (default: the initial estimate)."""
         return se3.weighted_chi2(self.errors(t, R), self.information)

@@ -74,8 +74,7 @@ class PoseGraph3DProblem:
 
     def squared_residuals(self, x) -> np.ndarray:
         """``s_k = e_k^T Omega_k e_k`` (M,) at x, with the graph's own information (no weights)."""
-        e = self.graph.errors(*unpack(x))
-        return np.einsum("mi,mij,mj->m", e, self.graph.information, e)
+        return self.graph.squared_errors(*unpack(x))
 
     def chi2(self, x) -> float:
         e = self.graph.errors(*unpack(x))

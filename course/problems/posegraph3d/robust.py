@@ -73,7 +73,8 @@ def gnc(graph: PoseGraph3D, surrogate="tls", impl="solutions", c2=C2_6DOF_99) ->
 
     def solve(weights):
         weights = np.asarray(weights, dtype=float)
-        weighted = _weighted(graph, weights).with_edges(weights >= DROP)
+        keep = weights >= DROP
+        weighted = _weighted(graph.with_edges(keep), weights[keep])
         if state["x"] is None:
             weighted, seconds = initialise(weighted, "chordal", impl)
             state["seconds"] += seconds
@@ -83,8 +84,7 @@ def gnc(graph: PoseGraph3D, surrogate="tls", impl="solutions", c2=C2_6DOF_99) ->
         run = minimize(problem, "gauss-newton", impl=impl, options=INNER)
         state["x"], state["inner"] = run.params, state["inner"] + run.iterations
         state["seconds"] += run.seconds
-        e = graph.errors(*unpack(run.params))
-        return np.einsum("mi,mij,mj->m", e, graph.information, e)
+        return graph.squared_errors(*unpack(run.params))
 
     weights, mus = module.gnc(solve, graph.num_edges, c2, surrogate, known_inliers=odometry(graph))
     t, R = unpack(state["x"])
