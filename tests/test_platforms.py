@@ -37,13 +37,12 @@ def test_targets_are_every_python_on_every_platform():
     assert {one.platform for one in TARGETS} == {"linux-x86_64", "linux-aarch64", "macos-arm64", "windows-amd64"}
 
 
-def test_linux_targets_name_every_manylinux_tag_from_2_28_down():
-    tags = target("3.12", "linux-aarch64").tags
-    assert tags[0] == "manylinux_2_28_aarch64"
-    assert {f"manylinux_2_{minor}_aarch64" for minor in range(17, 29)} <= set(tags)
-    assert "manylinux2014_aarch64" in tags
-    assert target("3.12", "macos-arm64").tags == ("macosx_14_0_arm64",)
-    assert target("3.12", "windows-amd64").tags == ("win_amd64",)
+def test_each_platform_has_the_resolvers_name():
+    assert target("3.12", "linux-aarch64").resolver_platform == "aarch64-manylinux_2_28"
+    assert target("3.12", "linux-x86_64").resolver_platform == "x86_64-manylinux_2_28"
+    assert target("3.12", "macos-arm64").resolver_platform == "aarch64-apple-darwin"
+    assert target("3.12", "windows-amd64").resolver_platform == "x86_64-pc-windows-msvc"
+    assert platforms.MACOS_DEPLOYMENT_TARGET == "14.0"  # the label's "macOS 14+"
 
 
 def test_the_marker_environment_is_the_targets():
@@ -140,58 +139,45 @@ def test_main_prints_the_table(capsys):
     assert capsys.readouterr().out == requirements_table()
 
 
-def test_resolve_reports_pips_complaint(monkeypatch):
+def test_resolve_reports_the_resolvers_complaint(monkeypatch):
     stderr = (
-        "WARNING: Location 'file:///somewhere/qdldl/' is ignored: it is neither a file nor a directory.\n"
-        "ERROR: Could not find a version that satisfies the requirement qdldl>=0.1.9 (from versions: none)\n"
-        "ERROR: No matching distribution found for qdldl>=0.1.9\n"
+        "  x No solution found when resolving dependencies:\n"
+        "  `-> Because qdldl==0.1.9.post1 has no usable wheels and you require qdldl>=0.1.9, we can conclude that "
+        "your requirements are unsatisfiable.\n"
     )
-    commands = []
+    calls = []
 
     def fake_run(command, **options):
-        commands.append(command)
+        calls.append((command, options))
         return subprocess.CompletedProcess(command, 1, stdout="", stderr=stderr)
 
     monkeypatch.setattr(platforms.subprocess, "run", fake_run)
     with pytest.raises(ResolutionError) as raised:
         resolve(["qdldl>=0.1.9"], target("3.15", "linux-aarch64"))
     message = str(raised.value)
-    assert "Python 3.15 on linux-aarch64" in message
-    assert "No matching distribution found for qdldl>=0.1.9" in message
-    assert "WARNING: Location" not in message
-    (command,) = commands
+    assert "Python 3.15 on linux-aarch64" in message and "no usable wheels" in message
+    ((command, options),) = calls
     assert command[command.index("--python-version") + 1] == "3.15"
-    assert "--platform=manylinux_2_28_aarch64" in command and "--only-binary=:all:" in command
-    assert "--dry-run" in command and command[-1] == "qdldl>=0.1.9"
+    assert command[command.index("--python-platform") + 1] == "aarch64-manylinux_2_28"
+    assert command[command.index("--only-binary") + 1] == ":all:" and "--no-deps" not in command
+    assert options["input"] == "qdldl>=0.1.9" and options["env"]["MACOSX_DEPLOYMENT_TARGET"] == "14.0"
 
 
-def test_resolve_of_nothing_runs_no_pip(monkeypatch):
-    monkeypatch.setattr(platforms.subprocess, "run", lambda *args, **options: pytest.fail("ran pip"))
-    assert resolve([], target("3.12", "linux-x86_64")) == {}
-
-
-def test_resolve_adds_the_dependencies_pip_judged_by_its_own_interpreter(monkeypatch):
-    # pip leaves colorama out of tqdm's dependencies when it runs on Linux; the Windows target needs it
-    tqdm = {
-        "metadata": {
-            "name": "tqdm",
-            "version": "4.67.1",
-            "requires_dist": ["colorama; platform_system == 'Windows'", "pytest; extra == 'dev'"],
-        }
+def test_resolve_reads_the_pinned_lines(monkeypatch):
+    pinned = "colorama==0.4.6\nIPython_Pygments-Lexers==1.1.1\n# a comment\ntqdm==4.67.1 ; sys_platform == 'win32'\n\n"
+    monkeypatch.setattr(
+        platforms.subprocess, "run", lambda command, **options: subprocess.CompletedProcess(command, 0, pinned, "")
+    )
+    assert resolve(["tqdm"], target("3.12", "windows-amd64")) == {
+        "colorama": "0.4.6",
+        "ipython-pygments-lexers": "1.1.1",
+        "tqdm": "4.67.1",
     }
-    colorama = {"metadata": {"name": "colorama", "version": "0.4.6"}}
-    asked = []
 
-    def fake_report(wanted, one, timeout, deps):
-        asked.append(list(wanted))
-        return [tqdm, colorama] if "colorama" in wanted else [tqdm]
 
-    monkeypatch.setattr(platforms, "_pip_report", fake_report)
-    assert resolve(["tqdm"], target("3.12", "windows-amd64")) == {"tqdm": "4.67.1", "colorama": "0.4.6"}
-    assert asked == [["tqdm"], ["tqdm", "colorama"]]
-    asked.clear()
-    assert resolve(["tqdm"], target("3.12", "linux-x86_64")) == {"tqdm": "4.67.1"}
-    assert asked == [["tqdm"]]
+def test_resolve_of_nothing_runs_no_resolver(monkeypatch):
+    monkeypatch.setattr(platforms.subprocess, "run", lambda *args, **options: pytest.fail("ran the resolver"))
+    assert resolve([], target("3.12", "linux-x86_64")) == {}
 
 
 def _unreachable_index() -> str | None:
@@ -223,4 +209,7 @@ def test_every_target_resolves_on_the_index():
         assert result.core is not None and {"numpy", "scipy"} <= set(result.core), result.target
         admitted = {canonicalize_name(name) for name in result.peer_names}
         assert result.peers is not None and admitted <= set(result.peers), result.target
+        # the transitive dependencies' markers are the target's, not this interpreter's
+        assert ("colorama" in result.core) == (result.target.platform == "windows-amd64"), result.target  # tqdm's
+        assert ("appnope" in result.core) == (result.target.platform == "macos-arm64"), result.target  # ipykernel's
     print(f"{len(results)} targets resolved in {time.monotonic() - start:.0f} s")

@@ -1,10 +1,12 @@
 """Where the course installs: the supported (Python, platform) targets and a check that they get wheels.
 
 Each target has the PEP 508 marker environment of that Python on that platform, so the markers of
-``pyproject.toml`` say what installs there (``applicable``), and the pip ``--platform`` tags, so pip
-can resolve the requirements against the package index's wheels for it without being there
-(``resolve``, ``check``). ``requirements_table`` turns the markers alone into the Markdown table of
-the student README's "Requirements" section.
+``pyproject.toml`` say what installs there (``applicable``), and uv's name for the platform, so uv's
+resolver (``uv pip compile``, a dev dependency) can resolve the requirements against the package
+index's wheels for it without being there (``resolve``, ``check``). uv rather than pip: it judges
+the transitive dependencies' markers by the target, not by the interpreter running it, and it takes
+a fraction of a second of CPU a target where pip took ten. ``requirements_table`` turns the markers
+alone into the Markdown table of the student README's "Requirements" section.
 
 This is a development tool, run on Python >= 3.11 (it reads ``pyproject.toml`` with ``tomllib``)::
 
@@ -15,15 +17,14 @@ This is a development tool, run on Python >= 3.11 (it reads ``pyproject.toml`` w
 from __future__ import annotations
 
 import argparse
-import json
+import functools
+import os
 import subprocess
 import sys
-import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from packaging.requirements import Requirement
 from packaging.utils import canonicalize_name
@@ -33,16 +34,12 @@ PYPROJECT = Path(__file__).resolve().parents[2] / "pyproject.toml"
 PYTHONS = ("3.10", "3.11", "3.12", "3.13", "3.14", "3.15")
 
 
-def _manylinux(arch: str) -> tuple[str, ...]:
-    # pip takes a manylinux_2_X tag literally (no expansion to older glibc), so name each one
-    return (*(f"manylinux_2_{minor}_{arch}" for minor in range(28, 16, -1)), f"manylinux2014_{arch}")
-
-
-# platform key: (label, pip --platform tags, the marker variables that do not depend on the Python)
-_PLATFORMS: dict[str, tuple[str, tuple[str, ...], dict[str, str]]] = {
+# platform key: (label, uv --python-platform, the marker variables that do not depend on the Python);
+# uv's manylinux_2_28 takes every older glibc tag too, its apple-darwin the MACOSX_DEPLOYMENT_TARGET
+_PLATFORMS: dict[str, tuple[str, str, dict[str, str]]] = {
     "linux-x86_64": (
         "Linux x86_64 (glibc 2.28+)",
-        _manylinux("x86_64"),
+        "x86_64-manylinux_2_28",
         {
             "sys_platform": "linux",
             "platform_system": "Linux",
@@ -54,7 +51,7 @@ _PLATFORMS: dict[str, tuple[str, tuple[str, ...], dict[str, str]]] = {
     ),
     "linux-aarch64": (
         "Linux aarch64 (glibc 2.28+)",
-        _manylinux("aarch64"),
+        "aarch64-manylinux_2_28",
         {
             "sys_platform": "linux",
             "platform_system": "Linux",
@@ -66,8 +63,7 @@ _PLATFORMS: dict[str, tuple[str, tuple[str, ...], dict[str, str]]] = {
     ),
     "macos-arm64": (
         "macOS 14+ arm64",
-        # pip adds the older macOS versions (macosx_13_0 ... macosx_11_0) itself
-        ("macosx_14_0_arm64",),
+        "aarch64-apple-darwin",  # with MACOSX_DEPLOYMENT_TARGET=14.0: macosx_14_0 ... macosx_11_0
         # macOS 14 is Darwin 23
         {
             "sys_platform": "darwin",
@@ -80,7 +76,7 @@ _PLATFORMS: dict[str, tuple[str, tuple[str, ...], dict[str, str]]] = {
     ),
     "windows-amd64": (
         "Windows amd64",
-        ("win_amd64",),
+        "x86_64-pc-windows-msvc",
         {
             "sys_platform": "win32",
             "platform_system": "Windows",
@@ -100,7 +96,7 @@ class Target:
     python: str  # "3.10" ... "3.15"
     platform: str  # a key of the platforms: "linux-x86_64", "linux-aarch64", "macos-arm64", "windows-amd64"
     label: str  # for people: "macOS 14+ arm64"
-    tags: tuple[str, ...]  # pip --platform tags
+    resolver_platform: str  # uv --python-platform: "x86_64-manylinux_2_28", "aarch64-apple-darwin", ...
     environment: Mapping[str, str] = field(hash=False, compare=False, repr=False)  # PEP 508 marker variables
 
     def __str__(self) -> str:
@@ -109,7 +105,7 @@ class Target:
 
 def target(python: str, platform: str) -> Target:
     """The ``Target`` for a Python version ("3.12") and a platform key ("macos-arm64")."""
-    label, tags, variables = _PLATFORMS[platform]
+    label, resolver_platform, variables = _PLATFORMS[platform]
     full_version = f"{python}.0"
     environment = {
         **variables,
@@ -119,7 +115,7 @@ def target(python: str, platform: str) -> Target:
         "implementation_version": full_version,
         "platform_python_implementation": "CPython",
     }
-    return Target(python, platform, label, tags, environment)
+    return Target(python, platform, label, resolver_platform, environment)
 
 
 TARGETS: tuple[Target, ...] = tuple(target(python, platform) for platform in _PLATFORMS for python in PYTHONS)
@@ -153,83 +149,66 @@ def _names(requirements: Iterable[str]) -> list[str]:
 
 
 class ResolutionError(RuntimeError):
-    """pip found no set of wheels for the requirements on a target."""
+    """The resolver found no set of wheels for the requirements on a target."""
 
 
-def _stderr_tail(stderr: str, lines: int = 12) -> str:
-    # drop pip's notes about find-links / index locations that do not exist on this machine
-    kept = [line for line in stderr.splitlines() if line.strip() and not line.startswith("WARNING: Location")]
-    return "\n".join(kept[-lines:])
+MACOS_DEPLOYMENT_TARGET = "14.0"  # the macos-arm64 label's "macOS 14+"
 
 
-def _pip_report(requirements: Sequence[str], target: Target, timeout: float, deps: bool) -> list[dict[str, Any]]:
-    """The "install" list of pip's installation report for ``requirements`` on ``target``."""
-    platforms = [f"--platform={tag}" for tag in target.tags]
-    with tempfile.TemporaryDirectory(prefix="course-platforms-") as scratch:
-        command = [
-            sys.executable, "-m", "pip", "install", "--dry-run", "--quiet", "--ignore-installed",
-            "--only-binary=:all:", "--python-version", target.python, *platforms, "--target", scratch,
-            "--report", "-", *([] if deps else ["--no-deps"]), *requirements,
-        ]  # fmt: skip
-        try:
-            done = subprocess.run(command, capture_output=True, text=True, timeout=timeout)
-        except subprocess.TimeoutExpired as error:
-            raise ResolutionError(
-                f"{target}: pip took more than {timeout:.0f} s for {' '.join(requirements)}"
-            ) from error
+@functools.cache
+def _uv() -> str:
+    """The uv executable (a dev dependency: the check is a development tool)."""
+    from uv import find_uv_bin
+
+    return str(find_uv_bin())
+
+
+def _compile(requirements: Sequence[str], target: Target, timeout: float, deps: bool) -> str:
+    """The pinned ``name==version`` lines ``uv pip compile`` writes for ``requirements`` on ``target``."""
+    command = [
+        _uv(), "pip", "compile", "-", "--quiet", "--no-header", "--no-annotate", "--no-config",
+        "--only-binary", ":all:", "--python-version", target.python, "--python-platform", target.resolver_platform,
+        # this interpreter: else uv looks through every Python on the machine for one of the target's version
+        "--python", sys.executable, *([] if deps else ["--no-deps"]),
+    ]  # fmt: skip
+    if os.environ.get("PIP_INDEX_URL"):  # the index pip is told to use, so both look at the same wheels
+        command += ["--index-url", os.environ["PIP_INDEX_URL"]]
+    environment = {**os.environ, "MACOSX_DEPLOYMENT_TARGET": MACOS_DEPLOYMENT_TARGET, "NO_COLOR": "1"}
+    try:
+        done = subprocess.run(
+            command, input="\n".join(requirements), capture_output=True, text=True, timeout=timeout, env=environment
+        )
+    except subprocess.TimeoutExpired as error:
+        raise ResolutionError(f"{target}: uv took more than {timeout:.0f} s for {' '.join(requirements)}") from error
     if done.returncode != 0:
-        tail = _stderr_tail(done.stderr)
-        raise ResolutionError(f"{target}: pip finds no wheels for {' '.join(requirements)}:\n{tail}")
-    install: list[dict[str, Any]] = json.loads(done.stdout)["install"]
-    return install
-
-
-def _missed(install: list[dict[str, Any]], target: Target) -> list[str]:
-    """The dependencies, without markers, that the target needs and pip left out of ``install``."""
-    present = {canonicalize_name(item["metadata"]["name"]) for item in install}
-    missed = []
-    for item in install:
-        extras = ["", *item.get("requested_extras", [])]
-        for text in item["metadata"].get("requires_dist", []):
-            requirement = Requirement(text)
-            if canonicalize_name(requirement.name) in present or requirement.marker is None:
-                continue
-            if any(requirement.marker.evaluate({**target.environment, "extra": extra}) for extra in extras):
-                requirement.marker = None
-                missed.append(str(requirement))
-    return missed
+        tail = "\n".join(line for line in done.stderr.splitlines()[-12:] if line.strip())
+        raise ResolutionError(f"{target}: no set of wheels for {' '.join(requirements)}:\n{tail}")
+    return done.stdout
 
 
 def resolve(requirements: Sequence[str], target: Target, timeout: float = 300, deps: bool = True) -> dict[str, str]:
     """What ``pip install REQUIREMENTS`` would install on ``target``: ``{name: version}`` (names normalized).
 
-    pip resolves against the index's metadata, taking wheels only and downloading none but the
-    metadata it needs (``deps=False``: the requirements alone). The requirements' own markers are not
-    looked at here: pass them through ``applicable`` first. Raises ``ResolutionError`` when pip finds
-    no solution, or takes longer than ``timeout`` seconds for one run.
+    The resolver reads the index's metadata, takes wheels only and downloads none (``deps=False``: the
+    requirements alone); the transitive dependencies' markers are the target's (colorama on Windows,
+    appnope on macOS). The requirements' own markers are not looked at here: pass them through
+    ``applicable`` first. Raises ``ResolutionError`` when there is no solution, or when one run takes
+    longer than ``timeout`` seconds.
     """
     if not requirements:
         return {}
-    # pip evaluates the markers of *transitive* dependencies against the interpreter running it, not
-    # against --python-version/--platform (only the direct requirements' markers are the target's,
-    # through ``applicable``). So a dependency that a package wants only on the target (colorama on
-    # Windows, appnope on macOS, tomli below 3.11) is left out: read each installed package's
-    # Requires-Dist from the report, and resolve again with those the target needs added, until none
-    # is missing. (The reverse, a dependency pip adds for this interpreter that the target would not
-    # install, stays in: it can only make the check stricter.)
-    wanted = list(requirements)
-    for _ in range(5):
-        install = _pip_report(wanted, target, timeout, deps)
-        missed = _missed(install, target) if deps else []
-        if not missed:
-            break
-        wanted += missed
-    return {canonicalize_name(item["metadata"]["name"]): item["metadata"]["version"] for item in install}
+    pinned: dict[str, str] = {}
+    for line in _compile(requirements, target, timeout, deps).splitlines():
+        line = line.split("#")[0].strip()
+        if line:
+            name, _, version = line.partition("==")
+            pinned[canonicalize_name(name.split("[")[0])] = version.split(";")[0].strip()
+    return pinned
 
 
 @dataclass
 class Result:
-    """The resolution of the core and of the peers on one target: versions, or pip's complaint."""
+    """The resolution of the core and of the peers on one target: versions, or the resolver's complaint."""
 
     target: Target
     peer_names: list[str]  # the peers whose markers hold on the target
@@ -246,7 +225,7 @@ class Result:
 def check(
     targets: Iterable[Target] = TARGETS, workers: int = 4, timeout: float = 300, pyproject: Path = PYPROJECT
 ) -> list[Result]:
-    """Resolve the core and the ``peers`` extra on every target, ``workers`` pips at a time.
+    """Resolve the core and the ``peers`` extra on every target, ``workers`` resolvers at a time.
 
     The peers are resolved together with the core, as ``pip install .[peers]`` does, so a peer that
     pins a core package the core cannot have fails too. When that succeeds the core resolves as well
@@ -272,6 +251,7 @@ def check(
         except ResolutionError as error:
             result.core_error = str(error)
 
+    _uv()  # once, before the threads: uv's lookup reads sysconfig, which is not thread-safe
     with ThreadPoolExecutor(max_workers=workers) as pool:
         for _ in pool.map(resolve_both, results):
             pass
@@ -328,7 +308,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Print the README's table (``--table``) or resolve every target; 1 when one fails, else 0."""
     parser = argparse.ArgumentParser(prog="python -m course.release.platforms", description=__doc__.split("\n\n")[0])
     parser.add_argument("--table", action="store_true", help="print the Markdown requirements table (no network)")
-    parser.add_argument("--workers", type=int, default=4, help="pip processes at a time (default: 4)")
+    parser.add_argument("--workers", type=int, default=4, help="resolvers at a time (default: 4)")
     options = parser.parse_args(argv)
     if options.table:
         print(requirements_table(), end="")
