@@ -61,7 +61,8 @@ def describe_error(error, call=None) -> str:
         return f"{error.message}{where}"
     if error.kind == "OutputError":
         return f"{function} {error.message}"
-    return f"{function} raised {error.kind}: {error.message}{where}"
+    inputs = f" {call.where}" if call is not None and call.where else ""  # which inputs it fails on
+    return f"{function}{inputs} raised {error.kind}: {error.message}{where}"
 
 
 def first_error(ctx, hints=None):
@@ -186,7 +187,7 @@ def compare(actual, expected, name, rtol, atol, where="", mistakes=(), cause="",
             return pattern.replace("{}", ", ".join(map(str, index)))
         return f"{name}{_index(index)}"
 
-    if scalar and actual.size == 1:
+    if scalar and actual.size == 1 and expected.ndim == 0:
         actual = actual.reshape(())
     if actual.shape != expected.shape:
         shape = "a number" if expected.ndim == 0 else str(expected.shape)

@@ -5,8 +5,10 @@ synthetic problem.
 Public inputs: 4 cameras (one with a rotation of 1e-9 rad, the small-angle case) and 12
 points, each seen by 2 to 4 cameras (observations shuffled), distortion that matters (|k1 p^2| about 0.1), observations
 perturbed by pixel noise; for the normal equations and the Schur step, the reference
-Jacobians of that problem (so each exercise is graded alone) and LM damping; hidden
-inputs: another problem of the same kind from the hidden seed.
+Jacobians of that problem (so each exercise is graded alone) and LM damping, passed as
+arguments or already added to U and V; for the Schur step also a problem of 112 cameras and
+224 points (S is 1008 x 1008: the reference solves it sparse). Hidden inputs: other problems
+of the same kinds from the hidden seed.
 
 The residual function is also called with every camera's parameter j (and every point's
 coordinate i) moved by +h and -h: a wrong Jacobian's feedback then says whether it agrees
@@ -40,12 +42,18 @@ def _rotate(w, X):
 
 
 @cache
-def problem(seed=None):
+def problem(seed=None, large=False):
     """A small BAL problem: ``cameras`` (C, 9), ``points`` (P, 3), ``camera_index``,
     ``point_index`` (K,), ``observations`` (K, 2); every point seen by 2 to 4 cameras, every
-    point in front of every camera that sees it (P_z < 0 in the BAL convention)."""
-    rng = np.random.default_rng(61 if seed is None else [seed, 261])
-    num_cameras, num_points = 4, 12
+    point in front of every camera that sees it (P_z < 0 in the BAL convention). ``large``: 112
+    cameras (9C above the reference's dense limit: its sparse branch) and 224 points, point p seen
+    by camera p mod 112 among others (every camera sees 2 points or more)."""
+    if large:
+        rng = np.random.default_rng(67 if seed is None else [seed, 267])
+        num_cameras, num_points = 112, 224
+    else:
+        rng = np.random.default_rng(61 if seed is None else [seed, 261])
+        num_cameras, num_points = 4, 12
     cameras = np.zeros((num_cameras, 9))
     cameras[:, :3] = rng.normal(0, 0.3, (num_cameras, 3))
     cameras[0, :3] = rng.normal(0, 1e-9, 3)  # the small-angle case
@@ -58,6 +66,8 @@ def problem(seed=None):
     pairs = []
     for p in range(num_points):
         seen = rng.choice(num_cameras, int(rng.integers(2, 5)), replace=False)
+        if large and p % num_cameras not in seen:
+            seen[0] = p % num_cameras
         pairs += [(int(c), p) for c in sorted(seen)]
     pairs = [pairs[k] for k in rng.permutation(len(pairs))]  # observations in no particular order
     ci, pi = (np.array(v, dtype=np.int64) for v in zip(*pairs))
@@ -114,12 +124,12 @@ def _residual_calls(seed=None):
 
 
 @cache
-def linearized(seed=None):
-    """The reference residuals and Jacobians of ``problem(seed)`` (instructor side: inside a
+def linearized(seed=None, large=False):
+    """The reference residuals and Jacobians of ``problem(seed, large)`` (instructor side: inside a
     calls builder)."""
     from autograder import reference
 
-    g = problem(seed)
+    g = problem(seed, large)
     f = reference.solutions_module("bundle_adjustment").reprojection_residuals_and_jacobians
     return f(g["cameras"], g["points"], g["camera_index"], g["point_index"], g["observations"])
 
@@ -134,22 +144,34 @@ def _normal_calls(seed=None):
 
 
 def _schur_calls(seed=None):
+    """The Schur step of the small problem at two LM dampings, then at the second with the damping already
+    added to U and V (no damping arguments), then of the large problem (112 cameras)."""
     from autograder import reference
 
-    g = problem(seed)
     normal = reference.solutions_module("bundle_adjustment").normal_equations
-    U, V, W, g_cam, g_point, _ = normal(*linearized(seed), g["camera_index"], g["point_index"], len(g["cameras"]),
-                                        len(g["points"]))
+    target = f"bundle_adjustment:{SCHUR.split('.')[1]}"
     rng = np.random.default_rng(5 if seed is None else [seed, 263])
-    calls = []
     # without damping, S is singular: bundle adjustment has a 7-dimensional gauge freedom
-    for lam in (1e-2, 1.0) if seed is None else (10.0 ** float(rng.uniform(-3, -1)), float(rng.uniform(0.5, 2))):
+    lams = (1e-2, 1.0) if seed is None else (10.0 ** float(rng.uniform(-3, -1)), float(rng.uniform(0.5, 2)))
+    calls = []
+    for large, lam in ((False, lams[0]), (False, lams[1]), (False, None), (True, lams[1])):
+        g = problem(seed, large)
+        U, V, W, g_cam, g_point, _ = normal(*linearized(seed, large), g["camera_index"], g["point_index"],
+                                            len(g["cameras"]), len(g["points"]))
+        rest = (W, g_cam, g_point, g["camera_index"], g["point_index"])
+        if lam is None:  # the damping of the call before, added by the caller
+            dc, dp = lams[1] * np.einsum("cii->ci", U), lams[1] * np.einsum("pii->pi", V)
+            U, V = U.copy(), V.copy()
+            U[:, np.arange(9), np.arange(9)] += dc
+            V[:, np.arange(3), np.arange(3)] += dp
+            calls.append(Call(target, (U, V, *rest), returns=("dx_cam", "dx_point"),
+                              where=_where(g) + f", U and V with lambda diag(H) added (lambda = {lams[1]:.3g}), "
+                                                "no damping arguments"))
+            continue
         dc, dp = lam * np.einsum("cii->ci", U), lam * np.einsum("pii->pi", V)
-        what = f"LM damping lambda diag(H), lambda = {lam:.3g}"
-        args = (U, V, W, g_cam, g_point, g["camera_index"], g["point_index"])
-        calls.append(Call(f"bundle_adjustment:{SCHUR.split('.')[1]}", args,
-                          {"damping_cam": dc, "damping_point": dp}, returns=("dx_cam", "dx_point"),
-                          where=_where(g) + f", reference U, V, W, g; {what}"))
+        calls.append(Call(target, (U, V, *rest), {"damping_cam": dc, "damping_point": dp},
+                          returns=("dx_cam", "dx_point"),
+                          where=_where(g) + f", reference U, V, W, g; LM damping lambda diag(H), lambda = {lam:.3g}"))
     return calls
 
 

@@ -5,8 +5,10 @@ Public inputs: squared residuals spanning the three TLS regions (inside, between
 the bounds) at three values of mu; the loop on a robust mean of 30 values, 8 of them wrong,
 the first 4 known inliers (one of them 4.5 sigma away: the surrogate alone would reject it),
 for each surrogate; and the same without the wrong values, where only the known inlier's s
-exceeds c2 (GNC still runs: least squares may hide a wrong edge's error in its neighbours).
-Hidden: the same kind from the hidden seed.
+exceeds c2 (GNC still runs: least squares may hide a wrong edge's error in its neighbours);
+without that one too, where no s exceeds c2 (nothing to do: the weights stay 1, no mu); and the
+TLS loop stopped by ``max_iterations = 3`` before it converges. Hidden: the same kind from the
+hidden seed.
 The loop uses the student's own weights: a wrong weight function costs the loop's check too.
 """
 
@@ -57,6 +59,13 @@ def _loop_calls(seed=None):
     calls.append(Call("@autograder.tasks.gnc:robust_mean", (clean, 1.0, C2, "tls", p["known"][:22]), returns="dict",
                       label=LOOP, where="with the TLS surrogate on a robust mean of 22 right values, the first 4 "
                                         "known inliers (value 0 4.5 sigma away, the only s above c2 = 9)"))
+    tight = 10.0 + np.clip(clean[1:] - 10.0, -1.5, 1.5)  # |y - mean| <= 3: every s <= c2 whatever the seed
+    calls.append(Call("@autograder.tasks.gnc:robust_mean", (tight, 1.0, C2, "tls", p["known"][1:22]),
+                      returns="dict", label=LOOP, where="with the TLS surrogate on a robust mean of 21 right values "
+                                                        "(every s below c2 = 9 at the start)"))
+    calls.append(Call("@autograder.tasks.gnc:robust_mean", (p["y"], 1.0, C2, "tls", p["known"]),
+                      {"max_iterations": 3}, returns="dict", label=LOOP,
+                      where="with the TLS surrogate on a robust mean of 30 values, 8 wrong, max_iterations = 3"))
     return calls
 
 

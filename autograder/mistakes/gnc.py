@@ -55,11 +55,11 @@ def loop(call, *, slip=None):
     weights = np.ones(len(y))
     s = solve(weights)
     s_max = float(np.max(s if slip != "unknown_only" else s[~known]))
-    if s_max <= c2:
+    if s_max <= c2 and slip != "no_early_return":
         return {"weights": weights, "mus": np.zeros(0), "x": last[0], "calls": float(calls[0])}
     mu = c2 / (2 * s_max - c2) if surrogate == "tls" else 2 * s_max / c2
     mus = []
-    for _ in range(100):
+    for _ in range(100 if slip == "unlimited" else call.kwargs.get("max_iterations", 100)):
         weights = tls(s, mu, c2) if surrogate == "tls" else gm(s, mu, c2)
         if slip != "known":
             weights[known] = 1.0
@@ -84,7 +84,11 @@ def loop_mistakes(call, ref):
                        ("known", "known inliers keep weight 1 whatever their residual"),
                        ("no_resolve", "solve again after every new set of weights (s must come from the new "
                                       "solution)"),
-                       ("gm_up", "for Geman-McClure mu shrinks toward 1: mu = max(mu / factor, 1)")):
+                       ("gm_up", "for Geman-McClure mu shrinks toward 1: mu = max(mu / factor, 1)"),
+                       ("no_early_return", "when no s exceeds c2 at the start there is nothing to reject: return "
+                                           "the unit weights and no mu at once"),
+                       ("unlimited", "stop after max_iterations new sets of weights even if they have not "
+                                     "settled")):
         try:
             out = loop(call, slip=slip)
         except (ValueError, FloatingPointError):

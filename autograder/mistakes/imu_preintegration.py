@@ -101,10 +101,16 @@ _PRE_SLIPS = [
 ]
 
 
+_EULER_SLIP = ({"scheme": "midpoint"}, "you averaged both ends of each interval (midpoint) where scheme='euler' "
+                                      "takes the left sample only: w_k = omega_k - b_g, a_k rotated by Delta R_k")
+
+
 def _known_pre(call, ref):
     out = {name: [] for name in FIELDS}
-    for slip, why in _PRE_SLIPS:
-        for name, value in preintegrate(call, **slip).items():
+    scheme = call.kwargs.get("scheme", "midpoint")
+    slips = _PRE_SLIPS if scheme == "midpoint" else [_EULER_SLIP, *_PRE_SLIPS[1:]]
+    for slip, why in slips:
+        for name, value in preintegrate(call, **{"scheme": scheme, **slip}).items():
             out[name].append((value, why))
     return out
 

@@ -5,9 +5,10 @@ import numpy as np
 from autograder.tasks.common import OutputError
 
 
-def robust_mean(y, sigma2, c2, surrogate, known, impl):
+def robust_mean(y, sigma2, c2, surrogate, known, impl, max_iterations=None):
     """The student's ``gnc.gnc`` on the weighted mean of ``y`` (M,): ``solve(w)`` returns
-    ``s_k = (y_k - x)^2 / sigma2`` at ``x = sum w y / sum w``.
+    ``s_k = (y_k - x)^2 / sigma2`` at ``x = sum w y / sum w`` (``max_iterations``: passed on
+    when given, else gnc's default).
 
     Fields: ``weights`` (M,), ``mus``, ``x`` (the last solve's mean), ``calls`` (how many solves).
     """
@@ -23,7 +24,8 @@ def robust_mean(y, sigma2, c2, surrogate, known, impl):
         state["x"] = float(weights @ y / weights.sum())
         return (y - state["x"]) ** 2 / sigma2
 
-    out = impl.module("gnc").gnc(solve, len(y), c2, surrogate, known_inliers=np.asarray(known, dtype=bool))
+    limit = {} if max_iterations is None else {"max_iterations": int(max_iterations)}
+    out = impl.module("gnc").gnc(solve, len(y), c2, surrogate, known_inliers=np.asarray(known, dtype=bool), **limit)
     if not isinstance(out, tuple) or len(out) != 2:
         raise OutputError(f"gnc returned {type(out).__name__}, expected a tuple (weights, mus)")
     weights, mus = out

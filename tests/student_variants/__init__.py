@@ -522,6 +522,13 @@ BUGS_BUNDLE_ADJUSTMENT = {
         "bundle_adjustment.py", [], "(-np.asarray(g_point, dtype=float) - back)",
         "(-np.asarray(g_point, dtype=float) + back)",
         {BA_PT}, "back-substitution"),
+    # reached only since the checks pass the damping inside U and V, and a problem of 112 cameras
+    "schur_damping_added_when_none": V(
+        "bundle_adjustment.py", [], "    if damping_cam is not None:\n        U[", "    if True:\n        U[",
+        {BA_CAM, BA_PT}, "no damping arguments raised"),
+    "schur_large_systems_solve_the_wrong_sign": V(
+        "bundle_adjustment.py", [], 'permc_spec="MMD_AT_PLUS_A").solve(rhs)', 'permc_spec="MMD_AT_PLUS_A").solve(-rhs)',
+        {BA_CAM, BA_PT}, "on a problem of 112 cameras"),
 }
 
 RK_HUBER, RK_CAUCHY, RK_TUKEY = "robust_kernels.huber: ", "robust_kernels.cauchy: ", "robust_kernels.tukey: "
@@ -887,6 +894,10 @@ BUGS_IMU_PREINTEGRATION = {
     "ir_accel_bias_correction_sign": V(
         "imu_preintegration.py", IR_IN, "dba = b_a - np.asarray(pre.bias_accel, dtype=float)",
         "dba = np.asarray(pre.bias_accel, dtype=float) - b_a", {IR_V, IR_P}, "not b hat - b_i"),
+    # reached only since the checks call scheme="euler" (a branch no input reached before)
+    "ip_euler_with_the_right_sample": V(
+        "imu_preintegration.py", IP_IN + ("else:",), "rates = gyro[:-1] - bias_gyro", "rates = gyro[1:] - bias_gyro",
+        {IP_R, IP_VP, IP_COV, IP_JR, IP_JVP}, "Euler: omega_k - b_g"),
 }
 #: correct but different: the noise through a square root of Q, the Jacobian's columns one bias at a time,
 #: the rotation residual and the frame change written otherwise
@@ -1054,6 +1065,12 @@ BUGS_GNC = {
         {G_LOOP}, "known inliers included"),
     "gnc_gm_mu_grows": V(
         "gnc.py", [], "mu = max(mu / factor, 1.0)", "mu = mu * factor", {G_LOOP}, "mu shrinks toward 1"),
+    # reached only since the checks run a mean where no s exceeds c2, and one stopped by max_iterations
+    "gnc_no_early_return_when_nothing_exceeds_c2": V(
+        "gnc.py", [], "    if s_max <= c2:\n        return weights, []\n", "", {G_LOOP}, "nothing to reject"),
+    "gnc_max_iterations_ignored": V(
+        "gnc.py", [], "for _ in range(max_iterations):", "for _ in range(1000):", {G_LOOP},
+        "stop after max_iterations"),
     "gnc_no_new_solve": V(
         "gnc.py", ["for _ in range(max_iterations)"], "s = np.asarray(solve(weights), dtype=float)", "pass",
         {G_LOOP}, "solve again after every new set of weights"),
