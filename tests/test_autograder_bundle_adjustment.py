@@ -33,6 +33,24 @@ def test_a_known_mistake_costs_its_own_checks_only(graded, name):
     assert variant.says in feedback, feedback
 
 
+#: the factor of the chain rule each slip goes through, as the feedback names it
+FACTOR_SAID = {
+    "ba_projection_derivative_z_sign": "In it, d predicted / d P_z differs",
+    "ba_no_distortion_derivative": "J_cam and J_point both go wrong through the factor they share",
+    "ba_small_angle_rotation_jacobian": "is right; d P / d w (J_cam's rotation columns",
+    "ba_point_jacobian_without_rotation": "is right; d P / d X = R(w) (J_point",
+    "ba_focal_column_without_distortion": "is right; d predicted / d (f, k1, k2)",
+}
+
+
+@pytest.mark.parametrize("name", sorted(FACTOR_SAID))
+def test_a_wrong_jacobian_names_the_factor_it_goes_wrong_through(graded, name):
+    _, results = graded[name]
+    said = [line for t in results["tests"] if "hidden" not in t["name"] for line in t["output"].splitlines()
+            if line.startswith("Which factor:")]
+    assert said and all(FACTOR_SAID[name] in line for line in said), said
+
+
 def test_every_exercise_has_five_known_mistakes_and_they_name_real_checks():
     checks = [c for c in all_checks() if c.exercise.startswith("bundle_adjustment.")]
     for exercise in {c.exercise for c in checks}:

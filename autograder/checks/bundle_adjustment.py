@@ -13,14 +13,17 @@ of the same kinds from the hidden seed.
 The residual function is also called with every camera's parameter j (and every point's
 coordinate i) moved by +h and -h: a wrong Jacobian's feedback then says whether it agrees
 with central differences of the student's own r (the derivative is right for the model they
-wrote: the model is wrong) or not (the derivative is wrong), and which columns differ.
+wrote: the model is wrong) or not (the derivative is wrong), and which columns differ. It also
+says which factor of the chain rule is wrong: the data hold the reference's d predicted / d P,
+d P / d w and d P / d X at call 0, and J_cam's t columns are the student's own d predicted / d P,
+so a slip in that shared factor is told apart from one in the factors after it (``which_factor``).
 """
 
 from functools import cache
 
 import numpy as np
 
-from autograder.checks import Call
+from autograder.checks import Call, Verdict
 from autograder.checks.common import check, residual_or_jacobian, values
 from autograder.feedback import fields_of
 
@@ -92,6 +95,10 @@ POINT_COLUMNS = ("X", "Y", "Z")
 CAMERA_BLOCKS = (("the rotation columns (w)", slice(0, 3)), ("the translation columns (t)", slice(3, 6)),
                  ("the focal-length column (f)", slice(6, 7)), ("the distortion columns (k1, k2)", slice(7, 9)))
 POINT_BLOCKS = (("the X column", slice(0, 1)), ("the Y column", slice(1, 2)), ("the Z column", slice(2, 3)))
+#: the reference's factors of the Jacobians at call 0, which the instructor's data holds under these names
+#: (d predicted / d P (K, 2, 3), d P / d w (K, 3, 3), d P / d X = R(w) (K, 3, 3)): feedback says which factor
+#: a wrong Jacobian goes wrong through
+FACTORS = ("factor: d predicted / d P", "factor: d P / d w", "factor: d P / d X")
 #: relative step of the central differences
 STEP = 1e-6
 #: what the moved calls' ``where`` ends with (their known mistakes are not needed: feedback names call 0's)
@@ -207,6 +214,67 @@ def _residual_or_jacobian(name, blocks, judge):
                                 "r", "the residuals check", "model")
 
 
+def which_factor(ctx) -> str:
+    """Which factor of the chain rule the student's J_cam and J_point go wrong through, or "".
+
+    J_cam's t columns are the student's d predicted / d P itself (d P / d t = I). When it is wrong
+    and, times the reference's d P / d w and d P / d X, it gives the student's rotation columns and
+    J_point, both Jacobians go wrong through that one shared factor; when it is right, the factors
+    after it are named instead.
+    """
+    known = ctx.known(0)
+    if any(len(known.get(name, ())) != 1 for name in FACTORS) or ctx.student[0].error is not None:
+        return ""
+    A, dP_dw, R = (np.asarray(known[name][0][0], float) for name in FACTORS)
+    (student, bad), (reference, _) = fields_of(ctx.student[0], ctx.calls[0]), fields_of(ctx.reference[0], ctx.calls[0])
+    if bad or "J_cam" not in student or "J_point" not in student:
+        return ""
+    J_cam, J_point = np.asarray(student["J_cam"], float), np.asarray(student["J_point"], float)
+    K = len(A)
+    if J_cam.shape != (K, 2, 9) or J_point.shape != (K, 2, 3) or not (np.isfinite(J_cam).all() and np.isfinite(
+            J_point).all()):
+        return ""
+
+    def same(got, want):
+        return np.allclose(got, want, rtol=1e-6, atol=1e-8 * max(1.0, float(np.max(np.abs(want)))))
+
+    mine = J_cam[:, :, 3:6]  # the student's d predicted / d P
+    rotation_follows, point_follows = same(J_cam[:, :, :3], mine @ dP_dw), same(J_point, mine @ R)
+    if not same(mine, A):
+        if not (rotation_follows and point_follows):
+            return ""
+        columns = [f"d predicted / d P_{axis}" for a, axis in enumerate("xyz") if not same(mine[:, :, a], A[:, :, a])]
+        k, i, j = (int(v) for v in np.unravel_index(int(np.argmax(np.abs(mine - A))), A.shape))
+        return ("\nWhich factor: J_cam and J_point both go wrong through the factor they share, d predicted / d P "
+                "(projection and distortion): your J_cam's t columns are that factor (d P / d t = I), and times the "
+                "reference's d P / d w and d P / d X = R(w) it gives your rotation columns and your J_point. In it, "
+                f"{' and '.join(columns)} {'differs' if len(columns) == 1 else 'differ'} (observation {k}: "
+                f"[{i}, {j}] = {mine[k, i, j]:.6g}, expected {A[k, i, j]:.6g}).")
+    wrong = []
+    if not rotation_follows:
+        wrong.append("d P / d w (J_cam's rotation columns are d predicted / d P times d(R(w) X)/dw)")
+    if not point_follows:
+        wrong.append("d P / d X = R(w) (J_point is d predicted / d P times R(w))")
+    if not same(J_cam[:, :, 6:], np.asarray(reference["J_cam"], float)[:, :, 6:]):
+        wrong.append("d predicted / d (f, k1, k2) (J_cam's last three columns, which do not go through P)")
+    if not wrong:
+        return ""
+    return "\nWhich factor: your d predicted / d P (J_cam's t columns) is right; " + "; and ".join(wrong) + " is not."
+
+
+def _with_factor(judge):
+    """``judge``, with what ``which_factor`` says added to a wrong Jacobian's feedback."""
+
+    def judged(ctx):
+        verdict = judge(ctx)
+        if verdict.fraction >= 1.0 or verdict.not_implemented:
+            return verdict
+        said = which_factor(ctx)
+        return Verdict(verdict.fraction, verdict.message + said, verdict.not_implemented) if said else verdict
+
+    return judged
+
+
 _RES_LABELS = {"r": "r[{}]", "J_cam": "J_cam[{}]", "J_point": "J_point[{}]"}
 _NORMAL_LABELS = {"U": "U[{}]", "V": "V[{}]", "W": "W[{}]", "g_cam": "g_cam[{}]", "g_point": "g_point[{}]",
                   "chi2": "chi2"}
@@ -215,13 +283,13 @@ _SCHUR_LABELS = {"dx_cam": "dx_cam[{}]", "dx_point": "dx_point[{}]"}
 CHECKS = [
     check(RESIDUALS, "residuals r", 2, _residual_calls, _values(("r",), 1e-8, 1e-10, _RES_LABELS,
           "r = f d p - observed with P = R(w) X + t, p = -P[:2] / P[2], d = 1 + k1 |p|^2 + k2 |p|^4")),
-    check(RESIDUALS, "camera Jacobian J_cam", 3, _residual_calls, _residual_or_jacobian(
+    check(RESIDUALS, "camera Jacobian J_cam", 3, _residual_calls, _with_factor(_residual_or_jacobian(
         "J_cam", CAMERA_BLOCKS, _values(("J_cam",), 1e-6, 1e-8, _RES_LABELS,
                                                  "J_cam[k] = d r_k / d (w, t, f, k1, k2), the exact derivative of "
-                                                 "R(w) X in w"))),
-    check(RESIDUALS, "point Jacobian J_point", 2, _residual_calls, _residual_or_jacobian(
+                                                 "R(w) X in w")))),
+    check(RESIDUALS, "point Jacobian J_point", 2, _residual_calls, _with_factor(_residual_or_jacobian(
         "J_point", POINT_BLOCKS, _values(("J_point",), 1e-6, 1e-8, _RES_LABELS,
-                                                    "J_point[k] = d r_k / d X = (d predicted / d P) R(w)"))),
+                                                    "J_point[k] = d r_k / d X = (d predicted / d P) R(w)")))),
     check(NORMAL, "camera blocks U, point blocks V, coupling W", 3, _normal_calls,
           _values(("U", "V", "W"), 1e-10, 1e-12, _NORMAL_LABELS,
                  "U_c = sum J_cam^T J_cam over camera c's observations, V_p likewise, W_k = J_cam_k^T J_point_k")),

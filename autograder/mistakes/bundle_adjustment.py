@@ -5,8 +5,8 @@ at a time, dense matrices), with one slip or none."""
 
 import numpy as np
 
-from autograder.checks.bundle_adjustment import DIFFERENCES, NORMAL, RESIDUALS, SCHUR
-from course.geometry.so3 import skew, so3_exp
+from autograder.checks.bundle_adjustment import DIFFERENCES, FACTORS, NORMAL, RESIDUALS, SCHUR
+from course.geometry.so3 import right_jacobian, skew, so3_exp
 
 
 def _predict(camera, X, *, sign=-1.0, distortion="right", rotation="R"):
@@ -58,6 +58,26 @@ def jacobians(call, *, point="R", rotation="exact", dd=True, df="dp", sign=1.0):
     return np.array(Jc), np.array(Jp)
 
 
+def factors(call) -> dict:
+    """The reference's factors of the Jacobians at every observation, under the names of
+    ``checks.bundle_adjustment.FACTORS``: d predicted / d P (K, 2, 3), d P / d w (K, 3, 3) and
+    d P / d X = R(w) (K, 3, 3); J_cam's (w, t) columns are d predicted / d P times (d P / d w, I),
+    J_point is d predicted / d P times R(w)."""
+    cameras, points, ci, pi, _ = call.args
+    out: dict[str, list] = {name: [] for name in FACTORS}
+    for c, p in zip(ci, pi):
+        cam, X = cameras[c], points[p]
+        _, P, pp, d = _predict(cam, X)
+        f, k1, k2 = cam[6], cam[7], cam[8]
+        r2 = pp @ pp
+        dp_dP = np.array([[-1 / P[2], 0, P[0] / P[2] ** 2], [0, -1 / P[2], P[1] / P[2] ** 2]])
+        dpred_dp = f * (d * np.eye(2) + np.outer(pp, (2 * k1 + 4 * k2 * r2) * pp))
+        R = so3_exp(cam[:3])
+        for name, value in zip(FACTORS, (dpred_dp @ dp_dP, -R @ skew(X) @ right_jacobian(cam[:3]), R)):
+            out[name].append(value)
+    return {name: [(np.array(values), "the reference's factor")] for name, values in out.items()}
+
+
 def residual_mistakes(call, ref):
     if call.where.endswith(DIFFERENCES):  # the moved inputs: feedback names the first call's mistakes
         return {}
@@ -82,7 +102,7 @@ def residual_mistakes(call, ref):
         for name, value in jac(**slip).items():
             if not np.allclose(value, ref[name], rtol=1e-9, atol=1e-12):
                 known[name].append((value, text))
-    return known
+    return known | factors(call)
 
 
 def normal(call, *, accumulate="add", gradient=1.0, chi2_scale=1.0, coupling="cam_point"):

@@ -471,7 +471,9 @@ BUGS_BUNDLE_ADJUSTMENT = {
     "ba_projection_derivative_z_sign": V(
         "bundle_adjustment.py", [], "dp_dP[:, :, 2] = P[:, :2] / (z * z)[:, None]",
         "dp_dP[:, 0, 2] = P[:, 0] / (z * z)\n    dp_dP[:, 1, 2] = -P[:, 1] / (z * z)",
-        {BA_JC, BA_JP}, "does not agree with central differences of your own r either"),
+        {BA_JC, BA_JP}, "both go wrong through the factor they share, d predicted / d P (projection and distortion): "
+        "your J_cam's t columns are that factor (d P / d t = I), and times the reference's d P / d w and d P / d X = "
+        "R(w) it gives your rotation columns and your J_point. In it, d predicted / d P_z differs"),
     # the pinhole projection p = +P[:2] / P[2] throughout, derivative included: a wrong model with a
     # consistent Jacobian
     "ba_pinhole_projection_consistently": V(
