@@ -32,13 +32,23 @@ class ExpectedDataError(RuntimeError):
     """The shipped data is missing, stale or malformed."""
 
 
+#: keys of the per-call data that hold the reference's intermediate factors, not known mistakes
+FACTOR_PREFIX = "factor: "
+
+
 @dataclass
 class Expected:
     """What the judge of one check compares with: calls, reference outputs, mistakes."""
 
     calls: list  # Call
     reference: list  # Outcome per call
-    mistakes: list  # per call: {key: [(value, why), ...]}
+    mistakes: list  # per call: {key: [(value, why), ...]}; keys ``FACTOR_PREFIX + name``: reference factors
+
+    def without_catalogue(self) -> "Expected":
+        """The same, as if no mistake were known: the reference's factors stay (held-out feedback)."""
+        kept = [{key: pairs for key, pairs in per_call.items() if key.startswith(FACTOR_PREFIX)}
+                for per_call in self.mistakes]
+        return Expected(self.calls, self.reference, kept)
 
 
 # ---------------------------------------------------------------- values

@@ -25,6 +25,7 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.common import check, residual_or_jacobian, values
+from autograder.expected import FACTOR_PREFIX
 from autograder.feedback import fields_of
 
 MODULES = ("bundle_adjustment",)
@@ -98,7 +99,7 @@ POINT_BLOCKS = (("the X column", slice(0, 1)), ("the Y column", slice(1, 2)), ("
 #: the reference's factors of the Jacobians at call 0, which the instructor's data holds under these names
 #: (d predicted / d P (K, 2, 3), d P / d w (K, 3, 3), d P / d X = R(w) (K, 3, 3)): feedback says which factor
 #: a wrong Jacobian goes wrong through
-FACTORS = ("factor: d predicted / d P", "factor: d P / d w", "factor: d P / d X")
+FACTORS = tuple(FACTOR_PREFIX + name for name in ("d predicted / d P", "d P / d w", "d P / d X"))
 #: relative step of the central differences
 STEP = 1e-6
 #: what the moved calls' ``where`` ends with (their known mistakes are not needed: feedback names call 0's)
