@@ -105,15 +105,17 @@ def decode(value):
 def _encode_call(call: Call) -> dict:
     returns = {"__tuple__": list(call.returns)} if isinstance(call.returns, tuple) else call.returns
     return {"target": call.target, "args": encode(tuple(call.args)), "kwargs": encode(dict(call.kwargs)),
-            "init": encode(dict(call.init)), "returns": returns, "where": call.where, "label": call.label}
+            "init": encode(dict(call.init)), "returns": returns, "where": call.where, "label": call.label,
+            "groups": {text: [int(k) for k in rows] for text, rows in call.groups.items()}}
 
 
 def _decode_call(data: dict) -> Call:
     returns = data["returns"]
     if isinstance(returns, dict):
         returns = tuple(returns["__tuple__"])
+    groups = {text: tuple(rows) for text, rows in data.get("groups", {}).items()}
     return Call(data["target"], decode(data["args"]), decode(data["kwargs"]), decode(data["init"]),
-                returns, data["where"], data["label"])
+                returns, data["where"], data["label"], groups)
 
 
 def encode_expected(expected: Expected) -> dict:

@@ -168,12 +168,14 @@ def close(actual, expected, rtol, atol) -> bool:
         return bool(np.all(np.abs(actual - expected) <= atol + rtol * np.abs(expected)))
 
 
-def compare(actual, expected, name, rtol, atol, where="", mistakes=(), cause="", scalar=False):
+def compare(actual, expected, name, rtol, atol, where="", mistakes=(), cause="", scalar=False, groups=None):
     """``None`` when ``actual`` matches ``expected``; otherwise the feedback line.
 
     ``mistakes``: ``(value, text)`` pairs, the outputs of known wrong formulas on the
     same inputs; the first that matches ``actual`` gives the likely cause, else ``cause``.
-    ``scalar``: a size-1 array is accepted for a number.
+    ``scalar``: a size-1 array is accepted for a number. ``groups``: kinds of rows (the
+    first axis), ``{text: row indices}`` (``Call.groups``): when only some rows go wrong, the
+    line says which, and which kinds they are.
     """
     actual = np.asarray(actual, dtype=float)
     expected = np.asarray(expected, dtype=float)
@@ -204,7 +206,7 @@ def compare(actual, expected, name, rtol, atol, where="", mistakes=(), cause="",
     if not finite.all():
         index = tuple(int(k) for k in np.argwhere(~finite)[0])
         return (f"{entry(index)} = {actual[index]} (not a finite number), expected "
-                f"{fmt(expected[index])}{at}")
+                f"{fmt(expected[index])}{at}{which_rows(~finite, groups or {})}")
     excess = np.abs(actual - expected) - (atol + rtol * np.abs(expected))
     bad = excess > 0
     if not bad.any():
@@ -216,6 +218,7 @@ def compare(actual, expected, name, rtol, atol, where="", mistakes=(), cause="",
     text = f"{entry(index)} = {got_text}, expected {want_text}{at}"
     if expected.ndim:
         text += f" ({int(bad.sum())} of {bad.size} entries differ; rtol={rtol:g}, atol={atol:g})"
+        text += which_rows(bad, groups or {})
     else:
         text += f" (rtol={rtol:g}, atol={atol:g})"
     for value, why in mistakes:
@@ -226,6 +229,33 @@ def compare(actual, expected, name, rtol, atol, where="", mistakes=(), cause="",
         text += (f"; relative error {relative:.1e}, about float32's precision: compute in float64 "
                  "(np.float32 or dtype=np.float32 somewhere?)")
     return f"{text}: {cause}" if cause else text
+
+
+def which_rows(bad, groups) -> str:
+    """What to say of the rows (first axis) of ``bad`` (a mask of the wrong entries) that go wrong:
+    nothing when all or none do, else their indices and the kinds of ``groups`` they are."""
+    if bad.ndim == 0 or len(bad) < 2:
+        return ""
+    rows = np.flatnonzero(bad.reshape(len(bad), -1).any(axis=1))
+    if len(rows) in (0, len(bad)):
+        return ""
+    shown = ", ".join(str(k) for k in rows[:8]) + (", ..." if len(rows) > 8 else "")
+    text = f"; only row{'s' if len(rows) > 1 else ''} {shown} of {len(bad)} go{'' if len(rows) > 1 else 'es'} wrong"
+    wrong = set(int(k) for k in rows)
+    kinds = [(label, {int(k) for k in members}) for label, members in groups.items()]
+    kinds = [(label, members) for label, members in kinds if members and max(members) < len(bad)]
+    exact = [label for label, members in kinds if members == wrong]
+    within = [label for label, members in kinds if wrong < members]
+    if exact:
+        text += f": exactly the one{'s' if len(wrong) > 1 else ''} {exact[0]}"
+    elif within:
+        text += f", all of them among those {within[0]}"
+    else:
+        touched = [f"{len(wrong & members)} of the {len(members)} rows {label}" for label, members in kinds
+                   if wrong & members]
+        if touched:
+            text += f" ({'; '.join(touched)})"
+    return text
 
 
 def _relative_error(actual, expected) -> float:
@@ -259,7 +289,7 @@ def values(names, rtol, atol, cause="", labels=None, scalar=False, errors=None, 
                 hint = cause.get(name, "") if isinstance(cause, dict) else cause
                 tolerance = atol * max(1.0, float(np.max(np.abs(want[name])))) if atol_scaled else atol
                 text = compare(got[name], want[name], labels.get(name, name), rtol, tolerance,
-                               call.where, known.get(name, ()), hint, scalar)
+                               call.where, known.get(name, ()), hint, scalar, call.groups)
                 if text:
                     return Verdict(0.0, text)
         return failure or Verdict(1.0, "ok")

@@ -16,7 +16,7 @@ class Call:
     (``("r", "J")``), ``"state"`` for a ``DampingState`` (fields ``lam``, ``nu``),
     ``"value"`` for one array or scalar, ``"dict"`` for a framework task's dict of arrays.
     ``where`` describes the inputs in feedback ("at params (0, 0, 0)"); ``label``
-    replaces the target's name in feedback.
+    replaces the target's name in feedback; ``groups`` names kinds of rows of the inputs.
     """
 
     target: str
@@ -26,6 +26,10 @@ class Call:
     returns: Any = "value"
     where: str = ""
     label: str = ""  # how feedback names the call; default from target
+    #: kinds of input among the rows of the call's outputs (their first axis: the edges, the
+    #: observations): ``{"whose residual rotation is 2.9 rad": (7,)}``, for feedback to say on which
+    #: kind the output goes wrong when it is not all of them
+    groups: dict = field(default_factory=dict)
 
     @property
     def function(self) -> str:

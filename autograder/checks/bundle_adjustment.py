@@ -118,7 +118,10 @@ def _residual_calls(seed=None):
     target = f"bundle_adjustment:{RESIDUALS.split('.')[1]}"
     cameras, points = g["cameras"], g["points"]
     rest = (g["camera_index"], g["point_index"], g["observations"])
-    calls = [Call(target, (cameras, points, *rest), returns=("r", "J_cam", "J_point"), where=_where(g))]
+    small = tuple(int(k) for k in np.flatnonzero(g["camera_index"] == 0))
+    groups = {"seen by camera 0, whose rotation is 1e-9 rad (the small-angle case)": small}
+    calls = [Call(target, (cameras, points, *rest), returns=("r", "J_cam", "J_point"), where=_where(g),
+                  groups=groups)]
     for what, base, names in (("camera", cameras, CAMERA_COLUMNS), ("point", points, POINT_COLUMNS)):
         for column, h in enumerate(steps(base)):
             for sign in (1.0, -1.0):

@@ -116,7 +116,9 @@ def residual_or_jacobian(name: str, blocks, judge, differences, residual: str, r
                                                               atol=1e-10 * max(1.0, float(np.max(np.abs(r_want)))))
         gap = np.abs(got - fd) - 1e-4 * (np.abs(fd) + scale)
         if not np.isfinite(gap).all() or (gap > 0).any():
-            index = tuple(int(k) for k in np.unravel_index(int(np.nanargmax(gap)), gap.shape))
+            worst = np.argwhere(~np.isfinite(gap))[0] if not np.isfinite(gap).all() else np.unravel_index(
+                int(np.argmax(gap)), gap.shape)
+            index = tuple(int(k) for k in worst)
             said = (f"\nResidual or Jacobian: your {name} does not agree with central differences of your own "
                     f"{residual} either ({name}{list(index)} = {got[index]:.6g}, your {residual}'s differences give "
                     f"{fd[index]:.6g}): the derivative is wrong{where}"

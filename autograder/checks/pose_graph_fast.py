@@ -3,9 +3,12 @@ Jacobians of all edges at once, and ``SparseAssembler`` (H's upper triangle as C
 chi2) called twice on the same pattern.
 
 Public inputs: the 6-pose graph of the assembly checks with poses 0 and 3 fixed, and its
-second set of poses; hidden inputs: the hidden graph of the assembly checks.
+second set of poses; hidden inputs: the hidden graph of the assembly checks. For the edges,
+one edge's theta_j - theta_i - theta_ij leaves [-pi, pi) (where none does, the last edge's
+measured angle is written 2 pi larger).
 """
 
+import numpy as np
 
 from autograder.checks import Call
 from autograder.checks.common import assembler_judge, check, values
@@ -27,8 +30,17 @@ def _where(seed, text=""):
 
 
 def _fast_edge_calls(seed=None):
-    return [Call("@autograder.tasks.pose_graph_fast:fast_edges", (_fast_graph(seed),), returns="dict",
-                 label="pose_graph_fast.edge_errors_and_jacobians", where=_where(seed))]
+    graph = dict(_fast_graph(seed))
+    poses, z = graph["poses"], graph["measurements"].copy()
+    raw = poses[graph["edges_j"], 2] - poses[graph["edges_i"], 2] - z[:, 2]
+    if not np.any(np.abs(raw) >= np.pi):  # the last edge's angle written 2 pi larger: the same measurement
+        z[-1, 2] += 2.0 * np.pi
+        raw[-1] -= 2.0 * np.pi
+    graph["measurements"] = z
+    wrapped = tuple(int(k) for k in np.flatnonzero(np.abs(raw) >= np.pi))
+    groups = {"whose theta_j - theta_i - theta_ij leaves [-pi, pi), so e_theta must be wrapped": wrapped}
+    return [Call("@autograder.tasks.pose_graph_fast:fast_edges", (graph,), returns="dict",
+                 label="pose_graph_fast.edge_errors_and_jacobians", where=_where(seed), groups=groups)]
 
 
 def _fast_assembler_calls(seed=None):

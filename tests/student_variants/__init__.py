@@ -300,6 +300,13 @@ BUGS_CHAPTERS_2_3 = {
     "radius_without_max": V(
         "dogleg.py", ["def update_radius"], "return max(radius, 3.0 * step_norm)", "return 3.0 * step_norm",
         {DL_RADIUS + "good step (rho > 0.75)"}, "a short good step must not shrink the trust region"),
+    # wrong on one edge only: feedback says which kind it is (Call.groups)
+    "fast_edges_angle_not_wrapped": V(
+        "pose_graph_fast.py", [],
+        "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[:, 2] = xj[:, 2] - xi[:, 2] - measurements[:, 2]",
+        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges (optional)", DL_E2E + "pose graph"},
+        "exactly the one whose theta_j - theta_i - theta_ij leaves [-pi, pi)"),
 }
 
 TREE = "initialisation.spanning_tree_poses: poses along the breadth-first tree"
@@ -936,6 +943,21 @@ BUGS_POSE_GRAPH_3D = {
         "pose_graph_3d.py", [], "e[:, 3:] = log_many(D_R)",
         "e[:, 3:] = np.stack([D_R[:, 2, 1] - D_R[:, 1, 2], D_R[:, 0, 2] - D_R[:, 2, 0], "
         "D_R[:, 1, 0] - D_R[:, 0, 1]], axis=1) / 2", {P3_E, P3_A, P3_B}, "sin(theta) u"),
+    # wrong on some edges only: feedback says which (Call.groups)
+    "p3_log_without_small_angle_branch": V(
+        "pose_graph_3d.py", [], "e[:, 3:] = log_many(D_R)",
+        "theta = np.arccos(np.clip((np.trace(D_R, axis1=1, axis2=2) - 1) / 2, -1, 1))\n"
+        "    vee = np.stack([D_R[:, 2, 1] - D_R[:, 1, 2], D_R[:, 0, 2] - D_R[:, 2, 0],\n"
+        "                    D_R[:, 1, 0] - D_R[:, 0, 1]], 1)\n"
+        "    e[:, 3:] = (theta / (2 * np.sin(theta)))[:, None] * vee",
+        {P3_E, P3_A, P3_B},
+        "only row 3 of 11 goes wrong: exactly the one whose residual rotation is 1e-9 rad"),
+    "p3_log_by_arcsin": V(
+        "pose_graph_3d.py", [], "e[:, 3:] = log_many(D_R)",
+        "vee = np.stack([D_R[:, 2, 1] - D_R[:, 1, 2], D_R[:, 0, 2] - D_R[:, 2, 0], D_R[:, 1, 0] - D_R[:, 0, 1]], 1)\n"
+        "    s = np.linalg.norm(vee, axis=1) / 2\n"
+        "    e[:, 3:] = (np.arcsin(np.clip(s, 0, 1)) / np.maximum(2 * s, 1e-300))[:, None] * vee",
+        {P3_E, P3_A, P3_B}, "only row 7 of 11 goes wrong: exactly the one whose residual rotation is 2.9 rad"),
     "p3_no_jr_inverse": V(
         "pose_graph_3d.py", [], "Jr_inv = right_jacobian_inverse_many(e[:, 3:])",
         "Jr_inv = np.tile(np.eye(3), (len(edges_i), 1, 1))", {P3_A, P3_B}, "J_r^-1(e_phi) is missing"),
