@@ -68,7 +68,8 @@ def test_qdldl_and_jupytext_are_left_out_on_3_15_only():
 
 def test_the_peers_markers():
     peers = requirements("peers")
-    assert names(applicable(peers, target("3.12", "linux-x86_64"))) == ["pyceres", "g2opy", "gtsam", "pycolmap"]
+    assert names(applicable(peers, target("3.12", "linux-x86_64"))) == [
+        "pyceres", "g2opy", "gtsam", "pycolmap", "cvxopt"]
     for python in ("3.10", "3.11", "3.12", "3.13", "3.14", "3.15"):
         assert "gtsam" not in names(applicable(peers, target(python, "windows-amd64")))
         assert "pyceres" not in names(applicable(peers, target(python, "linux-aarch64")))
@@ -80,6 +81,11 @@ def test_the_peers_markers():
         assert "gtsam" not in names(applicable(peers, target("3.10", platform)))
         assert "g2opy" not in names(applicable(peers, target("3.10", platform)))
     assert names(applicable(peers, target("3.15", "macos-arm64"))) == ["g2opy"]
+    # cvxopt 1.3.3: no wheel for 3.15, none for 3.13+ on macOS
+    assert "cvxopt" in names(applicable(peers, target("3.12", "macos-arm64")))
+    assert "cvxopt" not in names(applicable(peers, target("3.13", "macos-arm64")))
+    assert "cvxopt" in names(applicable(peers, target("3.14", "windows-amd64")))
+    assert "cvxopt" not in names(applicable(peers, target("3.15", "linux-x86_64")))
 
 
 def test_pyceres_needs_macos_14():

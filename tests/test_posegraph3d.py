@@ -192,3 +192,17 @@ def test_gnc_rejects_the_wrong_loop_closures_that_least_squares_keeps(data_folde
     assert np.all(gnc.kept[odometry(graph)])
     plain = robust.least_squares(graph)
     assert np.mean(plain.kept[right]) < 0.95
+
+
+def test_the_outlier_experiment_holds_gnc_to_least_squares_without_the_wrong_closures(data_folder):
+    from course.app import outliers3d
+
+    rows, label = outliers3d.run("smallGrid3D", shares=(0.2,), peers=False)
+    by = {(row["share"], row["method"]): row for row in rows}
+    assert label == "our solution without outliers"
+    assert [method for share, method in by if share == 0.2] == [
+        "ours least squares", "ours oracle LS", "ours cauchy", "ours GNC TLS", "ours GNC GM"]
+    oracle, tls, ls = by[0.2, "ours oracle LS"], by[0.2, "ours GNC TLS"], by[0.2, "ours least squares"]
+    assert oracle["precision"] == oracle["recall"] == oracle["right_kept"] == 1.0  # the wrong closures known
+    assert tls["recall"] >= 0.95 and tls["right_kept"] >= 0.9 > ls["right_kept"]
+    assert tls["t_rmse"] < 0.1 * ls["t_rmse"]

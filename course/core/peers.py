@@ -1,9 +1,10 @@
 """Which optional libraries are installed here, and the one line said when one is not.
 
-The peers (pyceres, g2opy, gtsam, pycolmap) come with the ``peers`` extra, and only where they
-publish wheels; qdldl and jupytext are core requirements with no wheel for every Python.
-A missing one is never a traceback: the runs, checks or datasets that need it step aside,
-and :func:`announce` says so once per process, on stderr.
+The peers (pyceres, g2opy, gtsam, pycolmap) and cvxopt (CHOLMOD, for large factorizations with
+fill-in) come with the ``peers`` extra, and only where they publish wheels; qdldl and jupytext
+are core requirements with no wheel for every Python. A missing one is never a traceback: the
+runs, checks or datasets that need it step aside, and :func:`announce` says so once per
+process, on stderr.
 """
 
 import importlib.util
@@ -19,10 +20,11 @@ LIBRARIES = {
     "pycolmap": "Ceres' bundle-adjustment runs are skipped",
     "qdldl": "the sparse solves use scipy's SuperLU instead",
     "jupytext": "the notebooks run from their .ipynb files as shipped",
+    "cvxopt": "the 3D outlier experiments factorize with the sparse solve of the exercises (slower under fill-in)",
 }
 #: what installs a library where a wheel exists
 INSTALL = {"pyceres": EXTRA_HINT, "g2opy": EXTRA_HINT, "gtsam": EXTRA_HINT, "pycolmap": EXTRA_HINT,
-           "qdldl": "pip install qdldl", "jupytext": "pip install jupytext"}
+           "qdldl": "pip install qdldl", "jupytext": "pip install jupytext", "cvxopt": EXTRA_HINT}
 
 _announced: set = set()
 

@@ -18,12 +18,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from course.core import impl as impl_loader
+from course.core import peers
 from course.geometry.so3 import log_many
 from course.problems.posegraph3d.graph import PoseGraph3D
 from course.problems.posegraph3d.initialise import initialise
 from course.problems.posegraph3d.outliers import odometry
 from course.problems.posegraph3d.problem import PoseGraph3DProblem, unpack
 from course.solver import SolverOptions, minimize
+from course.solver.cholmod import CholmodSolver
 
 #: chi-square with 6 degrees of freedom, 0.99 quantile
 C2_6DOF_99 = 16.811893829770927
@@ -54,11 +56,20 @@ def _weighted(graph: PoseGraph3D, weights) -> PoseGraph3D:
                        graph.information * np.asarray(weights)[:, None, None], graph.fixed, graph.ids, graph.name)
 
 
+def factorizer():
+    """CHOLMOD where cvxopt is installed, else None (the implementation's sparse solve): random wrong
+    closures fill the factor in, where a supernodal Cholesky keeps its speed and qdldl does not."""
+    if peers.installed("cvxopt"):
+        return CholmodSolver()
+    peers.announce("cvxopt")
+    return None
+
+
 def least_squares(graph: PoseGraph3D, impl="solutions", loss=None, max_iterations=100) -> RobustRun:
     """Gauss-Newton (with ``loss``: ``(kernel, scale)``, e.g. ``("cauchy", sqrt(c2))``) from the
     chordal start, at most ``max_iterations``; an edge is kept when its s is below ``C2_6DOF_99``."""
     start, init_seconds = initialise(graph, "chordal", impl)
-    problem = PoseGraph3DProblem(start, impl, loss=loss)
+    problem = PoseGraph3DProblem(start, impl, loss=loss, solver=factorizer())
     run = minimize(problem, "gauss-newton", impl=impl, options=SolverOptions(max_iterations=max_iterations))
     t, R = unpack(run.params)
     method = "least squares" if loss is None else f"{loss[0]} kernel"
@@ -70,6 +81,7 @@ def gnc(graph: PoseGraph3D, surrogate="tls", impl="solutions", c2=C2_6DOF_99) ->
     """GNC with the implementation's ``gnc`` module; the edges kept are those of weight > 0.5."""
     module = impl_loader.load(impl).module("gnc")
     state: dict = {"x": None, "inner": 0, "seconds": 0.0}
+    solver = factorizer()
 
     def solve(weights):
         weights = np.asarray(weights, dtype=float)
@@ -80,7 +92,7 @@ def gnc(graph: PoseGraph3D, surrogate="tls", impl="solutions", c2=C2_6DOF_99) ->
             state["seconds"] += seconds
         else:
             weighted = weighted.with_poses(*unpack(state["x"]))
-        problem = PoseGraph3DProblem(weighted, impl)
+        problem = PoseGraph3DProblem(weighted, impl, solver=solver)
         run = minimize(problem, "gauss-newton", impl=impl, options=INNER)
         state["x"], state["inner"] = run.params, state["inner"] + run.iterations
         state["seconds"] += run.seconds
