@@ -114,7 +114,9 @@ for name, (graph, start, ours) in solved.items():
 # counts as rejected when its weight (GNC) is below 0.5 or its $e^T \Omega e$ (least squares,
 # Cauchy) above the threshold $\bar c^2 = 16.81$ (chi-square, 6 degrees of freedom, 0.99).
 # Errors are against the truth where it is known (the gtsam wheel's sphere2500), else against
-# our solution of the graph without outliers.
+# our solution of the graph without outliers. The row "oracle LS" is least squares on the
+# corrupted graph with its wrong closures removed (known here, never in practice): the best
+# any method can do with the right closures that are left, and the bar GNC is held to.
 
 # %% id="outliers"
 name, shares = ("smallGrid3D", (0.2,)) if SMALL else ("sphere2500", (0.1, 0.2, 0.5))
