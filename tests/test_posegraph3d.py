@@ -139,6 +139,45 @@ def test_the_peers_end_where_we_do_in_our_error(data_folder, backend, method):
         assert ours <= theirs * (1 + 1e-9) and theirs == pytest.approx(ours, rel=rel), (name, ours, theirs)
 
 
+@needs("pyceres")
+def test_ceres_minimises_our_error_itself(data_folder):
+    """Ceres runs our edge error (a Python cost over translation and quaternion blocks): it ends at
+    our Gauss-Newton's minimum, also where residual rotations are large (smallGrid3D)."""
+    from course.backends.posegraph3d import ceres
+
+    for name in ("tinyGrid3D", "smallGrid3D"):
+        g = load_dataset(name)
+        ours = minimize(PoseGraph3DProblem(g), "gauss-newton").final_chi2
+        run = ceres.solve(g, "levenberg-marquardt")
+        assert run.final_chi2 == pytest.approx(ours, rel=1e-9) and run.iterations > 0, (name, run.final_chi2, ours)
+
+
+@needs("pyceres")
+def test_ceres_plus_jacobian_is_the_derivative_of_its_left_quaternion_step():
+    from course.backends.posegraph3d.ceres import plus_jacobian
+    from course.geometry import quaternion
+
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+
+    def plus(d):  # Ceres' quaternion plus: q_delta(d) * q, q_delta = (cos|d|, sin|d| d/|d|)
+        n = np.linalg.norm(d)
+        w, v = np.cos(n), np.sin(n) / n * d
+        x, s = q[:3], q[3]
+        return np.r_[w * x + s * v + np.cross(v, x), w * s - v @ x]
+
+    h = 1e-7
+    numeric = np.stack([(plus(h * e) - plus(-h * e)) / (2 * h) for e in np.eye(3)], axis=1)
+    np.testing.assert_allclose(plus_jacobian(q), numeric, atol=1e-8)
+    np.testing.assert_allclose(plus_jacobian(q).T @ plus_jacobian(q), np.eye(3), atol=1e-12)
+    # a left rotation by 2 d: R(q_delta(d) q) = Exp(2 d) R(q)
+    d = np.array([1e-3, -2e-3, 5e-4])
+    from course.geometry.so3 import exp_many
+    np.testing.assert_allclose(quaternion.to_matrix(plus(d)[None])[0], exp_many((2 * d)[None])[0]
+                               @ quaternion.to_matrix(q[None])[0], atol=1e-12)
+
+
 def test_the_chordal_start_recovers_a_noise_free_graph_and_shortens_the_solve(data_folder):
     from course.problems.posegraph3d.initialise import initialise
 

@@ -245,7 +245,8 @@ DEMO_3D: tuple[tuple[str, str, dict], ...] = (("pose3example", "file", {}),
 #: under every 3D table: what its final chi2 column means
 NOTE_3D = ("final chi2 is our error, [D_t; Log(D_R)], on every back end's solution: g2o minimises its own "
            "(rotation part vec(q), about half the angle) and GTSAM its Logmap, so where residual rotations are "
-           "large their minima are not ours")
+           "large their minima are not ours; Ceres runs our error as a Python cost (slow per iteration) and "
+           "ends at ours")
 
 
 def _demo_pose_graphs_3d(impl, out) -> tuple:

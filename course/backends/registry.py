@@ -28,6 +28,7 @@ POSE_GRAPH_PEERS: dict[str, tuple[str, tuple[str, ...]]] = {
 POSE_GRAPH_3D_PEERS: dict[str, tuple[str, tuple[str, ...]]] = {
     "g2o": ("course.backends.posegraph3d.g2o", ("gauss-newton", "levenberg")),
     "gtsam": ("course.backends.posegraph3d.gtsam", ("gauss-newton", "levenberg-marquardt")),
+    "ceres": ("course.backends.posegraph3d.ceres", ("levenberg-marquardt",)),
 }
 #: bundle adjustment's peers (chapter 4, BAL problems): backend -> (module, methods)
 BAL_PEERS: dict[str, tuple[str, tuple[str, ...]]] = {
