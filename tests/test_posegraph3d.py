@@ -245,3 +245,18 @@ def test_the_outlier_experiment_holds_gnc_to_least_squares_without_the_wrong_clo
     assert oracle["precision"] == oracle["recall"] == oracle["right_kept"] == 1.0  # the wrong closures known
     assert tls["recall"] >= 0.95 and tls["right_kept"] >= 0.9 > ls["right_kept"]
     assert tls["t_rmse"] < 0.1 * ls["t_rmse"]
+
+
+def test_a_method_that_fails_is_a_row_of_the_outlier_table(monkeypatch, data_folder):
+    from course.app import outliers3d
+    from course.core.errors import SingularSystemError
+    from course.problems.posegraph3d import robust
+
+    def fails(*args, **kwargs):
+        raise SingularSystemError("H is not positive definite")
+
+    monkeypatch.setattr(robust, "gnc", fails)
+    rows, _ = outliers3d.run("tinyGrid3D", shares=(0.5,), peers=False)
+    failed = [row for row in rows if "failed" in row]
+    assert [row["method"] for row in failed] == ["ours GNC TLS", "ours GNC GM"]
+    assert outliers3d.format_row(failed[0]) == "  50% ours GNC TLS       failed: H is not positive definite"
