@@ -260,3 +260,16 @@ def test_a_method_that_fails_is_a_row_of_the_outlier_table(monkeypatch, data_fol
     failed = [row for row in rows if "failed" in row]
     assert [row["method"] for row in failed] == ["ours GNC TLS", "ours GNC GM"]
     assert outliers3d.format_row(failed[0]) == "  50% ours GNC TLS       failed: H is not positive definite"
+
+
+@needs("pyceres")
+def test_ceres_runs_the_implementations_edge_error_and_a_todo_surfaces_before_the_solve():
+    from course.app import compare
+    from course.backends.posegraph3d import ceres
+
+    g = load_dataset("pose3example")
+    with pytest.raises(NotImplementedError):
+        ceres.solve(g, "levenberg-marquardt", impl="exercises")
+    runs = compare.run_posegraph3d(g, impl="exercises", unimplemented="row", backends=["ceres"])
+    assert [run.not_run for run in runs if run.backend == "ceres"] == [
+        "not implemented: TODO pose_graph_3d.edge_errors_and_jacobians"]

@@ -398,7 +398,8 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
         return minimize(PoseGraph3DProblem(graph, impl), method, impl=impl, options=options, callback=callback)
 
     def peer(backend, method):
-        return _run_peer("posegraph3d", backend, graph, method, max_iterations)
+        kwargs = {"impl": impl} if backend == "ceres" else {}  # Ceres' edge error is the implementation's
+        return _run_peer("posegraph3d", backend, graph, method, max_iterations, **kwargs)
 
     results = _run_pairs(plan, ours, peer, repeat, unimplemented, progress)
     for result in results:

@@ -14,8 +14,10 @@ The Jacobians come from the implementation's ``pose_graph_3d.edge_errors_and_jac
 Jacobian in the 4 ambient coordinates ``J_q`` with ``J_q P(q) = J_d`` for the manifold's plus
 Jacobian ``P(q)`` (4, 3), whose columns are orthonormal: ``J_q = J_d P(q)^T``.
 
-A Python cost is called once per edge and evaluation (a few hundred microseconds here): expect
-this row to be slow; it shows Ceres' iterations on our problem, not Ceres' speed.
+``impl`` names the implementation whose ``edge_errors_and_jacobians`` the cost calls (the
+student's in the student tree: a TODO there makes this row a TODO). A Python cost is called
+once per edge and evaluation (a few hundred microseconds here): expect this row to be slow; it
+shows Ceres' iterations on our problem, not Ceres' speed.
 """
 
 import time
@@ -94,6 +96,8 @@ def solve(graph: PoseGraph3D, method: str, max_iterations: int = 100, *, impl="s
     if method not in METHODS:
         raise ValueError(f"unknown Ceres method {method!r}; choose one of {METHODS}")
     edges = impl_loader.load(impl).module("pose_graph_3d").edge_errors_and_jacobians
+    # once outside Ceres: a TODO (NotImplementedError) or a crash surfaces here, not in a callback
+    edges(graph.t, graph.R, graph.edges_i[:1], graph.edges_j[:1], graph.t_z[:1], graph.R_z[:1])
     quats = quaternion.from_matrix(graph.R)
     t_blocks = [np.array(v, dtype=np.float64, order="C", copy=True) for v in graph.t]
     q_blocks = [np.array(v, dtype=np.float64, order="C", copy=True) for v in quats]
