@@ -25,19 +25,24 @@ def residuals(call, flip=False, **slip):
     return -out if flip else out
 
 
+def _dpred_dP(cam, X, dd=True):
+    """``(d predicted / d P (2, 3), p (2,), d)`` of one observation (``dd=False``: without d's own
+    derivative)."""
+    _, P, pp, d = _predict(cam, X)
+    k1, k2, r2 = cam[7], cam[8], pp @ pp
+    dp_dP = np.array([[-1 / P[2], 0, P[0] / P[2] ** 2], [0, -1 / P[2], P[1] / P[2] ** 2]])
+    dd_dp = (2 * k1 + 4 * k2 * r2) * pp if dd else np.zeros(2)
+    return cam[6] * (d * np.eye(2) + np.outer(pp, dd_dp)) @ dp_dP, pp, d
+
+
 def jacobians(call, *, point="R", rotation="exact", dd=True, df="dp", sign=1.0):
     """(J_cam (K, 2, 9), J_point (K, 2, 3)) of the right model, with one slip or none."""
     cameras, points, ci, pi, _ = call.args
     Jc, Jp = [], []
     for c, p in zip(ci, pi):
         cam, X = cameras[c], points[p]
-        pred, P, pp, d = _predict(cam, X)
-        f, k1, k2 = cam[6], cam[7], cam[8]
-        r2 = pp @ pp
-        dp_dP = np.array([[-1 / P[2], 0, P[0] / P[2] ** 2], [0, -1 / P[2], P[1] / P[2] ** 2]])
-        dd_dp = (2 * k1 + 4 * k2 * r2) * pp if dd else np.zeros(2)
-        dpred_dp = f * (d * np.eye(2) + np.outer(pp, dd_dp))
-        dpred_dP = dpred_dp @ dp_dP
+        dpred_dP, pp, d = _dpred_dP(cam, X, dd)
+        f, r2 = cam[6], pp @ pp
         R = so3_exp(cam[:3])
         if rotation == "exact":
             dRX = np.empty((3, 3))
@@ -67,13 +72,9 @@ def factors(call) -> dict:
     out: dict[str, list] = {name: [] for name in FACTORS}
     for c, p in zip(ci, pi):
         cam, X = cameras[c], points[p]
-        _, P, pp, d = _predict(cam, X)
-        f, k1, k2 = cam[6], cam[7], cam[8]
-        r2 = pp @ pp
-        dp_dP = np.array([[-1 / P[2], 0, P[0] / P[2] ** 2], [0, -1 / P[2], P[1] / P[2] ** 2]])
-        dpred_dp = f * (d * np.eye(2) + np.outer(pp, (2 * k1 + 4 * k2 * r2) * pp))
+        dpred_dP = _dpred_dP(cam, X)[0]
         R = so3_exp(cam[:3])
-        for name, value in zip(FACTORS, (dpred_dp @ dp_dP, -R @ skew(X) @ right_jacobian(cam[:3]), R)):
+        for name, value in zip(FACTORS, (dpred_dP, -R @ skew(X) @ right_jacobian(cam[:3]), R)):
             out[name].append(value)
     return {name: [(np.array(values), "the reference's factor")] for name, values in out.items()}
 
