@@ -164,25 +164,26 @@ def _schur_calls(seed=None):
     rng = np.random.default_rng(5 if seed is None else [seed, 263])
     # without damping, S is singular: bundle adjustment has a 7-dimensional gauge freedom
     lams = (1e-2, 1.0) if seed is None else (10.0 ** float(rng.uniform(-3, -1)), float(rng.uniform(0.5, 2)))
+    small, large = ((g, normal(*linearized(seed, big), g["camera_index"], g["point_index"], len(g["cameras"]),
+                               len(g["points"])))
+                    for big, g in ((False, problem(seed)), (True, problem(seed, True))))
     calls = []
-    for large, lam in ((False, lams[0]), (False, lams[1]), (False, None), (True, lams[1])):
-        g = problem(seed, large)
-        U, V, W, g_cam, g_point, _ = normal(*linearized(seed, large), g["camera_index"], g["point_index"],
-                                            len(g["cameras"]), len(g["points"]))
+    for (g, (U, V, W, g_cam, g_point, _)), lam, folded in (
+            (small, lams[0], False), (small, lams[1], False), (small, lams[1], True), (large, lams[1], False)):
+        dc, dp = lam * np.einsum("cii->ci", U), lam * np.einsum("pii->pi", V)
         rest = (W, g_cam, g_point, g["camera_index"], g["point_index"])
-        if lam is None:  # the damping of the call before, added by the caller
-            dc, dp = lams[1] * np.einsum("cii->ci", U), lams[1] * np.einsum("pii->pi", V)
+        if folded:  # the damping added by the caller
             U, V = U.copy(), V.copy()
             U[:, np.arange(9), np.arange(9)] += dc
             V[:, np.arange(3), np.arange(3)] += dp
             calls.append(Call(target, (U, V, *rest), returns=("dx_cam", "dx_point"),
-                              where=_where(g) + f", U and V with lambda diag(H) added (lambda = {lams[1]:.3g}), "
+                              where=_where(g) + f", U and V with lambda diag(H) added (lambda = {lam:.3g}), "
                                                 "no damping arguments"))
-            continue
-        dc, dp = lam * np.einsum("cii->ci", U), lam * np.einsum("pii->pi", V)
-        calls.append(Call(target, (U, V, *rest), {"damping_cam": dc, "damping_point": dp},
-                          returns=("dx_cam", "dx_point"),
-                          where=_where(g) + f", reference U, V, W, g; LM damping lambda diag(H), lambda = {lam:.3g}"))
+        else:
+            calls.append(Call(target, (U, V, *rest), {"damping_cam": dc, "damping_point": dp},
+                              returns=("dx_cam", "dx_point"),
+                              where=_where(g) + f", reference U, V, W, g; LM damping lambda diag(H), "
+                                                f"lambda = {lam:.3g}"))
     return calls
 
 
