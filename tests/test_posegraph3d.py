@@ -273,3 +273,62 @@ def test_ceres_runs_the_implementations_edge_error_and_a_todo_surfaces_before_th
     runs = compare.run_posegraph3d(g, impl="exercises", unimplemented="row", backends=["ceres"])
     assert [run.not_run for run in runs if run.backend == "ceres"] == [
         "not implemented: TODO pose_graph_3d.edge_errors_and_jacobians"]
+
+
+@needs("gtsam")
+def test_gtsams_initializepose3_is_a_3d_start_anchored_at_the_file_pose(data_folder):
+    from course.app.starts import initialise, initialise_3d
+
+    g = load_dataset("smallGrid3D")
+    start, seconds = initialise_3d(g, "initializepose3")
+    anchor = int(g.fixed[0])
+    np.testing.assert_allclose(start.t[anchor], g.t[anchor], atol=1e-12)
+    np.testing.assert_allclose(start.R[anchor], g.R[anchor], atol=1e-12)
+    np.testing.assert_allclose(np.einsum("kji,kjl->kil", start.R, start.R), np.tile(np.eye(3), (g.num_poses, 1, 1)),
+                               atol=1e-9)
+    assert seconds > 0 and g.chi2(start.t, start.R) < g.chi2(g.t, g.R)
+    from_file = minimize(PoseGraph3DProblem(g), "gauss-newton")
+    assert minimize(PoseGraph3DProblem(start), "gauss-newton").final_chi2 == pytest.approx(from_file.final_chi2,
+                                                                                           rel=1e-9)
+    with pytest.raises(ValueError, match="3D pose graphs only"):
+        initialise(object(), "initializepose3")
+    with pytest.raises(ValueError, match="a 3D pose graph starts from one of file, chordal, initializepose3"):
+        initialise_3d(g, "lago")
+
+
+@needs("cvxopt", "qdldl")
+def test_cholmod_keeps_its_analysis_for_a_pattern_and_redoes_it_for_another(data_folder):
+    """Same steps as the exercise's sparse Cholesky, with new values in place for a known pattern."""
+    import scipy.sparse as sp
+
+    from course.solver.cholmod import CholmodSolver
+    from solutions.sparse_solve import SparseCholeskySolver
+
+    problem = PoseGraph3DProblem(load_dataset("smallGrid3D"))
+    lin = problem.linearize(problem.x0)
+    cholmod, exercise = CholmodSolver(), SparseCholeskySolver()
+    for scale in (1.0, 2.0):
+        H = lin.H.copy()
+        H.data *= scale
+        np.testing.assert_allclose(cholmod.solve(H, lin.b), exercise.solve(H, lin.b), rtol=1e-8, atol=1e-10)
+    symbolic = cholmod._symbolic
+    cholmod.solve(lin.H, lin.b)
+    assert cholmod._symbolic is symbolic  # the analysis kept
+    M = sp.random(60, 60, density=0.1, random_state=1)
+    other = sp.triu(M + M.T + 60 * sp.eye(60), format="csc")
+    b = np.ones(60)
+    np.testing.assert_allclose(cholmod.solve(other, b), SparseCholeskySolver().solve(other, b), rtol=1e-9)
+    assert cholmod._symbolic is not symbolic
+
+
+@needs("g2opy")
+def test_the_3d_benchmark_prints_each_of_our_solvers_against_g2o(data_folder):
+    from course.app import benchmark_3d
+
+    lines = []
+    benchmark_3d.main(graphs=("tinyGrid3D",), repeats=1, out=lines.append)
+    labels = list(benchmark_3d.our_solvers())
+    assert any(all(label in line for label in labels) and "g2o" in line for line in lines)
+    rows = [line for line in lines if line.startswith("tinyGrid3D")]
+    assert len(rows) == 1 + len(labels)  # per iteration, then time to solution per solver
+    assert all("skipped" not in row for row in rows)

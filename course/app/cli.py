@@ -33,7 +33,8 @@ def _add_run_arguments(parser):
     parser.add_argument("--init", default="file", choices=INITIALISERS + PEER_INITIALISERS,
                         help="pose graphs: where every solver starts: the file's poses, a breadth-first "
                              "spanning tree or the chordal relaxation (computed by the implementation), "
-                             "or GTSAM's LAGO (diagonal information only) (default: file)")
+                             "or GTSAM's LAGO (2D, diagonal information only) or InitializePose3 (3D) "
+                             "(default: file)")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -379,10 +379,11 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
 
     Returns ``list[RunResult]`` (``params`` the packed poses (12N,), ``final_chi2`` our error
     for every back end, see ``course.geometry.se3``). Arguments as in ``run_posegraph``;
-    ``init`` is ``file`` or ``chordal`` (the implementation's ``chordal_3d``, computed once and
-    shared by every back end, its time in each result's ``init_seconds``).
+    ``init`` is ``file``, ``chordal`` (the implementation's ``chordal_3d``) or ``initializepose3``
+    (GTSAM's), computed once and shared by every back end, its time in each result's
+    ``init_seconds``.
     """
-    from course.problems.posegraph3d.initialise import initialise
+    from course.app.starts import initialise_3d as initialise
     from course.problems.posegraph3d.problem import PoseGraph3DProblem
     from course.solver import SolverOptions, minimize
 

@@ -1,6 +1,7 @@
 """Where a pose-graph solve starts: the file's poses, a spanning tree, the chordal relaxation,
 or GTSAM's LAGO (a peer: ``course.backends.posegraph.gtsam_lago``, where gtsam is installed and the
-information matrices are diagonal).
+information matrices are diagonal); in 3D (:func:`initialise_3d`), the file's poses, our chordal
+relaxation or GTSAM's ``InitializePose3`` (``course.backends.posegraph3d.gtsam_initialize``).
 
 ``initialise(graph, method, impl) -> (graph with new poses, seconds)`` runs the
 implementation's ``initialisation`` module (chapter 3b: ``solutions/initialisation.py``, or a
@@ -21,8 +22,10 @@ if TYPE_CHECKING:
 
 #: our starts for a pose-graph solve, ``file`` (the file's poses) first
 INITIALISERS = ("file", "tree", "chordal")
-#: a peer's start: GTSAM's LAGO
-PEER_INITIALISERS = ("lago",)
+#: a peer's start: GTSAM's LAGO (2D), GTSAM's InitializePose3 (3D)
+PEER_INITIALISERS = ("lago", "initializepose3")
+#: the starts of a 3D pose graph
+INITIALISERS_3D = ("file", "chordal", "initializepose3")
 
 #: the implementation function behind each method but ``file``
 FUNCTIONS = {"tree": "spanning_tree_poses", "chordal": "chordal_poses"}
@@ -51,6 +54,9 @@ def initialise(graph: "PoseGraph", method: str = "file", impl="solutions") -> tu
     check_method(method)
     if method == "file":
         return graph, 0.0
+    if method not in INITIALISERS + ("lago",):
+        raise ValueError(f"--init {method} starts 3D pose graphs only; a 2D graph starts from one of "
+                         f"{', '.join(INITIALISERS + ('lago',))}")
     if method == "lago":
         from course.core import peers
 
@@ -70,3 +76,21 @@ def initialise(graph: "PoseGraph", method: str = "file", impl="solutions") -> tu
     poses = np.array(check_array(poses, (graph.num_poses, 3), f"initialisation.{FUNCTIONS[method]}", "poses"))
     poses[graph.fixed] = graph.poses[graph.fixed]
     return graph.with_poses(poses), seconds
+
+
+def initialise_3d(graph, method: str = "file", impl="solutions") -> tuple:
+    """``(3D graph with its poses replaced, seconds)`` for ``method`` in :data:`INITIALISERS_3D`:
+    ``file`` and ``chordal`` as ``course.problems.posegraph3d.initialise.initialise`` (the
+    implementation's ``chordal_3d``), ``initializepose3`` GTSAM's (``PeerMissing`` without gtsam)."""
+    if method not in INITIALISERS_3D:
+        raise ValueError(f"--init {method}: a 3D pose graph starts from one of {', '.join(INITIALISERS_3D)}")
+    if method == "initializepose3":
+        from course.core import peers
+
+        peers.require("gtsam")
+        from course.backends.posegraph3d import gtsam_initialize
+
+        return gtsam_initialize.initialise(graph)
+    from course.problems.posegraph3d.initialise import initialise as ours
+
+    return ours(graph, method, impl)

@@ -10,8 +10,6 @@ factor does not (sphere2500 with 20% random closures: 0.3 s against qdldl's 3.6 
 machine). cvxopt comes with the ``peers`` extra where it has a wheel (``peers.installed``).
 """
 
-import hashlib
-
 import numpy as np
 import scipy.sparse as sp
 
@@ -19,27 +17,42 @@ from course.core.errors import SingularSystemError
 
 
 class CholmodSolver:
-    """``H dx = -b`` by CHOLMOD's supernodal ``L L^T``, the symbolic analysis kept per pattern."""
+    """``H dx = -b`` by CHOLMOD's supernodal ``L L^T``, the symbolic analysis kept per pattern.
+
+    CHOLMOD reads the upper triangle as it is (``uplo="U"``). For a pattern seen before, the
+    kept cvxopt matrix gets the new values in place (its ``V``, in the CSC order of ``H_upper``
+    with sorted indices): building a cvxopt matrix from triplets sorts them, and costs more than
+    the numeric factorization of a pose graph's H.
+    """
 
     def __init__(self):
-        self._pattern: bytes | None = None
+        self._indptr: np.ndarray | None = None
+        self._indices: np.ndarray | None = None
+        self._matrix = None
         self._symbolic = None
+
+    def _same_pattern(self, upper) -> bool:
+        return (self._indptr is not None and np.array_equal(upper.indptr, self._indptr)
+                and np.array_equal(upper.indices, self._indices))
 
     def solve(self, H_upper, b):
         import cvxopt
         from cvxopt import cholmod
 
         upper = sp.csc_matrix(H_upper)
-        full = (upper + sp.triu(upper, k=1, format="csc").T).tocsc()
-        full.sort_indices()
-        n = full.shape[0]
-        A = cvxopt.spmatrix(full.data, full.indices.astype(np.int64), np.repeat(np.arange(n), np.diff(full.indptr)),
-                            (n, n))
-        pattern = hashlib.sha1(full.indptr.tobytes() + full.indices.tobytes()).digest()
-        if pattern != self._pattern:
-            self._symbolic, self._pattern = cholmod.symbolic(A), pattern
+        if not upper.has_sorted_indices:
+            upper = upper.sorted_indices()
+        if self._same_pattern(upper):
+            self._matrix.V = cvxopt.matrix(np.asarray(upper.data, dtype=float))
+        else:
+            n = upper.shape[0]
+            columns = np.repeat(np.arange(n), np.diff(upper.indptr))
+            self._matrix = cvxopt.spmatrix(np.asarray(upper.data, dtype=float), upper.indices.astype(np.int64),
+                                           columns, (n, n))
+            self._symbolic = cholmod.symbolic(self._matrix, uplo="U")
+            self._indptr, self._indices = upper.indptr.copy(), upper.indices.copy()
         try:
-            cholmod.numeric(A, self._symbolic)
+            cholmod.numeric(self._matrix, self._symbolic)
         except ArithmeticError as exc:
             raise SingularSystemError(f"CHOLMOD could not factorize H: it is not positive definite ({exc})") from exc
         x = cvxopt.matrix(-np.asarray(b, dtype=float))
