@@ -32,8 +32,9 @@ class CholmodSolver:
         self._symbolic = None
 
     def _same_pattern(self, upper) -> bool:
-        return (self._indptr is not None and np.array_equal(upper.indptr, self._indptr)
-                and np.array_equal(upper.indices, self._indices))
+        if self._indptr is None or self._indices is None:
+            return False
+        return np.array_equal(upper.indptr, self._indptr) and np.array_equal(upper.indices, self._indices)
 
     def solve(self, H_upper, b):
         import cvxopt

@@ -9,6 +9,7 @@ chi2 of its solution. A fixed vertex gets a ``PriorFactorPose3`` with
 """
 
 import time
+from typing import Any
 
 import numpy as np
 
@@ -131,10 +132,17 @@ def solve_gnc(graph: PoseGraph3D, surrogate: str = "tls", c2: float = 16.8118938
         raise ValueError(f"GTSAM's GNC runs gauss-newton or levenberg-marquardt inside, not {inner!r}")
     factors, values = build_factor_graph(graph, hard_priors=False)
     lm = inner == "levenberg-marquardt"
-    base = gtsam.LevenbergMarquardtParams() if lm else gtsam.GaussNewtonParams()
-    if inner_iterations is not None:
-        base.setMaxIterations(int(inner_iterations))
-    params = gtsam.GncLMParams(base) if lm else gtsam.GncGaussNewtonParams(base)
+    params: Any
+    if lm:
+        base_lm = gtsam.LevenbergMarquardtParams()
+        if inner_iterations is not None:
+            base_lm.setMaxIterations(int(inner_iterations))
+        params = gtsam.GncLMParams(base_lm)
+    else:
+        base_gn = gtsam.GaussNewtonParams()
+        if inner_iterations is not None:
+            base_gn.setMaxIterations(int(inner_iterations))
+        params = gtsam.GncGaussNewtonParams(base_gn)
     params.setLossType(gtsam.GncLossType.TLS if surrogate == "tls" else gtsam.GncLossType.GM)
     known = [] if known_inliers is None else np.flatnonzero(known_inliers).tolist()
     params.setKnownInliers(known + list(range(graph.num_edges, factors.size())))
