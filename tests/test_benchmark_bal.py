@@ -42,7 +42,7 @@ def test_time_to_the_minimum_stops_each_back_end_at_its_first_iterate_within_tol
         # our cost where the run stopped, and no earlier stop would have been there
         assert minimum <= r.cost <= target
         if r.backend == "ours":
-            full = benchmark_bal._ours(problem, "solutions", r.iteration - 1)
+            full = benchmark_bal._ours(problem, "solutions", r.iteration - 1, r.method)
             assert cost(problem, *unpack(problem, full.params)) > target
 
 

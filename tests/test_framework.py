@@ -206,3 +206,25 @@ def test_the_dogleg_starts_from_the_initial_radius():
     result = minimize(_Quadratic(), "dogleg", options=SolverOptions(initial_radius=0.01, max_iterations=3))
     assert result.trace[0].damping == 0.01 and result.trace[1].step_norm == pytest.approx(0.01)
     assert minimize(_Quadratic(), "dogleg").final_chi2 == 0.0  # one Gauss-Newton step; b = 0 there
+
+
+def test_the_scaled_nielsen_rule_is_type_1s_system_with_type_3s_update():
+    """``lm-scaled-nielsen`` adds no formula: a slip in either of the student's rules shows in it."""
+    from course.core import impl as impl_loader
+    from course.solver.scaled_nielsen import ScaledNielsen
+
+    rules = impl_loader.load("solutions").module("damping").STRATEGIES
+    type1, type3 = rules["lm-type1"](), rules["lm-type3"]()
+    rule = ScaledNielsen(type1, type3)
+    diag_H, h, b = np.array([4.0, 0.01, 900.0]), np.array([0.1, -2.0, 0.003]), np.array([-1.0, 0.5, -2.0])
+    state = rule.initial_state(diag_H)
+    assert (state.lam, state.nu) == (type1.initial_state(diag_H).lam, 2.0)
+    np.testing.assert_array_equal(rule.damping_diagonal(diag_H, 0.3), type1.damping_diagonal(diag_H, 0.3))
+    assert rule.gain_denominator(h, b, diag_H, 0.3) == type1.gain_denominator(h, b, diag_H, 0.3)
+    for rho, accepted in ((0.9, True), (0.2, True), (-1.0, False)):
+        assert rule.update(state, rho, accepted) == type3.update(state, rho, accepted)
+    # a rejected step doubles nu, then an accepted one resets it (Nielsen), where type 1 would divide by 9
+    rejected = rule.update(state, -1.0, False)
+    assert (rejected.lam, rejected.nu) == (2 * state.lam, 4.0)
+    result = minimize(_Quadratic(), "lm-scaled-nielsen")
+    assert result.final_chi2 < 1e-12 * result.initial_chi2

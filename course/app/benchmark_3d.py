@@ -66,21 +66,24 @@ def per_iteration(name, repeats=3, iterations=8, impl="solutions") -> dict:
     return out
 
 
-def time_to_solution(name, repeats=3, impl="solutions", solver=lambda: None) -> tuple:
-    """``(ours seconds, g2o seconds, ours result, g2o result)``, medians: chordal + GN (each step
-    solved by ``solver()``, None: the implementation's) against g2o's GN from the file's poses.
-    ``PeerMissing`` without g2opy."""
+def time_to_solution(name, repeats=3, impl="solutions") -> tuple:
+    """``(ours, g2o seconds, g2o result)``, medians: chordal + GN with each of :func:`our_solvers`
+    (``ours``: ``{label: (seconds, last result)}``) against g2o's GN from the file's poses, the runs
+    interleaved. ``PeerMissing`` without g2opy."""
     g2o = registry.peer_solver("posegraph3d", "g2o")
     graph = datasets.load_dataset(name)
-    ours, theirs = [], []
+    solvers = our_solvers()
+    ours: dict = {label: [] for label in solvers}
+    theirs = []
     for _ in range(repeats):
-        start, seconds = initialise(graph, "chordal", impl)
-        run = minimize(PoseGraph3DProblem(start, impl, solver=solver()), "gauss-newton", impl=impl)
-        run.init, run.init_seconds = "chordal", seconds
-        ours.append(run)
+        for label, make in solvers.items():
+            start, seconds = initialise(graph, "chordal", impl)
+            run = minimize(PoseGraph3DProblem(start, impl, solver=make()), "gauss-newton", impl=impl)
+            run.init, run.init_seconds = "chordal", seconds
+            ours[label].append(run)
         theirs.append(g2o(graph, "gauss-newton"))
-    return (statistics.median(r.total_seconds for r in ours), statistics.median(r.seconds for r in theirs),
-            ours[-1], theirs[-1])
+    return ({label: (statistics.median(r.total_seconds for r in runs), runs[-1]) for label, runs in ours.items()},
+            statistics.median(r.seconds for r in theirs), theirs[-1])
 
 
 def main(graphs=GRAPHS, repeats=3, impl="solutions", out=print) -> None:
@@ -104,11 +107,11 @@ def main(graphs=GRAPHS, repeats=3, impl="solutions", out=print) -> None:
     out(f"{'graph':15} {'ours':12} {'ours ms':>9} {'g2o ms':>9} {'ratio':>6} {'ours it':>8} {'g2o it':>7} "
         f"{'ours chi2':>14} {'g2o chi2':>14}")
     for name in graphs:
-        for label, make in our_solvers().items():
-            try:
-                ours_s, theirs, r_ours, r_g2o = time_to_solution(name, repeats, impl=impl, solver=make)
-            except (PeerMissing, DatasetError) as exc:
-                out(f"{name:15} skipped: {exc}")
-                break
-            out(f"{name:15} {label:12} {ours_s * 1e3:9.1f} {theirs * 1e3:9.1f} {ours_s / theirs:6.2f} "
+        try:
+            ours, theirs, r_g2o = time_to_solution(name, repeats, impl=impl)
+        except (PeerMissing, DatasetError) as exc:
+            out(f"{name:15} skipped: {exc}")
+            continue
+        for label, (seconds, r_ours) in ours.items():
+            out(f"{name:15} {label:12} {seconds * 1e3:9.1f} {theirs * 1e3:9.1f} {seconds / theirs:6.2f} "
                 f"{r_ours.iterations:8d} {r_g2o.iterations:7d} {r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")

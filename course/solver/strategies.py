@@ -26,6 +26,7 @@ import numpy as np
 
 from course.core import impl as impl_loader
 from course.core.errors import CourseError, NonFiniteError, SingularSystemError
+from course.solver.scaled_nielsen import SCALED_NIELSEN, ScaledNielsen
 
 GAUSS_NEWTON, DOGLEG = "gauss-newton", "dogleg"
 LM_METHODS = ("lm-type1", "lm-type2", "lm-type3")
@@ -243,7 +244,8 @@ def _short(h, x, options) -> bool:
 
 
 def make_strategy(method: str, impl="solutions", options=None):
-    """A fresh strategy for ``method`` (one of :data:`METHODS`) from ``impl``'s pieces."""
+    """A fresh strategy for ``method`` (one of :data:`METHODS`, or ``lm-scaled-nielsen``: Gavin's
+    types 1 and 3 put together, :mod:`course.solver.scaled_nielsen`) from ``impl``'s pieces."""
     if method == GAUSS_NEWTON:
         return GaussNewtonStrategy()
     if method == DOGLEG:
@@ -254,4 +256,7 @@ def make_strategy(method: str, impl="solutions", options=None):
     if method in LM_METHODS:
         rules = impl_loader.load(impl).module("damping").STRATEGIES
         return LevenbergMarquardtStrategy(rules[method]())
+    if method == SCALED_NIELSEN:
+        rules = impl_loader.load(impl).module("damping").STRATEGIES
+        return LevenbergMarquardtStrategy(ScaledNielsen(rules["lm-type1"](), rules["lm-type3"]()))
     raise ValueError(f"unknown method {method!r}; choose one of {METHODS}")
