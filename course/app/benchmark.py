@@ -4,8 +4,9 @@
 iteration over g2o's (g2opy), the time to solution of our chordal start plus Gauss-Newton
 over g2o's Gauss-Newton from the file's poses, SuperLU over qdldl on w10000, on intel the
 dense over the sparse solve of one Gauss-Newton system, the 3D graphs against g2o
-(:mod:`course.app.benchmark_3d`), on ladybug-49 our LM iteration over
-Ceres' (pycolmap), GTSAM's and scipy's and our time to solution (:mod:`course.app.benchmark_bal`),
+(:mod:`course.app.benchmark_3d`, with and without CHOLMOD), on ladybug-49 our LM iteration over
+Ceres' (pycolmap), GTSAM's and scipy's, and every back end's time to the minimum of
+ladybug-49:front, the problem they all solve as it is (:mod:`course.app.benchmark_bal`),
 and the parallel assembly's speed-up (:mod:`course.app.parallel_speedup`). Nothing here is a test: the
 machine is shared and noisy. A graph or peer missing here is one line saying so, and the
 rest runs.
