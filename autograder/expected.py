@@ -16,6 +16,7 @@ writes them), ``{"__tuple__": [...]}`` and ``{"__state__": {"lam": ..., "nu": ..
 """
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -178,9 +179,13 @@ def same_data(text_a: str, text_b: str, rtol: float = 1e-9, atol: float = 1e-12)
         if isinstance(a, list):
             return isinstance(b, list) and len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
         if isinstance(a, float) or isinstance(b, float):
-            if not isinstance(a, (int, float)) or not isinstance(b, (int, float)) or isinstance(a, bool):
+            if not isinstance(a, (int, float)) or not isinstance(b, (int, float)) or isinstance(a, bool) \
+                    or isinstance(b, bool):
                 return False
-            return bool(np.isclose(a, b, rtol=rtol, atol=atol)) or (np.isnan(a) and np.isnan(b))
+            # np.isclose's test, in plain floats (a million numpy scalar calls took 20 s)
+            if a == b or (a != a and b != b):
+                return True
+            return math.isfinite(a) and math.isfinite(b) and abs(a - b) <= atol + rtol * abs(b)
         return type(a) is type(b) and a == b
 
-    return same(json.loads(text_a), json.loads(text_b))
+    return text_a == text_b or same(json.loads(text_a), json.loads(text_b))
