@@ -46,10 +46,10 @@ def per_iteration(name, repeats=3, iterations=8, impl="solutions") -> dict:
     g2o and GTSAM (where installed) on ``name`` from the file's poses, each run capped at ``iterations``."""
     graph = datasets.load_dataset(name)
     options = SolverOptions(max_iterations=iterations)
-    runs: dict[str, Callable[[], RunResult]] = {
-        label: partial(lambda make: minimize(PoseGraph3DProblem(graph, impl, solver=make()), "gauss-newton",
-                                             impl=impl, options=options), make)
-        for label, make in our_solvers().items()}
+    def ours(make) -> RunResult:
+        return minimize(PoseGraph3DProblem(graph, impl, solver=make()), "gauss-newton", impl=impl, options=options)
+
+    runs: dict[str, Callable[[], RunResult]] = {label: partial(ours, make) for label, make in our_solvers().items()}
     for backend in ("g2o", "gtsam"):
         try:
             solve = registry.peer_solver("posegraph3d", backend)

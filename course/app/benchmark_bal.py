@@ -155,17 +155,17 @@ def time_to_minimum(name="ladybug-49" + FRONT, repeats=3, impl="solutions", caps
         cap, result = caps[backend], full[(backend, method)]
         iteration = _first_within(result, target)
         seconds: list[float] = []
-        end = result
+        there = cost(problem, *unpack(problem, result.params))
         while iteration is not None and not seconds:
             end = run(iteration)
-            if cost(problem, *unpack(problem, end.params)) <= target:
+            there = cost(problem, *unpack(problem, end.params))
+            if there <= target:
                 seconds.append(end.seconds)
             else:  # the trace's rounding: one more step attempt
                 iteration = iteration + 1 if iteration < cap else None
         if iteration is not None:
             seconds += [run(iteration).seconds for _ in range(repeats - 1)]
-        reaches.append(Reach(backend, method, iteration, statistics.median(seconds) if seconds else None,
-                             cost(problem, *unpack(problem, end.params)), cap))
+        reaches.append(Reach(backend, method, iteration, statistics.median(seconds) if seconds else None, there, cap))
     return minimum, found_by, reaches + skipped
 
 

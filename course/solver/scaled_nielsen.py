@@ -8,8 +8,8 @@ denominator (``[H + lambda diag(H)] h = -b``, lambda_0 = 1e-2) and type 3's upda
 Levenberg-Marquardt of Ceres Solver (its trust-region radius is 1 / lambda, its damping
 diagonal ``diag(J^T J)``). Where the parameters have very different scales, as a bundle
 adjustment's rotations, translations, focal lengths and distortions, the scaled damping
-takes far fewer steps: on ``ladybug-49:front``, 44 step attempts to within 1e-6 of the
-minimum against type 3's 81 (``python -m course.app.benchmark_bal``).
+takes far fewer steps: on ``ladybug-49:front``, 43 step attempts to within 1e-6 of the
+minimum against type 3's 81 (``python -m course benchmark``, :mod:`course.app.benchmark_bal`).
 """
 
 from course.solver.damping import DampingState, DampingStrategy

@@ -3,9 +3,10 @@
 
 ``gtsam.InitializePose3.initialize(graph)`` estimates the rotations by the chordal relaxation
 (one linear least-squares problem in the nine entries of every R, projected to SO(3)), then the
-poses given them. It reads the graph's ``BetweenFactorPose3`` and one ``PriorFactorPose3``,
-which anchors the gauge: here a tight prior (sigma 1e-3) at the first fixed pose's file pose.
-Our information matrices go in, reordered to GTSAM's tangent (rotation first).
+poses given them. It reads the graph's ``BetweenFactorPose3`` and ``PriorFactorPose3``: the
+factor graph of :func:`course.backends.posegraph3d.gtsam.build_factor_graph` (our information
+reordered to GTSAM's tangent), with soft priors at the fixed poses (a ``Constrained`` one
+cannot be whitened there).
 
 The result is moved rigidly so that the anchor sits exactly at its file pose (a rigid motion
 of every pose changes no edge error), and every fixed pose keeps its file pose.
@@ -15,25 +16,16 @@ import time
 
 import numpy as np
 
-from course.backends.posegraph3d.gtsam import information_for_gtsam, poses_of
+from course.backends.posegraph3d.gtsam import build_factor_graph, poses_of
 from course.problems.posegraph3d.graph import PoseGraph3D
-
-#: the anchor prior's standard deviation (rotation in rad, translation in the graph's unit)
-ANCHOR_SIGMA = 1e-3
 
 
 def initialise(graph: PoseGraph3D) -> tuple[PoseGraph3D, float]:
     """``(graph with InitializePose3's poses, seconds of gtsam.InitializePose3.initialize)``."""
     import gtsam
 
-    factors = gtsam.NonlinearFactorGraph()
-    info = information_for_gtsam(graph.information)
-    for k, (i, j) in enumerate(zip(graph.edges_i.tolist(), graph.edges_j.tolist())):
-        factors.add(gtsam.BetweenFactorPose3(i, j, gtsam.Pose3(gtsam.Rot3(graph.R_z[k]), graph.t_z[k]),
-                                             gtsam.noiseModel.Gaussian.Information(info[k])))
+    factors, _ = build_factor_graph(graph, hard_priors=False)
     anchor = int(graph.fixed[0])
-    factors.add(gtsam.PriorFactorPose3(anchor, gtsam.Pose3(gtsam.Rot3(graph.R[anchor]), graph.t[anchor]),
-                                       gtsam.noiseModel.Isotropic.Sigma(6, ANCHOR_SIGMA)))
     start = time.perf_counter()
     values = gtsam.InitializePose3.initialize(factors)
     seconds = time.perf_counter() - start
