@@ -196,6 +196,11 @@ class ForkServer:
                 return None
             return pid
 
+    @property
+    def alive(self) -> bool:
+        """False once it failed to fork or exited: start another."""
+        return not self.broken and self._proc.poll() is None
+
     def close(self) -> None:
         """Stop the server at once (it may still be importing; no child of it is running)."""
         self._proc.kill()

@@ -231,12 +231,30 @@ def _copy_tree(source: Path, target: Path, skip=()) -> None:
     _mirror(source, target, skip, _copy_file)
 
 
-def stage(impl: str, root: Path) -> str:
-    """Copy what the child imports into ``root`` (created, root-owned, 0755): the framework
-    and ``impl``; return the path of the staged implementation (see :func:`stage_impl`)."""
+def _omitted(path) -> bool:
+    """Whether the module ``path`` holds ``# RELEASE: omit`` in its first five lines."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            return any(next(f, "").strip().startswith(OMIT_MARKER) for _ in range(5))
+    except OSError:
+        return False
+
+
+def _copy_unless_omitted(source, dest) -> None:
+    """Copy ``source`` unless it is an omitted module or the bytecode of one."""
+    path = Path(source)
+    module = path.parent.parent / (path.name.split(".")[0] + ".py") if path.suffix == ".pyc" else path
+    if not (module.suffix == ".py" and _omitted(module)):
+        _copy_file(source, dest)
+
+
+def stage_framework(root: Path) -> None:
+    """Copy what the child imports from the repository into ``root`` (created, root-owned,
+    0755): ``course/`` with its bytecode (the children run with ``-B``), but the modules
+    marked ``# RELEASE: omit``, and the runner and tasks of ``autograder/``."""
     root.mkdir(mode=0o755)
     os.chmod(root, 0o755)
-    _copy_tree(REPO_ROOT / "course", root / "course")
+    _mirror(REPO_ROOT / "course", root / "course", (), _copy_unless_omitted)
     package = root / "autograder"
     package.mkdir(mode=0o755)
     for name in AUTOGRADER_FILES:
@@ -244,9 +262,26 @@ def stage(impl: str, root: Path) -> str:
         os.chmod(package / name, 0o644)
     for name in AUTOGRADER_PACKAGES:
         _copy_tree(REPO_ROOT / "autograder" / name, package / name, skip={"__pycache__"})
-    (root / "impl").mkdir(mode=0o755)
-    os.chmod(root / "impl", 0o755)
-    return stage_impl(impl, root)
+
+
+def framework_files() -> list:
+    """``(path, mtime_ns, size)`` of every file :func:`stage_framework` reads: a staged copy
+    made before any of them changed is stale."""
+    found = []
+    tops = [REPO_ROOT / "course"] + [REPO_ROOT / "autograder" / name for name in AUTOGRADER_PACKAGES]
+    for top in tops:
+        for directory, dirs, files in os.walk(top):
+            dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+            found += [os.path.join(directory, name) for name in sorted(files)]
+    found += [str(REPO_ROOT / "autograder" / name) for name in AUTOGRADER_FILES]
+    out = []
+    for path in found:
+        try:
+            st = os.stat(path)
+        except OSError:
+            continue
+        out.append((path, st.st_mtime_ns, st.st_size))
+    return out
 
 
 def stage_impl(impl: str, root: Path) -> str:
@@ -254,6 +289,8 @@ def stage_impl(impl: str, root: Path) -> str:
     (a folder of its own for each one staged) and return the staged package directory for
     ``course.core.impl.load``."""
     source = Path(impl) if os.sep in impl else REPO_ROOT / impl
+    (root / "impl").mkdir(mode=0o755, exist_ok=True)
+    os.chmod(root / "impl", 0o755)
     folder = root / "impl" / str(len(list((root / "impl").iterdir())))
     folder.mkdir(mode=0o755)
     os.chmod(folder, 0o755)
@@ -409,25 +446,36 @@ def uid_pids(uid: int, *, zombies=False) -> list:
 
 def processes(uid: int) -> tuple:
     """``(live, zombies)``: the pids of ``uid``'s processes, from one pass over ``/proc``."""
-    live: list = []
-    dead: list = []
+    return processes_of((uid,))[uid]
+
+
+def processes_of(uids) -> dict:
+    """``{uid: (live, zombies)}`` for each of ``uids``, from one pass over ``/proc`` (it runs
+    several times a check and 20 times a second while one runs, over every process of the
+    machine: hence raw reads of the status file's first page, not ``open()``)."""
+    found: dict = {uid: ([], []) for uid in uids}
     for name in os.listdir("/proc"):
         if not name.isdigit():
             continue
         try:
-            with open(f"/proc/{name}/status") as f:
-                status = f.read()
+            fd = os.open(f"/proc/{name}/status", os.O_RDONLY | os.O_CLOEXEC)
         except OSError:
             continue
-        try:  # only the two lines needed: this runs for every process, several times a check
-            real = int(status.split("\nUid:", 1)[1].split(None, 1)[0])
+        try:
+            status = os.read(fd, 4096)
+        except OSError:
+            continue
+        finally:
+            os.close(fd)
+        try:  # the real uid, first of the Uid line
+            real = int(status.split(b"\nUid:", 1)[1].split(None, 1)[0])
         except (IndexError, ValueError):
             continue
-        if real != uid:
+        if real not in found:
             continue
-        zombie = status.split("\nState:", 1)[-1].lstrip().startswith("Z")
-        (dead if zombie else live).append(int(name))
-    return live, dead
+        zombie = status.split(b"\nState:", 1)[-1].lstrip().startswith(b"Z")
+        found[real][1 if zombie else 0].append(int(name))
+    return found
 
 
 def _kill_as(uid: int, gid: int) -> None:
@@ -525,10 +573,34 @@ def is_subreaper() -> bool:
         return False
 
 
-def sweep_temp(uid: int, dirs=TEMP_DIRS) -> list:
-    """Remove what ``uid`` left directly in the shared temporary directories."""
+def temp_marks(dirs=TEMP_DIRS) -> dict:
+    """``{directory: mtime_ns}`` of the shared temporary directories not modified in the current
+    tick of the coarse clock that stamps files: an entry made after this call changes its
+    directory's mtime to a later time (a child can set it to now, never back), so
+    ``sweep_temp(uid, unchanged=marks)`` may skip a directory whose mtime is still the one marked."""
+    now = time.clock_gettime_ns(getattr(time, "CLOCK_REALTIME_COARSE", time.CLOCK_REALTIME))
+    marks = {}
+    for directory in dirs:
+        try:
+            mtime = os.stat(directory).st_mtime_ns
+        except OSError:
+            continue
+        if mtime < now:
+            marks[directory] = mtime
+    return marks
+
+
+def sweep_temp(uid: int, dirs=TEMP_DIRS, unchanged=None) -> list:
+    """Remove what ``uid`` left directly in the shared temporary directories (but those whose
+    mtime is still the one in ``unchanged``, from :func:`temp_marks`)."""
     removed = []
     for directory in dirs:
+        if unchanged and directory in unchanged:
+            try:
+                if os.stat(directory).st_mtime_ns == unchanged[directory]:
+                    continue
+            except OSError:
+                continue
         try:
             entries = list(os.scandir(directory))
         except OSError:
@@ -593,7 +665,8 @@ def uid_memory(uid: int) -> int:
 
 
 class MemoryWatch(threading.Thread):
-    """Every ``interval`` s, sum the memory of each slot's uid; kill it over its limit."""
+    """Every ``interval`` s, sum the memory of each slot's uid (one pass over ``/proc`` for
+    all the slots whose check is running); kill a uid's processes over its slot's limit."""
 
     def __init__(self, slots, interval=0.05):
         super().__init__(name="autograder-memory-watch", daemon=True)
@@ -602,15 +675,17 @@ class MemoryWatch(threading.Thread):
 
     def run(self):
         while not self.stopped.wait(self.interval):
-            for slot in self.slots:
+            watched = [slot for slot in self.slots if slot.memory_limit is not None]
+            if not watched:
+                continue
+            try:
+                pids = processes_of({slot.uid for slot in watched})
+            except OSError:
+                continue
+            for slot in watched:
+                used = sum(_memory(pid) for pid in pids[slot.uid][0])
                 limit = slot.memory_limit
-                if limit is None:
-                    continue
-                try:
-                    used = uid_memory(slot.uid)
-                except OSError:
-                    continue
-                if used > limit and slot.memory_limit is not None:
+                if limit is not None and used > limit:
                     slot.memory_exceeded = True
                     kill_uid(slot.uid, slot.gid, deadline=0.5)
 

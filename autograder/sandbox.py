@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from autograder import forkserver, isolation
+from autograder import forkserver, isolation, runtime
 from autograder.records import ErrorInfo, Outcome
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -51,11 +51,6 @@ BOOTSTRAP = (
     "import os, sys; sys.path.insert(0, {root!r}); import site; "
     "[site.addsitedir(p) for p in {sites!r}]; from autograder.child import main; "
     "code = main(sys.argv[1:]); sys.stdout.flush(); sys.stderr.flush(); os._exit(code)"
-)
-#: the fork server (:mod:`autograder.forkserver`), started the same way
-SERVER_BOOTSTRAP = (
-    "import os, sys; sys.path.insert(0, {root!r}); import site; "
-    "[site.addsitedir(p) for p in {sites!r}]; from autograder.forkserver import serve; serve({sites!r}); os._exit(0)"
 )
 THREAD_VARIABLES = (
     "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
@@ -151,14 +146,11 @@ class Session:
         self._free: queue.Queue = queue.Queue()
         self._watch = None
         self._was_subreaper: bool | None = None
-        self._python = sys.executable
-        self._sites: list = []
-        self._env: dict = {}
+        self._runtime: runtime.Runtime | None = None
         self._child_impl = self.impl
         self._server: forkserver.ForkServer | None = None
         self._prepared: dict = {}
         self._staging = threading.Lock()
-        self._stage: Path | None = None
 
     # ------------------------------------------------------------ set-up and tear-down
 
@@ -169,6 +161,7 @@ class Session:
                 self._set_up()
             else:
                 self.notice = NOT_ROOT_NOTICE
+                self._runtime = runtime.acquire(False, REPO_ROOT)
             self._start_server()
         except BaseException:
             self._tear_down()
@@ -184,11 +177,13 @@ class Session:
             self._was_subreaper = isolation.set_subreaper(True)
             if not isolation.is_subreaper():
                 return
-        root = str(self._stage) if self.isolate else str(REPO_ROOT)
-        env = isolated_env(self._base, self._env) if self.isolate else child_env()
-        cwd = str(self._base) if self.isolate else tempfile.gettempdir()
-        self._server = forkserver.ForkServer(self._python, SERVER_BOOTSTRAP.format(root=root, sites=list(self._sites)),
-                                             env, cwd)
+        assert self._runtime is not None
+        if self.isolate:
+            assert self._runtime.base is not None
+            env, cwd = isolated_env(self._runtime.base, self._runtime.env), str(self._runtime.base)
+        else:
+            env, cwd = child_env(), tempfile.gettempdir()
+        self._server = self._runtime.server(env, cwd)
 
     def __exit__(self, *exc):
         self._tear_down()
@@ -197,33 +192,16 @@ class Session:
     def _set_up(self):
         if not isolation.is_root():
             raise isolation.IsolationError("isolating the children needs root")
-        interpreter, packages = isolation.python_problems()
         said = []
         changed = isolation.protect_reference()
         if changed:
             names = ", ".join(_relative(path) for path in changed)
             said.append(f"made the reference unreadable by other users (chmod go-rwx): {names}")
+        self._runtime = runtime.acquire(True, REPO_ROOT)
         self._base = Path(tempfile.mkdtemp(prefix="autograder-", dir=isolation.temp_root()))
         os.chmod(self._base, 0o711)
-        self._stage = self._base / "stage"
-        self._child_impl = isolation.stage(self.impl, self._stage)
+        self._child_impl = isolation.stage_impl(self.impl, self._base)
         self._prepared[self.impl] = self._child_impl
-        if interpreter or packages:
-            runtime = isolation.stage_runtime(self._base / "python")
-            self._python, self._env = runtime["executable"], runtime["env"]
-            self._sites = isolation.site_packages()
-            problem = isolation.unreachable(self._python, execute=True)
-            if problem:
-                raise isolation.IsolationError(
-                    f"this Python cannot be run by other users ({'; '.join(interpreter)}) and copying it "
-                    f"did not help ({problem}). " + isolation.install_hint())
-        if packages:  # e.g. a venv in a 0700 folder: its packages, linked where the children can read them
-            self._sites = isolation.stage_site_packages(self._sites, self._base / "packages")
-            unreadable = [why for why in map(isolation.unreachable, self._sites) if why]
-            if unreadable:
-                raise isolation.IsolationError(
-                    "the children would run as an unprivileged user who cannot import this Python's packages ("
-                    + "; ".join((packages + unreadable)[:3]) + "). " + isolation.install_hint())
         self._slots = isolation.acquire_slots(self.workers)
         for slot in self._slots:
             home = self._base / f"slot-{slot.uid}"
@@ -238,9 +216,7 @@ class Session:
         self.notice = "; ".join(said)
 
     def _tear_down(self):
-        if self._server is not None:
-            self._server.close()
-            self._server = None
+        self._server = None  # the runtime's, shared: it stays for the next session
         if self._watch is not None:
             self._watch.stop()
             self._watch = None
@@ -255,8 +231,9 @@ class Session:
         if self._base is not None:
             isolation.remove_tree(self._base)
             self._base = None
-
-    # ------------------------------------------------------------ one check
+        if self._runtime is not None:
+            runtime.release(self._runtime)
+            self._runtime = None
 
     def prepare(self, impl: str) -> str:
         """Make another implementation gradable in this session (staged for the children when
@@ -264,9 +241,11 @@ class Session:
         impl = str(impl)
         with self._staging:
             if impl not in self._prepared:
-                self._prepared[impl] = isolation.stage_impl(impl, self._stage) \
-                    if self.isolate and self._stage is not None else impl
+                self._prepared[impl] = isolation.stage_impl(impl, self._base) \
+                    if self.isolate and self._base is not None else impl
             return self._prepared[impl]
+
+    # ------------------------------------------------------------ one check
 
     def run(self, calls: list, timeout=None, impl=None) -> ChildRun:
         """Run ``calls`` in a fresh child, with the session's implementation or ``impl`` (from
@@ -290,6 +269,7 @@ class Session:
                 work.mkdir()
                 return self._execute(calls, timeout, by_budget, tmp, work, None, impl)
         slot = self._free.get()
+        marks = isolation.temp_marks()
         try:
             work = slot.home / "work"
             isolation.remove_tree(work)
@@ -303,7 +283,7 @@ class Session:
                 raise
             finally:
                 isolation.remove_tree(work)
-                isolation.sweep_temp(slot.uid)
+                isolation.sweep_temp(slot.uid, unchanged=marks)
         finally:
             self._free.put(slot)
 
@@ -365,7 +345,8 @@ class Session:
     def _spawn(self, token: str, argv: list, work: Path, streams: Path, slot):
         """The check's child, forked by the fork server where there is one, else a new interpreter;
         either way in a session of its own, as the slot's uid when isolating, with the token on stdin."""
-        env = isolated_env(work, self._env) if slot is not None else child_env()
+        assert self._runtime is not None
+        env = isolated_env(work, self._runtime.env) if slot is not None else child_env()
         if self._server is not None:
             pid = self._server.spawn({
                 "argv": argv, "cwd": str(work), "env": env, "stdout": str(streams / "stdout"),
@@ -373,8 +354,9 @@ class Session:
                 "uid": slot.uid if slot is not None else None, "gid": slot.gid if slot is not None else None})
             if pid is not None:
                 return forkserver.Forked(pid)
-        root = str(self._stage) if slot is not None else str(REPO_ROOT)
-        command = [self._python, "-I", "-B", "-c", BOOTSTRAP.format(root=root, sites=list(self._sites)), *argv]
+        assert self._runtime is not None
+        root, python, sites = self._runtime.root, self._runtime.python, self._runtime.sites
+        command = [python, "-I", "-B", "-c", BOOTSTRAP.format(root=root, sites=list(sites)), *argv]
         options: dict = {"env": env}
         if slot is not None:
             options.update({"user": slot.uid, "group": slot.gid, "extra_groups": []})

@@ -181,6 +181,41 @@ def test_the_reference_is_unreadable(tmp_path):
 
 
 @root_only
+def test_the_staged_framework_holds_no_omitted_module(tmp_path):
+    impl = hostile(tmp_path, """
+        import os
+        import course
+        release = os.path.join(os.path.dirname(course.__file__), "release")
+        left = [name for folder in (release, os.path.join(release, "__pycache__")) if os.path.isdir(folder)
+                for name in os.listdir(folder) if name.startswith("input_reach.")]
+        if left:
+            raise RuntimeError("staged: " + ", ".join(left))
+    """)
+    assert (ROOT / "course" / "release" / "input_reach.py") in isolation.reference_paths()
+    result = run(impl)
+    assert outcome(result).fields["value"].tolist() == RIGHT, outcome(result).error
+
+
+@root_only
+def test_a_file_left_in_tmp_is_gone_before_the_next_check(tmp_path):
+    impl = hostile(tmp_path, """
+        import os, tempfile
+        mark = "/tmp/autograder-test-left-" + str(lam)
+        if lam > 0:
+            with open(mark, "w") as f:
+                f.write("for the next student")
+        elif os.path.exists(mark.replace("-" + str(lam), "-" + str(-lam))):
+            raise RuntimeError("the previous check's file is still there")
+    """)
+    with sandbox.Session(str(impl), workers=1) as session:
+        first = session.run([call()])
+        second = session.run([Call(TARGET, args=(np.array([1.0, 2.0, 3.0]), -0.5))])
+    assert outcome(first).error is None
+    assert outcome(second).error is None, outcome(second).error
+    assert leftovers() == ([], [])
+
+
+@root_only
 def test_nothing_the_grader_reads_or_imports_is_writable(tmp_path):
     site = isolation.site_packages()[0]
     targets = [SOLUTIONS / "damping.py", ROOT / "autograder" / "grade.py", ROOT / "autograder" / "sandbox.py",

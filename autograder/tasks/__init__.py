@@ -13,6 +13,6 @@ the implementation (a stand-in for a function, a counter around a library class)
 does so only when it is the only Python thread, i.e. in the child: the parent
 computes the reference outputs in worker threads that share modules.
 
-The child imports these modules from a staged copy (:func:`autograder.isolation.stage`):
+The child imports these modules from a staged copy (:func:`autograder.isolation.stage_framework`):
 they import ``course`` and each other only. This ``__init__`` imports nothing.
 """
