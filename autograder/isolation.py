@@ -653,6 +653,12 @@ def _memory(pid: int) -> int:
                     return int(line.split()[1]) * 1024
     except (OSError, ValueError):
         pass
+    return _resident(pid)
+
+
+def _resident(pid: int) -> int:
+    """Resident set size of ``pid`` in bytes (at least its PSS, and a cheap read: smaps_rollup
+    walks the page tables)."""
     try:
         with open(f"/proc/{pid}/statm") as f:
             return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
@@ -665,8 +671,9 @@ def uid_memory(uid: int) -> int:
 
 
 class MemoryWatch(threading.Thread):
-    """Every ``interval`` s, sum the memory of each slot's uid (one pass over ``/proc`` for
-    all the slots whose check is running); kill a uid's processes over its slot's limit."""
+    """Every ``interval`` s, sum the PSS of each slot's uid (one pass over ``/proc`` for all
+    the slots whose check is running; the RSS first, which bounds it and costs far less to
+    read); kill a uid's processes over its slot's limit."""
 
     def __init__(self, slots, interval=0.05):
         super().__init__(name="autograder-memory-watch", daemon=True)
@@ -683,9 +690,11 @@ class MemoryWatch(threading.Thread):
             except OSError:
                 continue
             for slot in watched:
-                used = sum(_memory(pid) for pid in pids[slot.uid][0])
                 limit = slot.memory_limit
-                if limit is not None and used > limit:
+                live = pids[slot.uid][0]
+                if limit is None or sum(_resident(pid) for pid in live) <= limit:
+                    continue  # the RSS bounds the PSS: no need to walk the page tables
+                if sum(_memory(pid) for pid in live) > limit and slot.memory_limit is not None:
                     slot.memory_exceeded = True
                     kill_uid(slot.uid, slot.gid, deadline=0.5)
 
