@@ -447,7 +447,8 @@ def test_a_venv_in_a_private_folder_still_grades(tmp_path):
     private = Path(tempfile.mkdtemp())  # 0700
     try:
         venv = private / "venv"
-        subprocess.run(["cp", "-al", sys.prefix, str(venv)], check=True)
+        # the real folder: `cp -a` of a symlinked venv copies the link, and the unlink below would reach the original
+        subprocess.run(["cp", "-al", os.path.realpath(sys.prefix), str(venv)], check=True)
         for path in venv.rglob("__editable__*"):
             path.unlink()
         out = tmp_path / "results.json"
