@@ -124,3 +124,37 @@ def test_trajectories_carry_the_rotations_in_w_x_y_z_order():
     kfs = vw.Keyframes(sim, 5)
     run = vw.VioRun("truth", kfs.times, np.array([kfs.truth(k) for k in range(len(kfs))]), [], [])
     assert np.abs(quaternion_to_rotation(run.trajectory().quaternions) - sim.rotations[kfs.imu_index]).max() <= 1e-12
+
+
+def _ratios(parts):
+    return {name: (chi2 / dof, np.sqrt(2.0 / dof)) for name, (chi2, dof) in parts.items() if name != "priors"}
+
+
+def test_the_factors_model_the_simulators_noise():
+    """At the truth every factor type's chi2 / dof is 1 within 4 standard deviations of its
+    chi-square (sqrt(2 / dof)): the covariances are the simulator's noise. Claiming a quieter
+    accelerometer or camera than the data's is caught."""
+    import dataclasses
+
+    sim = load_vio_sim("vio-sim:12:0")
+    parts = vio_app.consistency(sim)
+    print("\n" + vio_app.format_consistency(parts))
+    assert set(parts) == {"IMU rotation", "IMU velocity", "IMU position", "gyroscope bias walk",
+                          "accelerometer bias walk", "reprojection", "priors"}
+    for name, (ratio, sd) in _ratios(parts).items():
+        assert abs(ratio - 1.0) <= 4 * sd, (name, ratio)
+    quiet_accel = _ratios(vio_app.consistency(dataclasses.replace(sim, accel_noise=sim.accel_noise / 3)))
+    ratio, sd = quiet_accel["IMU velocity"]
+    assert ratio > 1 + 4 * sd
+    quiet_camera = _ratios(vio_app.consistency(dataclasses.replace(sim, pixel_noise=sim.pixel_noise / 2)))
+    ratio, sd = quiet_camera["reprojection"]
+    assert ratio > 1 + 4 * sd
+
+
+@pytest.mark.slow
+def test_the_seed_table_compares_the_window_and_the_batch_per_seed():
+    rows = vio_app.seeds(2, seconds=3)
+    assert [row["name"] for row in rows] == ["vio-sim:3:0", "vio-sim:3:1"]
+    assert all(0 < row["window"] < 1 and 0 < row["batch"] < 1 and 0.9 < row["batch scale"] < 1.1 for row in rows)
+    table = vio_app.format_seeds(rows)
+    assert "mean" in table and "median" in table and "of 2" in table

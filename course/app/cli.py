@@ -116,6 +116,10 @@ def build_parser() -> argparse.ArgumentParser:
     vio.add_argument("--no-peers", action="store_true", help="ours only (no GTSAM rows)")
     vio.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
     vio.add_argument("--json", metavar="FILE", help="write {label: {rmse, max, scale, mean_solve_seconds, ...}}")
+    vio.add_argument("--seeds", type=int, metavar="N", help="instead: the window (with the prior) against the batch "
+                                                             "on seeds 0..N-1 of NAME's length (APE, scale)")
+    vio.add_argument("--consistency", action="store_true", help="instead: chi2 / dof of each factor type at the "
+                                                                "truth (near 1 where the factors model the noise)")
     vio.set_defaults(func=cmd_vio)
     return parser
 
@@ -450,10 +454,24 @@ def cmd_benchmark(args) -> int:
 
 
 def cmd_vio(args) -> int:
-    """``vio [NAME]``: :func:`course.app.vio.compare`'s table."""
+    """``vio [NAME]``: :func:`course.app.vio.compare`'s table (or ``--seeds``, ``--consistency``)."""
     from course.app import vio
+    from course.problems.vio.sim import parse_name
 
-    results = vio.compare(args.name, window=args.window, impl=args.impl or default_impl(),
+    impl = args.impl or default_impl()
+    if args.consistency:
+        print(f"{args.name}: the batch problem at the truth, plain squares")
+        print(vio.format_consistency(vio.consistency(args.name, impl=impl)))
+        return 0
+    if args.seeds:
+        seconds, _ = parse_name(args.name)
+        rows = vio.seeds(args.seeds, seconds, window=args.window, impl=impl)
+        print(f"vio-sim:{seconds:g}:0..{args.seeds - 1}: APE rmse after SE(3) alignment, scale from Sim(3)")
+        print(vio.format_seeds(rows))
+        if args.json:
+            print(f"wrote {write_json(args.json, rows, indent=1)}")
+        return 0
+    results = vio.compare(args.name, window=args.window, impl=impl,
                           peers=not args.no_peers)
     print(f"{args.name}: keyframes every 0.25 s, window {args.window}; APE after SE(3) alignment, "
           "scale from Sim(3)")

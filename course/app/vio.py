@@ -7,7 +7,15 @@ import numpy as np
 from course.core.peers import installed
 from course.problems.vio.ape import ape
 from course.problems.vio.sim import load_vio_sim
-from course.problems.vio.window import VARIANTS, batch, ground_truth, sliding_window
+from course.problems.vio.window import (
+    VARIANTS,
+    Keyframes,
+    batch,
+    batch_problem,
+    ground_truth,
+    sliding_window,
+    true_states,
+)
 
 
 def compare(name="vio-sim:12:0", window=10, keyframe_every=5, method="dogleg", impl="solutions",
@@ -57,6 +65,54 @@ def format_comparison(results: dict) -> str:
             continue
         lines.append(f"{label:<30} {r['rmse']:>12.4f} {r['max']:>9.4f} {r['scale']:>8.4f} "
                      f"{r['mean_solve_seconds']:>9.3f} {r['solves']:>7d} {r['mean_iterations']:>6.1f}")
+    return "\n".join(lines)
+
+
+def consistency(sim="vio-sim:12:0", keyframe_every=5, impl="solutions") -> dict:
+    """``{factor type: (chi2, dof)}`` of the batch problem at the truth of ``sim`` (a name or a
+    ``VioSim``: true keyframe states and landmarks, the IMU preintegrated at the true biases):
+    whether the factors' covariances model the simulator's noise (every ratio near 1; the
+    priors, centred on the truth, below)."""
+    sim = load_vio_sim(sim) if isinstance(sim, str) else sim
+    kfs = Keyframes(sim, keyframe_every)
+    seen = {int(lm) for f in range(len(kfs)) for lm in kfs.obs[f][0]}
+    problem = batch_problem(sim, true_states(sim, keyframe_every), keyframe_every, impl, loss=None,
+                            points={lm: sim.landmarks[lm] for lm in seen})
+    return problem.chi2_by_factor(problem.x0)
+
+
+def format_consistency(parts: dict) -> str:
+    lines = [f"{'factor':<26} {'chi2':>10} {'dof':>6} {'chi2/dof':>9}"]
+    lines += [f"{name:<26} {chi2:>10.1f} {dof:>6d} {chi2 / max(dof, 1):>9.3f}" for name, (chi2, dof) in parts.items()]
+    return "\n".join(lines)
+
+
+def seeds(count=20, seconds=12, window=10, keyframe_every=5, method="dogleg", impl="solutions") -> list:
+    """APE rmse (m) and Sim(3) scale of the window with the prior and of the batch (from the
+    window's estimate) on ``vio-sim:seconds:seed`` for seeds ``0 .. count - 1``: one dict a seed."""
+    rows = []
+    for seed in range(count):
+        name = f"vio-sim:{seconds:g}:{seed}"
+        sim = load_vio_sim(name)
+        truth = ground_truth(sim)
+        prior = sliding_window(sim, "prior", window, keyframe_every, method, impl)
+        full = batch(sim, prior, keyframe_every, method, impl)
+        row: dict = {"name": name}
+        for label, run in (("window", prior), ("batch", full)):
+            row[label] = ape(truth, run.trajectory()).stats["rmse"]
+            row[label + " scale"] = ape(truth, run.trajectory(), align="sim3").alignment.scale
+        rows.append(row)
+    return rows
+
+
+def format_seeds(rows: list) -> str:
+    lines = [f"{'simulation':<16} {'window (m)':>10} {'batch (m)':>10} {'window scale':>12} {'batch scale':>11}"]
+    lines += [f"{r['name']:<16} {r['window']:>10.4f} {r['batch']:>10.4f} {r['window scale']:>12.4f} "
+              f"{r['batch scale']:>11.4f}" for r in rows]
+    window, full = np.array([r["window"] for r in rows]), np.array([r["batch"] for r in rows])
+    lines.append(f"{'mean':<16} {window.mean():>10.4f} {full.mean():>10.4f}")
+    lines.append(f"{'median':<16} {np.median(window):>10.4f} {np.median(full):>10.4f}")
+    lines.append(f"the batch is closer to the truth on {int(np.sum(full < window))} of {len(rows)}")
     return "\n".join(lines)
 
 

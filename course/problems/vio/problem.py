@@ -309,6 +309,25 @@ class VioProblem:
             out.append((lp.e0 + lp.J @ dx, self.columns(lp.frames, lp.landmarks), lp.J if jacobians else None))
         return out
 
+    def chi2_by_factor(self, x) -> dict:
+        """``{factor type: (chi2, dof)}`` at ``x`` in plain squares (no robust loss): the IMU
+        factors' rotation, velocity and position rows, the gyroscope's and the accelerometer's
+        bias walks, the reprojections and the priors. At the true state of data whose noise the
+        factors model, every ``chi2 / dof`` is near 1 (the priors' excepted: their centre is the truth)."""
+        x = np.asarray(x, dtype=float)
+        frames = self.frames(x)
+        imu = np.array([self._imu_residual(k, frames[f.i], frames[f.j]) for k, f in enumerate(self.data.imu)])
+        imu = imu.reshape(-1, 15)
+        r, _, _ = self._reprojection(x, False)
+        priors = [rows for rows, _, _ in self._prior_rows(x, False)]
+        out = {name: (float(np.sum(imu[:, part] ** 2)), imu[:, part].size)
+               for name, part in (("IMU rotation", slice(0, 3)), ("IMU velocity", slice(3, 6)),
+                                  ("IMU position", slice(6, 9)), ("gyroscope bias walk", slice(9, 12)),
+                                  ("accelerometer bias walk", slice(12, 15)))}
+        out["reprojection"] = (float(np.sum(r * r)), r.size)
+        out["priors"] = (float(sum(rows @ rows for rows in priors)), sum(len(rows) for rows in priors))
+        return out
+
     # ------------------------------------------------------------------ the minimizer's interface
     def chi2(self, x) -> float:
         x = np.asarray(x, dtype=float)
