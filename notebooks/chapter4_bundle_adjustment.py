@@ -29,7 +29,8 @@
 #
 # 1. the sparsity of J, H and S;
 # 2. the cost per iteration and per second of ours and the peers (Ceres through pycolmap,
-#    GTSAM, scipy) on ladybug-49 and on a synthetic problem, and the time per iteration;
+#    GTSAM, scipy) on ladybug-49 and on a synthetic problem, the time per iteration, and how
+#    ours and Ceres' grow from 10k to 300k observations;
 # 3. dubrovnik-3-7, a problem with fewer residuals than unknowns: what its rank deficiency
 #    does to every solver;
 # 4. the points that start behind the camera, and each peer's answer to them;
@@ -78,6 +79,7 @@ from course.notebook_helpers.bal import (
     openmp_table,
     per_iteration_table,
     rank_report,
+    size_sweep_figure,
     sparsity_counts,
     sparsity_figure,
 )
@@ -175,6 +177,23 @@ if load(name) is not None:
                                           scipy_evaluations=2)
     print(per_iteration_table(timings, f"{name}: milliseconds per iteration, median of {min(REPEAT, 3)} "
                                        f"(scipy: per evaluation); ours is lm-type3, the gauge fixed"))
+
+# %% [markdown] id="sweep-md"
+# ### How the cost grows
+#
+# The same measurement on `bal-synthetic` problems from about 10,000 to 300,000 observations
+# (`course.app.benchmark_bal.size_sweep`: 20 to 400 cameras, each point seen by 2 to 5 random
+# ones, 5 iterations, `min(REPEAT, 3)` runs; quick setting: three tiny problems). Each camera
+# shares points with more others as the cameras multiply, so S fills in: past 100 cameras it is
+# nearly dense, and `schur_solve` then factorizes it densely (`DENSE_FILL`), as a sparse
+# factorization of a dense matrix does the same work with more bookkeeping. Does the ratio
+# grow with the size? Where does the fixed cost of a Python iteration show?
+
+# %% id="sweep"
+sizes = ((4, 30), (10, 300), (20, 900)) if SMALL else benchmark_bal.SWEEP
+sweep = benchmark_bal.size_sweep(sizes, repeats=min(REPEAT, 3), iterations=2 if SMALL else 5, impl=IMPL)
+print(benchmark_bal.format_sweep(sweep))
+display(Image(plot.to_png(size_sweep_figure(sweep))))
 
 # %% [markdown] id="rank-md"
 # ## 3. dubrovnik-3-7: fewer residuals than unknowns

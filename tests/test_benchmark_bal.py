@@ -19,14 +19,16 @@ def test_per_iteration_times_every_back_end_on_a_synthetic_problem():
 
 def test_main_prints_the_ratio_column_and_skips_the_minimum_it_does_not_know():
     lines = []
-    benchmark_bal.main(names=("bal-synthetic:4:30",), repeats=1, out=lines.append)
+    benchmark_bal.main(names=("bal-synthetic:4:30",), repeats=1, out=lines.append, sweep=((4, 30), (6, 50)))
     assert any("/ ceres" in line for line in lines)
     assert any(line.startswith("ours ") for line in lines)
+    assert any("how the cost grows" in line for line in lines)
+    assert any(line.startswith("bal-synthetic:6:50:0") for line in lines)
 
 
 def test_a_missing_problem_is_one_line(tmp_path):
     lines = []
-    benchmark_bal.main(names=(str(tmp_path / "missing.txt"),), repeats=1, out=lines.append)
+    benchmark_bal.main(names=(str(tmp_path / "missing.txt"),), repeats=1, out=lines.append, sweep=())
     assert len(lines) == 1 and "skipped" in lines[0]
 
 
@@ -52,5 +54,16 @@ def test_a_peer_that_does_not_get_there_within_its_cap_is_a_row_saying_so():
     if not ceres.skipped:
         assert ceres.iteration is None and ceres.seconds is None and ceres.cap == 1
     lines = []
-    benchmark_bal.main(names=("bal-synthetic:4:30",), repeats=1, out=lines.append)
+    benchmark_bal.main(names=("bal-synthetic:4:30",), repeats=1, out=lines.append, sweep=())
     assert any(line.startswith("bal-synthetic:4:30:front") and "best known minimum" in line for line in lines)
+
+
+def test_the_size_sweep_times_ours_and_ceres_per_size():
+    rows = benchmark_bal.size_sweep(((4, 30), (6, 60)), repeats=1, iterations=2)
+    assert [row.name for row in rows] == ["bal-synthetic:4:30:0", "bal-synthetic:6:60:0"]
+    assert rows[0].observations < rows[1].observations
+    for row in rows:
+        assert row.ours > 0
+        assert row.ceres is None or row.ratio == row.ours / row.ceres
+    table = benchmark_bal.format_sweep(rows)
+    assert "ours / ceres" in table and len(table.splitlines()) == 3

@@ -213,8 +213,9 @@ def test_schur_step_equals_full_damped_step(monkeypatch, dense):
     H, g = J.T @ J, J.T @ r.ravel()
     d = 1e-3 * np.diag(H)
     full = np.linalg.solve(H + np.diag(d), -g)
-    if not dense:
+    if not dense:  # the sparse branch, though the 4 cameras' S is dense
         monkeypatch.setattr(ba, "DENSE_LIMIT", 0)
+        monkeypatch.setattr(ba, "DENSE_FILL", 2.0)
     n = 9 * p.num_cameras
     dx_cam, dx_point = ba.schur_solve(U, V, W, g_cam, g_point, p.camera_index, p.point_index,
                                       damping_cam=d[:n].reshape(-1, 9), damping_point=d[n:].reshape(-1, 3))
@@ -329,3 +330,20 @@ def test_fixed_gauge_lets_gauss_newton_converge():
     assert result.final_chi2 < 1e-12 * result.initial_chi2
     cameras, _ = problem.unpack(result.params)
     np.testing.assert_array_equal(cameras[problem.fixed], p.cameras[problem.fixed])
+
+
+def test_a_nearly_dense_reduced_system_is_solved_densely(monkeypatch):
+    """9C above DENSE_LIMIT but S nearly dense: the dense factorization, the same step."""
+    import scipy.sparse.linalg as spla
+
+    p, cameras = _small_problem()
+    r, J_cam, J_point = ba.reprojection_residuals_and_jacobians(cameras, p.points, *_args(p))
+    U, V, W, g_cam, g_point, _ = ba.normal_equations(r, J_cam, J_point, p.camera_index, p.point_index,
+                                                     p.num_cameras, p.num_points)
+    d = 1e-3 * np.ones((p.num_cameras, 9)), 1e-3 * np.ones((p.num_points, 3))
+    want = ba.schur_solve(U, V, W, g_cam, g_point, p.camera_index, p.point_index, *d)
+    monkeypatch.setattr(ba, "DENSE_LIMIT", 0)
+    monkeypatch.setattr(spla, "splu", lambda *a, **k: pytest.fail("a dense S went to the sparse solver"))
+    got = ba.schur_solve(U, V, W, g_cam, g_point, p.camera_index, p.point_index, *d)
+    for a, b in zip(got, want):
+        assert np.allclose(a, b, rtol=1e-10, atol=1e-12)

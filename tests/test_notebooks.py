@@ -245,15 +245,16 @@ def test_chapter4_executes_small():
                   "one damped step, 10 cameras", "growth exponent", "no outliers, least squares", "cauchy(a=2.45)",
                   "tukey(a=4.5)", "the source's table", "218.77", "148.73", "61.42", "83.40",
                   "Parallel assembly of the normal equations", "gauge free : 7 of", "gauge fixed: 0 of",
-                  "gauge_directions N"):
+                  "gauge_directions N", "ours / ceres", "bal-synthetic:20:900:0"):
         assert words in text, words
-    for words in ("ladybug-49: milliseconds per iteration", "bal-synthetic:30:3000", "cost @ 1000"):
+    for words in ("ladybug-49: milliseconds per iteration", "bal-synthetic:30:3000", "cost @ 1000",
+                  "bal-synthetic:400:86000"):
         assert words not in text, words  # the full setting only
     if peers.installed("gtsam"):  # dubrovnik-3-7 ships with gtsam
         for words in ("38 residuals (2 per observation) for 48 unknowns", "null space 3", "cost @ 100", "f_2"):
             assert words in text, words
-    # sparsity, costs on the synthetic problem, dense against Schur, kernels, gauge
-    assert len(images) == 5
+    # sparsity, costs on the synthetic problem, the size sweep, dense against Schur, kernels, gauge
+    assert len(images) == 6
     markdown = {c.get("id"): c.source for c in nb.cells if c.cell_type == "markdown"}
     assert "Question 1" in markdown["questions-md"] and "Question 2" in markdown["questions-md"]
     assert "Your answer to question 1" in markdown["answer-1"]

@@ -6,7 +6,8 @@ over g2o's Gauss-Newton from the file's poses, SuperLU over qdldl on w10000, on 
 dense over the sparse solve of one Gauss-Newton system, the 3D graphs against g2o
 (:mod:`course.app.benchmark_3d`, with and without CHOLMOD), on ladybug-49 our LM iteration over
 Ceres' (pycolmap), GTSAM's and scipy's, and every back end's time to the minimum of
-ladybug-49:front, the problem they all solve as it is (:mod:`course.app.benchmark_bal`),
+ladybug-49:front, the problem they all solve as it is, and how ours and Ceres' time per iteration
+grow from 10k to 300k observations (:mod:`course.app.benchmark_bal`),
 and the parallel assembly's speed-up (:mod:`course.app.parallel_speedup`). Nothing here is a test: the
 machine is shared and noisy. A graph or peer missing here is one line saying so, and the
 rest runs.
@@ -121,7 +122,8 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal
          parallel=True, graphs3d=("sphere2500", "torus3D", "parking-garage")):
     """Print the benchmarks of ``impl``; what cannot run here (a graph, g2opy) is one line.
 
-    ``bal``: the bundle-adjustment problems of :mod:`course.app.benchmark_bal`; ``solvers``: the
+    ``bal``: the bundle-adjustment problems of :mod:`course.app.benchmark_bal` (and, when there are
+    any, its size sweep on ``bal-synthetic``); ``solvers``: the
     sparse and dense solves (SuperLU against qdldl on w10000, dense against sparse on intel);
     ``parallel``: the parallel assembly against the serial one; ``graphs3d``: chapter 6's 3D graphs
     (:mod:`course.app.benchmark_3d`, medians of ``min(repeats, 3)``: g2o takes minutes on torus3D)."""
@@ -162,7 +164,7 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal
     # chapter 4: one LM iteration of bundle adjustment against the peers', and our time to solution
     from course.app import benchmark_bal
 
-    benchmark_bal.main(names=bal, repeats=repeats, impl=impl, out=out)
+    benchmark_bal.main(names=bal, repeats=repeats, impl=impl, out=out, sweep=benchmark_bal.SWEEP if bal else ())
     if parallel:  # chapter 4: the parallel assembly against the serial one, alone and in whole LM / dogleg iterations
         from course.app import parallel_speedup
 

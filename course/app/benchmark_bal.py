@@ -8,6 +8,9 @@ Ceres in C++ through pycolmap (one thread, SPARSE_SCHUR), GTSAM's LM and scipy's
 ``least_squares`` (trf with the Jacobian's sparsity: one "iteration" is one evaluation of
 residuals and Jacobian). A peer that is not installed is one line saying so.
 
+How the cost grows (:func:`size_sweep`): ours and Ceres' per iteration on ``bal-synthetic`` from
+about 10k to 300k observations, and the ratio.
+
 Time to the minimum, on ``NAME:front`` (the problem without the points that have an
 observation behind a camera at the start, so that Ceres through COLMAP deletes nothing and
 every back end minimises the same cost over the same observations): each back end runs to
@@ -169,7 +172,61 @@ def time_to_minimum(name="ladybug-49" + FRONT, repeats=3, impl="solutions", caps
     return minimum, found_by, reaches + skipped
 
 
-def main(names=("ladybug-49",), repeats=3, impl="solutions", out=print) -> None:
+#: the size sweep's problems, ``bal-synthetic:CAMERAS:POINTS``: about 10k, 30k, 75k, 150k and 300k
+#: observations (3.5 a point), the points seen by random cameras, so S fills in as the cameras multiply
+SWEEP = ((20, 2900), (50, 8600), (100, 21500), (200, 43000), (400, 86000))
+
+
+@dataclass
+class SweepRow:
+    """One size of the sweep: ``observations``; ours and Ceres' median seconds per iteration
+    (``ceres`` None when pycolmap is missing)."""
+
+    name: str
+    observations: int
+    ours: float
+    ceres: float | None
+
+    @property
+    def ratio(self) -> float | None:
+        return None if self.ceres is None else self.ours / self.ceres
+
+
+def size_sweep(sizes=SWEEP, repeats=3, iterations=5, impl="solutions", progress=None) -> list:
+    """:class:`SweepRow` per ``(cameras, points)`` of ``sizes``: our LM (:data:`OUR_METHOD`, the
+    Schur complement) and Ceres' per iteration on ``bal-synthetic:C:P``, medians of ``repeats``
+    interleaved runs of ``iterations`` iterations from the generator's start."""
+    try:
+        ceres = registry.peer_solver("bal", "ceres")
+    except PeerMissing:
+        ceres = None
+    rows = []
+    for cameras, points in sizes:
+        problem = load_bal(f"bal-synthetic:{cameras}:{points}")
+        ours, theirs = [], []
+        for _ in range(repeats):
+            result = _ours(problem, impl, iterations)
+            ours.append(result.seconds / max(result.iterations, 1))
+            if ceres is not None:
+                result = ceres(problem, "levenberg-marquardt", max_iterations=iterations)
+                theirs.append(result.seconds / max(result.iterations, 1))
+        rows.append(SweepRow(problem.name, len(problem.observations), statistics.median(ours),
+                             statistics.median(theirs) if theirs else None))
+        if progress is not None:
+            progress(rows[-1])
+    return rows
+
+
+def format_sweep(rows: list) -> str:
+    lines = [f"{'problem':26} {'observations':>12} {'ours ms/it':>11} {'ceres ms/it':>12} {'ours / ceres':>13}"]
+    for row in rows:
+        theirs = f"{row.ceres * 1e3:12.1f}" if row.ceres is not None else f"{'not run':>12}"
+        ratio = f"{row.ratio:13.2f}" if row.ratio is not None else f"{'-':>13}"
+        lines.append(f"{row.name:26} {row.observations:12d} {row.ours * 1e3:11.1f} {theirs} {ratio}")
+    return "\n".join(lines)
+
+
+def main(names=("ladybug-49",), repeats=3, impl="solutions", out=print, sweep=SWEEP) -> None:
     """Print the per-iteration table of each problem and the time to the minimum of its
     ``:front`` variant (ratios over Ceres)."""
     from course.core.errors import DatasetError
@@ -207,3 +264,8 @@ def main(names=("ladybug-49",), repeats=3, impl="solutions", out=print) -> None:
             else:
                 ratio = f"{r.seconds / ceres:8.2f}" if ceres else f"{'-':>8}"
                 out(f"{r.backend:8} {r.method:20} {r.iteration:9d} {r.seconds:8.2f} {ratio} {r.cost:14.6f}")
+    if sweep:
+        out(f"how the cost grows: LM seconds per iteration on bal-synthetic, median of {repeats} runs of 5 "
+            "iterations, ours (the Schur complement) and Ceres' (pycolmap, one thread)")
+        for line in format_sweep(size_sweep(sweep, repeats, impl=impl)).splitlines():
+            out(line)

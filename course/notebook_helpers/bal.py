@@ -486,6 +486,32 @@ def dense_vs_schur_figure(rows: Sequence[StepTiming], num_cameras: int) -> Any:
     return fig
 
 
+def size_sweep_figure(rows: Sequence[Any]) -> Any:
+    """Ours and Ceres' seconds per LM iteration against the observations (log-log, left), and
+    their ratio (right), from ``course.app.benchmark_bal.size_sweep``'s rows."""
+    fig = plot.figure(10, 4)
+    left, right = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    K = [r.observations for r in rows]
+    left.plot(K, [1e3 * r.ours for r in rows], "o-", label="ours (Schur complement, numpy and scipy)")
+    measured = [r for r in rows if r.ceres is not None]
+    if measured:
+        left.plot([r.observations for r in measured], [1e3 * r.ceres for r in measured], "s-",
+                  label="Ceres (pycolmap, one thread)")
+        right.plot([r.observations for r in measured], [r.ratio for r in measured], "o-")
+    right.axhline(1.0, color="grey", lw=0.8)
+    for ax in (left, right):
+        ax.set_xscale("log")
+        ax.set_xlabel("observations")
+        ax.grid(True, which="both", alpha=0.3)
+    left.set_yscale("log")
+    left.set_ylabel("milliseconds per LM iteration")
+    left.legend(fontsize="small")
+    right.set_ylabel("ours / Ceres")
+    right.set_ylim(bottom=0)
+    fig.suptitle("bal-synthetic: how the cost of an iteration grows")
+    return fig
+
+
 # ---------------------------------------------------------------- robust kernels
 
 
