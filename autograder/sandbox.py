@@ -128,10 +128,12 @@ class Session:
     ``budget``: total seconds for the run; once spent, ``run`` starts no child and
     reports a timeout. ``isolate``: None (as root: yes), True or False.
 
-    As root, entering the session makes the reference unreadable by other users, stages
-    what the child imports into a fresh directory, takes one uid per worker and starts
-    the memory watch; it raises :class:`autograder.isolation.IsolationError` with what to
-    do when the children could not run safely (it never falls back to root).
+    As root, entering the session makes the reference unreadable by other users, stages the
+    implementation into a fresh directory, takes one uid per worker and starts the memory
+    watch; it raises :class:`autograder.isolation.IsolationError` with what to do when the
+    children could not run safely (it never falls back to root). The staged framework, Python
+    and packages and the fork server are the process's (:mod:`autograder.runtime`), shared
+    with its other sessions.
     """
 
     def __init__(self, impl: str, *, timeout=DEFAULT_TIMEOUT, memory_mb=DEFAULT_MEMORY_MB, workers=2,
