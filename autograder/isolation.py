@@ -573,19 +573,24 @@ def is_subreaper() -> bool:
         return False
 
 
+#: a directory modified less than this long ago is not marked: file systems stamp times in ticks of
+#: up to 2 s (FAT; ext3 and HFS+ in whole seconds), and a change within the tick keeps the mtime
+MARK_AGE_NS = 2_000_000_000
+
+
 def temp_marks(dirs=TEMP_DIRS) -> dict:
-    """``{directory: mtime_ns}`` of the shared temporary directories not modified in the current
-    tick of the coarse clock that stamps files: an entry made after this call changes its
-    directory's mtime to a later time (a child can set it to now, never back), so
-    ``sweep_temp(uid, unchanged=marks)`` may skip a directory whose mtime is still the one marked."""
-    now = time.clock_gettime_ns(getattr(time, "CLOCK_REALTIME_COARSE", time.CLOCK_REALTIME))
+    """``{directory: mtime_ns}`` of the shared temporary directories last modified more than
+    :data:`MARK_AGE_NS` ago: an entry made after this call changes its directory's mtime to a
+    later time (a child can set it to now, never back), so ``sweep_temp(uid, unchanged=marks)``
+    may skip a directory whose mtime is still the one marked."""
+    now = time.time_ns()
     marks = {}
     for directory in dirs:
         try:
             mtime = os.stat(directory).st_mtime_ns
         except OSError:
             continue
-        if mtime < now:
+        if mtime < now - MARK_AGE_NS:
             marks[directory] = mtime
     return marks
 

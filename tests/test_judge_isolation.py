@@ -461,3 +461,20 @@ def test_a_venv_in_a_private_folder_still_grades(tmp_path):
     finally:
         shutil.rmtree(private, ignore_errors=True)
     assert leftovers() == ([], [])
+
+
+def test_the_temp_sweep_skips_only_a_directory_whose_mtime_did_not_move(tmp_path):
+    folder = tmp_path / "shared-tmp"
+    folder.mkdir()
+    assert str(folder) not in isolation.temp_marks([str(folder)])  # modified just now: always swept
+    old = time.time() - 10
+    os.utime(folder, (old, old))
+    marks = isolation.temp_marks([str(folder)])
+    assert str(folder) in marks
+    left = folder / "left-by-a-child"
+    left.write_text("x")
+    assert isolation.sweep_temp(os.getuid(), dirs=[str(folder)], unchanged=marks) == [str(left)]
+    left.write_text("x")
+    os.utime(folder, (old, old))  # as if nothing had changed (the grader can; a child cannot set it back)
+    assert isolation.sweep_temp(os.getuid(), dirs=[str(folder)], unchanged=marks) == []
+    assert isolation.sweep_temp(os.getuid(), dirs=[str(folder)]) == [str(left)]
