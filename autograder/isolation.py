@@ -167,6 +167,15 @@ def install_hint() -> str:
 # ---------------------------------------------------------------- the reference
 
 
+def _omitted(path) -> bool:
+    """Whether the module ``path`` holds ``# RELEASE: omit`` in its first five lines."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            return any(next(f, "").strip().startswith(OMIT_MARKER) for _ in range(5))
+    except OSError:
+        return False
+
+
 def reference_paths(repo: Path = REPO_ROOT) -> list:
     """What the child must not read: ``solutions/``, ``autograder/mistakes/`` and every
     module whose first five lines hold ``# RELEASE: omit`` (outside those two)."""
@@ -176,17 +185,7 @@ def reference_paths(repo: Path = REPO_ROOT) -> list:
     for directory, dirs, files in os.walk(repo):
         dirs[:] = [d for d in dirs if d not in skip and not d.startswith(".")
                    and Path(directory, d) not in found]
-        for name in files:
-            if not name.endswith(".py"):
-                continue
-            path = Path(directory, name)
-            try:
-                with open(path, encoding="utf-8", errors="replace") as f:
-                    head = [next(f, "") for _ in range(5)]
-            except OSError:
-                continue
-            if any(line.strip().startswith(OMIT_MARKER) for line in head):
-                found.append(path)
+        found += [Path(directory, name) for name in files if name.endswith(".py") and _omitted(Path(directory, name))]
     return found
 
 
@@ -229,15 +228,6 @@ def _copy_file(source, dest) -> None:
 def _copy_tree(source: Path, target: Path, skip=()) -> None:
     """Copy regular files and directories (no symlinks), root-owned, readable by all."""
     _mirror(source, target, skip, _copy_file)
-
-
-def _omitted(path) -> bool:
-    """Whether the module ``path`` holds ``# RELEASE: omit`` in its first five lines."""
-    try:
-        with open(path, encoding="utf-8", errors="replace") as f:
-            return any(next(f, "").strip().startswith(OMIT_MARKER) for _ in range(5))
-    except OSError:
-        return False
 
 
 def _copy_unless_omitted(source, dest) -> None:
@@ -669,10 +659,6 @@ def _resident(pid: int) -> int:
             return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
     except (OSError, ValueError, IndexError):
         return 0
-
-
-def uid_memory(uid: int) -> int:
-    return sum(_memory(pid) for pid in uid_pids(uid))
 
 
 class MemoryWatch(threading.Thread):

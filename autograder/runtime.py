@@ -34,9 +34,9 @@ class Runtime:
     ``env`` and the package directories ``sites``) and the fork server, for isolated children
     (``isolate``) or children that run as the grader's own user."""
 
-    def __init__(self, isolate: bool, repo_root: Path):
+    def __init__(self, isolate: bool, repo_root: Path, fingerprint: list):
         self.isolate = isolate
-        self.fingerprint = isolation.framework_files()
+        self.fingerprint = fingerprint  # isolation.framework_files() when it was built
         self.users = 0
         self.python = sys.executable
         self.sites: list = []
@@ -105,13 +105,14 @@ def acquire(isolate: bool, repo_root: Path) -> Runtime:
     """The current runtime for ``isolate`` (built now if there is none or a framework file
     changed); give it back with :func:`release`."""
     with _lock:
+        files = isolation.framework_files()
         runtime = _current.get(isolate)
-        if runtime is not None and runtime.fingerprint != isolation.framework_files():
+        if runtime is not None and runtime.fingerprint != files:
             del _current[isolate]
             _retire(runtime)
             runtime = None
         if runtime is None:
-            runtime = _current[isolate] = Runtime(isolate, repo_root)
+            runtime = _current[isolate] = Runtime(isolate, repo_root, files)
         runtime.users += 1
         return runtime
 

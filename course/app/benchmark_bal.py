@@ -192,7 +192,7 @@ class SweepRow:
         return None if self.ceres is None else self.ours / self.ceres
 
 
-def size_sweep(sizes=SWEEP, repeats=3, iterations=5, impl="solutions", progress=None) -> list:
+def size_sweep(sizes=SWEEP, repeats=3, iterations=5, impl="solutions") -> list:
     """:class:`SweepRow` per ``(cameras, points)`` of ``sizes``: our LM (:data:`OUR_METHOD`, the
     Schur complement) and Ceres' per iteration on ``bal-synthetic:C:P``, medians of ``repeats``
     interleaved runs of ``iterations`` iterations from the generator's start."""
@@ -212,8 +212,6 @@ def size_sweep(sizes=SWEEP, repeats=3, iterations=5, impl="solutions", progress=
                 theirs.append(result.seconds / max(result.iterations, 1))
         rows.append(SweepRow(problem.name, len(problem.observations), statistics.median(ours),
                              statistics.median(theirs) if theirs else None))
-        if progress is not None:
-            progress(rows[-1])
     return rows
 
 

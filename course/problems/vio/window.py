@@ -503,14 +503,12 @@ def batch(sim: VioSim, start: VioRun, keyframe_every=5, method="dogleg", impl="s
           options=BATCH_OPTIONS, loss="default") -> VioRun:
     """All keyframes and landmarks in one problem (:func:`batch_problem`), started from
     ``start``'s states; one minimize call."""
-    kfs = Keyframes(sim, keyframe_every)
-    if len(start.states) != len(kfs):
-        raise ValueError(f"start has {len(start.states)} keyframes, the simulation {len(kfs)}")
-    problem = batch_problem(sim, start.states, keyframe_every, impl, loss)
+    problem = batch_problem(sim, start.states, keyframe_every, impl, loss)  # checks the number of states
     t0 = time.perf_counter()
     result = minimize(problem, method, impl, options)
     seconds = time.perf_counter() - t0
-    return VioRun("batch", kfs.times, problem.frames(result.params).copy(), [seconds], [result.iterations])
+    return VioRun("batch", Keyframes(sim, keyframe_every).times, problem.frames(result.params).copy(), [seconds],
+                  [result.iterations])
 
 
 def true_states(sim: VioSim, keyframe_every=5) -> np.ndarray:
