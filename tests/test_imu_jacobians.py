@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from course.geometry.so3 import so3_exp, so3_log
+from course.geometry.so3 import right_jacobian, right_jacobian_many, so3_exp, so3_log
 from course.problems.vio import imu_jacobians as ij
 from course.problems.vio.problem import frame_retract
 from course.problems.vio.sim import load_vio_sim
@@ -170,7 +170,28 @@ def test_the_jacobian_matches_central_differences_on_random_values(seed):
 @pytest.mark.parametrize("angle", [0.0, 1e-6, 1e-4, 0.3, 2.0, np.pi - 1e-6, np.pi])
 def test_the_inverse_right_jacobian_inverts_the_right_jacobian(angle):
     phi = _rotation_vector(np.random.default_rng(3), angle) if angle else np.zeros(3)
-    np.testing.assert_allclose(ij.right_jacobian_inverse(phi) @ ij.right_jacobian(phi), np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(ij.right_jacobian_inverse(phi) @ right_jacobian(phi), np.eye(3), atol=1e-12)
+    both = np.stack([phi, 0.5 * phi])  # the stacked forms, row by row as the single ones
+    np.testing.assert_allclose(right_jacobian_many(both), [right_jacobian(p) for p in both], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ij.right_jacobian_inverse(both), [ij.right_jacobian_inverse(p) for p in both],
+                               rtol=0, atol=1e-15)
+
+
+def test_k_factors_at_once_are_the_factors_one_by_one():
+    rng = np.random.default_rng(7)
+    pres = [_synthetic_preintegration(rng) for _ in range(4)]
+    s_i = np.column_stack([rng.uniform(-1, 1, (4, 3)), rng.standard_normal((4, 12))])
+    s_j = np.column_stack([rng.uniform(-1, 1, (4, 3)), rng.standard_normal((4, 12))])
+    gravity = np.array([0.0, 0.0, -9.81])
+    r, J = ij.imu_residual_jacobians(s_i, s_j, ij.stack_preintegrated(pres), gravity)
+    assert r.shape == (4, 9) and J.shape == (4, 9, 30)
+    for k in range(4):
+        _check_jacobian(s_i[k], s_j[k], pres[k], gravity)
+        r_k, J_k = ij.imu_residual_jacobian(s_i[k], s_j[k], pres[k], gravity)
+        np.testing.assert_array_equal(r[k], r_k)
+        np.testing.assert_array_equal(J[k], J_k)
+    with pytest.raises(ValueError, match=r"\(4, 15\)"):
+        ij.imu_residual_jacobians(s_i[:3], s_j, ij.stack_preintegrated(pres), gravity)
 
 
 def test_bad_arguments_are_named():

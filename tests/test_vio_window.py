@@ -158,3 +158,51 @@ def test_the_seed_table_compares_the_window_and_the_batch_per_seed():
     assert all(0 < row["window"] < 1 and 0 < row["batch"] < 1 and 0.9 < row["batch scale"] < 1.1 for row in rows)
     table = vio_app.format_seeds(rows)
     assert "mean" in table and "median" in table and "of 2" in table
+
+
+def test_the_sparse_and_the_dense_step_agree():
+    """The batch's sparse H (upper triangle, the implementation's sparse Cholesky) gives the dense
+    step, and a problem above ``SPARSE_FROM`` unknowns takes the sparse path by itself."""
+    from course.problems.vio import problem as vp
+
+    sparse, dense = _small_problem(), _small_problem()
+    sparse.sparse = True
+    x = sparse.retract(sparse.x0, 1e-3 * np.random.default_rng(2).standard_normal(sparse.n))
+    lin_s, lin_d = sparse.linearize(x), dense.linearize(x)
+    assert lin_s.upper and not lin_d.upper
+    np.testing.assert_allclose(lin_s.H.toarray() + np.triu(lin_s.H.toarray(), 1).T, lin_d.H, rtol=0, atol=1e-9)
+    for damping in (np.full(sparse.n, 1.0), np.full(sparse.n, 10.0)):  # no prior here: H alone is singular
+        h_s, h_d = sparse.solve(lin_s, damping), dense.solve(lin_d, damping)
+        A = lin_d.H + np.diag(damping)  # entries from 1 to 1e10 (whitened IMU rows): compare by residuals
+        for h in (h_s, h_d):
+            assert np.linalg.norm(A @ h + lin_d.b) <= 1e-9 * np.linalg.norm(lin_d.b)
+        np.testing.assert_allclose(h_s, h_d, rtol=0, atol=1e-6 * np.abs(h_d).max())
+    assert sparse._sparse_solver.analyses == 1  # the pattern was analysed once
+    batch = vw.batch_problem(load_vio_sim("vio-sim:3:0"), vw.true_states(load_vio_sim("vio-sim:3:0")))
+    assert (batch.n >= vp.SPARSE_FROM) == batch.sparse
+
+
+def test_a_new_pattern_gets_a_new_analysis():
+    import scipy.sparse as sp
+
+    from course.solver.per_pattern import PerPattern
+
+    class Counting:
+        made = 0
+
+        def __init__(self):
+            Counting.made += 1
+
+        def solve(self, H_upper, b):
+            H = H_upper.toarray()
+            return -np.linalg.solve(H + np.triu(H, 1).T, b)
+
+    solver = PerPattern(Counting)
+    A = sp.csc_matrix(np.array([[4.0, 1.0], [0.0, 3.0]]))
+    B = sp.csc_matrix(np.array([[4.0, 0.0], [0.0, 3.0]]))
+    b = np.array([1.0, 2.0])
+    for H, made in ((A, 1), (A * 2, 1), (B, 2), (A, 3)):
+        dx = solver.solve(H, b)
+        full = H.toarray() + np.triu(H.toarray(), 1).T
+        np.testing.assert_allclose(full @ dx, -b, rtol=0, atol=1e-12)
+        assert Counting.made == made == solver.analyses

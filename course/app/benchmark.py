@@ -23,8 +23,9 @@ from course.core.errors import DatasetError
 from course.core.peers import PeerMissing
 from course.core.progress import Progress, quiet
 from course.problems.posegraph import dataset as datasets
-from course.problems.posegraph.problem import PoseGraphProblem, sparse_solver
+from course.problems.posegraph.problem import PoseGraphProblem
 from course.solver import minimize
+from course.solver.superlu import sparse_solver
 
 
 def _median_seconds_per_iteration(run, repeats, progress, backend):

@@ -103,6 +103,19 @@ def log_many(R) -> np.ndarray:
     return out
 
 
+def right_jacobian_many(phi) -> np.ndarray:
+    """``J_r(phi_k)`` (K, 3, 3) for phi (K, 3); the formula of :func:`right_jacobian`."""
+    phi = np.asarray(phi, dtype=float).reshape(-1, 3)
+    t2 = np.einsum("ki,ki->k", phi, phi)
+    t = np.sqrt(t2)
+    small = t < SMALL_ANGLE
+    safe = np.where(small, 1.0, t)
+    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    c = np.where(small, 1.0 / 6.0 - t2 / 120.0, (safe - np.sin(safe)) / (safe * safe * safe))
+    W = skew(phi)
+    return np.eye(3) - b[:, None, None] * W + c[:, None, None] * np.matmul(W, W)
+
+
 def right_jacobian_inverse_many(phi) -> np.ndarray:
     """``J_r(phi_k)^-1 = I + [phi]/2 + (1/t^2 - (1 + cos t) / (2 t sin t)) [phi]^2`` (K, 3, 3).
 

@@ -94,7 +94,8 @@ def time_split(g: Any, repeat: int, impl: str) -> tuple[dict, dict, float]:
 
     Raises ``NotImplementedError`` when ``impl`` lacks ``pose_graph_fast`` or ``sparse_solve``."""
     from course.core import impl as impl_loader
-    from course.problems.posegraph.problem import PoseGraphProblem, sparse_solver
+    from course.problems.posegraph.problem import PoseGraphProblem
+    from course.solver.superlu import sparse_solver
 
     pieces = impl_loader.load(impl)
     fast, sparse = pieces.module("pose_graph_fast"), pieces.module("sparse_solve")

@@ -17,6 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from course.core import peers
 from course.core.errors import SingularSystemError
 
 #: ``d_k / H_kk`` at or below this means H is singular to working precision (measured: a free
@@ -40,3 +41,12 @@ class SuperLUSolver:
             raise SingularSystemError(f"H is not positive definite: elimination leaves {remaining[k]:.3g} of "
                                       f"its diagonal entry {k} (SuperLU)")
         return -lu.solve(np.asarray(b, dtype=float))
+
+
+def sparse_solver(sparse_module):
+    """The implementation's ``SparseCholeskySolver()`` (``sparse_module``: its ``sparse_solve``),
+    or ``SuperLUSolver()`` where qdldl is not installed (said once)."""
+    if peers.installed("qdldl"):
+        return sparse_module.SparseCholeskySolver()
+    peers.announce("qdldl")
+    return SuperLUSolver()

@@ -10,23 +10,14 @@ installed, from scipy's SuperLU (``course.solver.superlu``), said once.
 import numpy as np
 
 from course.core import impl as impl_loader
-from course.core import peers
 from course.core.errors import SingularSystemError, check_array
 from course.geometry.se2 import wrap_angle
 from course.problems.posegraph.graph import PoseGraph
 from course.solver.linearization import Linearization
-from course.solver.superlu import SuperLUSolver
+from course.solver.superlu import sparse_solver
 
 #: the per-edge loop assembles a dense (3N, 3N) H: refuse beyond this many poses
 MAX_DENSE_POSES = 4000
-
-
-def sparse_solver(sparse_module):
-    """The implementation's ``SparseCholeskySolver()``, or ``SuperLUSolver()`` without qdldl."""
-    if peers.installed("qdldl"):
-        return sparse_module.SparseCholeskySolver()
-    peers.announce("qdldl")
-    return SuperLUSolver()
 
 
 class PoseGraphProblem:

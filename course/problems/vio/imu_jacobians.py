@@ -48,9 +48,11 @@ never linearised there in practice (its rotation residual is of the order of the
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from course.geometry.so3 import right_jacobian, skew, so3_exp, so3_log
+from course.geometry.so3 import exp_many, log_many, right_jacobian_many, skew
 
 #: below this angle (rad) J_r^-1 uses its Taylor series
 SMALL_ANGLE = 1e-4
@@ -61,17 +63,48 @@ FRAME_DOF = 15
 
 def right_jacobian_inverse(phi) -> np.ndarray:
     """``J_r^-1(phi) = I + 1/2 [phi] + (1/t^2 - cot(t/2)/(2 t)) [phi]^2`` (3, 3), ``t = |phi|``
-    (``cot(t/2) = (1 + cos t)/sin t``, written so that it is finite at ``t = pi``; singular at
-    ``t = 2 pi``, never reached by a ``Log``)."""
+    (``cot(t/2) = cos(t/2) / sin(t/2)``, finite at ``t = pi``; singular at ``t = 2 pi``, never
+    reached by a ``Log``). (K, 3, 3) for phi (K, 3)."""
     phi = np.asarray(phi, dtype=float)
-    t2 = float(phi @ phi)
+    t2 = np.einsum("...i,...i->...", phi, phi)
     t = np.sqrt(t2)
-    if t < SMALL_ANGLE:
-        c = 1.0 / 12.0 + t2 / 720.0
-    else:
-        c = 1.0 / t2 - np.cos(t / 2.0) / (2.0 * t * np.sin(t / 2.0))
+    small = t < SMALL_ANGLE
+    safe = np.where(small, 1.0, t)
+    c = np.where(small, 1.0 / 12.0 + t2 / 720.0,
+                 1.0 / (safe * safe) - np.cos(safe / 2.0) / (2.0 * safe * np.sin(safe / 2.0)))
     W = skew(phi)
-    return np.eye(3) + 0.5 * W + c * (W @ W)
+    return np.eye(3) + 0.5 * W + c[..., None, None] * np.matmul(W, W)
+
+
+class StackedPreintegration(NamedTuple):
+    """K preintegrations as arrays: the fields of a ``Preintegrated`` with a leading K axis
+    (``delta_R`` (K, 3, 3), ``delta_v`` (K, 3), ..., ``delta_t`` (K,)), the covariance left out."""
+
+    delta_R: np.ndarray
+    delta_v: np.ndarray
+    delta_p: np.ndarray
+    delta_t: np.ndarray
+    dR_dbg: np.ndarray
+    dv_dbg: np.ndarray
+    dv_dba: np.ndarray
+    dp_dbg: np.ndarray
+    dp_dba: np.ndarray
+    bias_gyro: np.ndarray
+    bias_accel: np.ndarray
+
+
+def stack_preintegrated(preintegrated) -> StackedPreintegration:
+    """A :class:`StackedPreintegration` of a sequence of K preintegrations (each the 12 values of
+    a ``Preintegrated``), built once per problem."""
+    rows = []
+    for k, values in enumerate(preintegrated):
+        if len(values) != PREINTEGRATED_LENGTH:
+            raise ValueError(f"preintegrated[{k}] must hold the {PREINTEGRATED_LENGTH} values of a Preintegrated, "
+                             f"got {len(values)}")
+        rows.append(values[:4] + values[5:])  # the covariance (index 4) is not used here
+    shapes = ((3, 3), (3,), (3,), (), (3, 3), (3, 3), (3, 3), (3, 3), (3, 3), (3,), (3,))
+    return StackedPreintegration(*(np.asarray([row[f] for row in rows], dtype=float).reshape((-1,) + shape)
+                                   for f, shape in enumerate(shapes)))
 
 
 def _frame(s, name) -> np.ndarray:
@@ -93,49 +126,62 @@ def imu_residual_jacobian(s_i, s_j, preintegrated, gravity) -> tuple[np.ndarray,
     ``r`` is ``imu_factor_residual((R_i, v_i, p_i), (R_j, v_j, p_j), preintegrated, (b_g,i, b_a,i),
     gravity)`` (rows r_R, r_v, r_p), not whitened; the columns of ``J`` are
     ``(dphi_i, dp_i, dv_i, dbg_i, dba_i)`` then the same for j, as ``course.problems.vio.problem`` orders
-    a frame's tangent.
+    a frame's tangent. :func:`imu_residual_jacobians` does K factors at once.
     """
     s_i, s_j = _frame(s_i, "s_i"), _frame(s_j, "s_j")
     if len(preintegrated) != PREINTEGRATED_LENGTH:
         raise ValueError(f"preintegrated must hold the {PREINTEGRATED_LENGTH} values of a Preintegrated, "
                          f"got {len(preintegrated)}")
-    delta_R, delta_v, delta_p, delta_t, _, dR_dbg, dv_dbg, dv_dba, dp_dbg, dp_dba, bg_hat, ba_hat = (
-        np.asarray(value, dtype=float) for value in preintegrated)
+    r, J = imu_residual_jacobians(s_i[None], s_j[None], stack_preintegrated([tuple(preintegrated)]), gravity)
+    return r[0], J[0]
+
+
+def imu_residual_jacobians(s_i, s_j, pre: StackedPreintegration, gravity) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`imu_residual_jacobian` of K factors at once: ``s_i``, ``s_j`` (K, 15), ``pre`` a
+    :class:`StackedPreintegration` of K; returns ``r`` (K, 9) and ``J`` (K, 9, 30)."""
+    s_i, s_j = np.asarray(s_i, dtype=float), np.asarray(s_j, dtype=float)
+    K = len(pre.delta_t)
+    if s_i.shape != (K, FRAME_DOF) or s_j.shape != (K, FRAME_DOF):
+        raise ValueError(f"s_i and s_j must be ({K}, {FRAME_DOF}) frame states, got {s_i.shape} and {s_j.shape}")
     g = np.asarray(gravity, dtype=float)
     if g.shape != (3,):
         raise ValueError(f"gravity must have shape (3,), got {g.shape}")
-    T = float(delta_t)
-    R_i, R_j = so3_exp(s_i[0:3]), so3_exp(s_j[0:3])
-    p_i, v_i, p_j, v_j = s_i[3:6], s_i[6:9], s_j[3:6], s_j[6:9]
+    T = pre.delta_t[:, None]
+    R_i, R_j = exp_many(s_i[:, 0:3]), exp_many(s_j[:, 0:3])
+    p_i, v_i, p_j, v_j = s_i[:, 3:6], s_i[:, 6:9], s_j[:, 3:6], s_j[:, 6:9]
+
+    def times(M, v):  # M_k v_k, (K, 3)
+        return np.einsum("kab,kb->ka", M, v)
 
     # the residual, as imu_factor_residual computes it
-    dbg, dba = s_i[9:12] - bg_hat, s_i[12:15] - ba_hat
-    theta = dR_dbg @ dbg
-    dR = delta_R @ so3_exp(theta)
-    dv = delta_v + dv_dbg @ dbg + dv_dba @ dba
-    dp = delta_p + dp_dbg @ dbg + dp_dba @ dba
-    E = dR.T @ R_i.T @ R_j
-    r_R = so3_log(E)
-    Rt = R_i.T
-    u_v = Rt @ (v_j - v_i - g * T)
-    u_p = Rt @ (p_j - p_i - v_i * T - 0.5 * g * T * T)
-    r = np.concatenate([r_R, u_v - dv, u_p - dp])
+    dbg, dba = s_i[:, 9:12] - pre.bias_gyro, s_i[:, 12:15] - pre.bias_accel
+    theta = times(pre.dR_dbg, dbg)
+    dR = np.matmul(pre.delta_R, exp_many(theta))
+    dv = pre.delta_v + times(pre.dv_dbg, dbg) + times(pre.dv_dba, dba)
+    dp = pre.delta_p + times(pre.dp_dbg, dbg) + times(pre.dp_dba, dba)
+    Rt = R_i.transpose(0, 2, 1)
+    E = np.matmul(dR.transpose(0, 2, 1), np.matmul(Rt, R_j))
+    r_R = log_many(E)
+    u_v = times(Rt, v_j - v_i - g * T)
+    u_p = times(Rt, p_j - p_i - v_i * T - 0.5 * g * T * T)
+    r = np.concatenate([r_R, u_v - dv, u_p - dp], axis=1)
 
     # the Jacobian: rows (r_R, r_v, r_p); columns i: 0 dphi, 3 dp, 6 dv, 9 dbg, 12 dba; j: + 15
-    J = np.zeros((9, 2 * FRAME_DOF))
+    J = np.zeros((K, 9, 2 * FRAME_DOF))
     Jinv = right_jacobian_inverse(r_R)
-    J[0:3, 0:3] = -Jinv @ (R_j.T @ R_i)
-    J[0:3, 9:12] = -Jinv @ (E.T @ right_jacobian(theta) @ dR_dbg)
-    J[0:3, 15:18] = Jinv
-    J[3:6, 0:3] = skew(u_v)
-    J[3:6, 6:9] = -Rt
-    J[3:6, 9:12] = -dv_dbg
-    J[3:6, 12:15] = -dv_dba
-    J[3:6, 21:24] = Rt
-    J[6:9, 0:3] = skew(u_p)
-    J[6:9, 3:6] = -Rt
-    J[6:9, 6:9] = -T * Rt
-    J[6:9, 9:12] = -dp_dbg
-    J[6:9, 12:15] = -dp_dba
-    J[6:9, 18:21] = Rt
+    J[:, 0:3, 0:3] = -np.matmul(Jinv, np.matmul(R_j.transpose(0, 2, 1), R_i))
+    J[:, 0:3, 9:12] = -np.matmul(Jinv, np.matmul(E.transpose(0, 2, 1), np.matmul(right_jacobian_many(theta),
+                                                                                    pre.dR_dbg)))
+    J[:, 0:3, 15:18] = Jinv
+    J[:, 3:6, 0:3] = skew(u_v)
+    J[:, 3:6, 6:9] = -Rt
+    J[:, 3:6, 9:12] = -pre.dv_dbg
+    J[:, 3:6, 12:15] = -pre.dv_dba
+    J[:, 3:6, 21:24] = Rt
+    J[:, 6:9, 0:3] = skew(u_p)
+    J[:, 6:9, 3:6] = -Rt
+    J[:, 6:9, 6:9] = -T[:, :, None] * Rt
+    J[:, 6:9, 9:12] = -pre.dp_dbg
+    J[:, 6:9, 12:15] = -pre.dp_dba
+    J[:, 6:9, 18:21] = Rt
     return r, J

@@ -47,8 +47,12 @@ Factors (every residual whitened, so chi2 is a plain sum of squares, as in the c
 - An optional gauge anchor (``VioData.anchor``, the same linear form), kept apart from the prior
   so that :meth:`VioProblem.marginal_system` can leave it out.
 
-H is assembled dense (a window has a few hundred unknowns; the 12-s batch under 2000) from a
-sparse J; the step is a dense Cholesky solve.
+H is formed from a sparse J. A problem of at least :data:`SPARSE_FROM` unknowns (the 12-s batch:
+1488) keeps H sparse (its upper triangle) and takes the step by the implementation's sparse
+Cholesky (chapter 2; SuperLU where qdldl is not installed), the pattern analysed once while it
+holds (:class:`course.solver.per_pattern.PerPattern`); a smaller one (a window: a few hundred
+unknowns, with the marginalisation prior's dense block) forms H dense and takes a dense Cholesky
+step, which is faster there.
 """
 
 from __future__ import annotations
@@ -61,10 +65,12 @@ import scipy.sparse as sp
 
 from course.core import impl as impl_loader
 from course.core.errors import SingularSystemError
-from course.geometry.so3 import so3_exp, so3_log
-from course.problems.vio.imu_jacobians import imu_residual_jacobian
+from course.geometry.so3 import exp_many, log_many, so3_exp, so3_log
+from course.problems.vio.imu_jacobians import imu_residual_jacobians, stack_preintegrated
 from course.solver.linearization import Linearization
+from course.solver.per_pattern import PerPattern
 from course.solver.robust import RobustLoss, reweight, robust_chi2
+from course.solver.superlu import sparse_solver
 
 EZ = np.array([0.0, 0.0, 1.0])
 
@@ -74,6 +80,9 @@ FD_STEP = 1e-6
 #: below this camera depth (m) a reprojection is clamped (a point behind or at the camera)
 MIN_DEPTH = 1e-3
 DEFAULT_LOSS = RobustLoss("cauchy", 3.0)
+#: from this many unknowns on, H is kept sparse and solved by a sparse Cholesky (measured: the
+#: window, 150-400 unknowns with a dense prior block, is faster dense; the batch, 1488, sparse)
+SPARSE_FROM = 1000
 
 
 @dataclass
@@ -140,9 +149,9 @@ def frame_difference(s, s_ref):
     """The tangent difference ``s [-] s_ref`` (..., 15) of frame states (..., 15)."""
     s, s_ref = np.asarray(s, dtype=float), np.asarray(s_ref, dtype=float)
     out = s - s_ref
-    flat, flat_ref, flat_out = s.reshape(-1, 15), s_ref.reshape(-1, 15), out.reshape(-1, 15)
-    for k in range(len(flat)):
-        flat_out[k, 0:3] = so3_log(so3_exp(flat_ref[k, 0:3]).T @ so3_exp(flat[k, 0:3]))
+    flat, flat_ref = np.broadcast_to(s, out.shape).reshape(-1, 15), np.broadcast_to(s_ref, out.shape).reshape(-1, 15)
+    flat_out = out.reshape(-1, 15)
+    flat_out[:, 0:3] = log_many(np.matmul(exp_many(flat_ref[:, 0:3]).transpose(0, 2, 1), exp_many(flat[:, 0:3])))
     return flat_out.reshape(out.shape)
 
 
@@ -179,11 +188,12 @@ class VioProblem:
 
     ``frames0`` (F, 15) and ``landmarks0`` (L, 3) the start; ``data`` a :class:`VioData`;
     ``loss`` the robust loss of the reprojections (None: plain least squares); ``imu_jacobian``
-    ``"analytic"`` (the reference residual's) or ``"numeric"`` (of the loaded implementation's).
+    ``"analytic"`` (the reference residual's) or ``"numeric"`` (of the loaded implementation's);
+    ``sparse`` True or False, or None: sparse from :data:`SPARSE_FROM` unknowns.
     """
 
     def __init__(self, frames0, landmarks0, data: VioData, impl="solutions", loss=DEFAULT_LOSS,
-                 imu_jacobian="analytic"):
+                 imu_jacobian="analytic", sparse=None):
         if imu_jacobian not in ("analytic", "numeric"):
             raise ValueError(f"imu_jacobian must be 'analytic' or 'numeric', got {imu_jacobian!r}")
         self.imu_jacobian = imu_jacobian
@@ -197,11 +207,22 @@ class VioProblem:
         self.n = self.split + POINT_DOF * self.num_landmarks
         self.x0 = np.concatenate([np.asarray(frames0, dtype=float).ravel(),
                                   np.asarray(landmarks0, dtype=float).ravel()])
+        self._last_imu: tuple | None = None
+        self.sparse = self.n >= SPARSE_FROM if sparse is None else bool(sparse)
+        self._sparse_solver = PerPattern(lambda: sparse_solver(self.impl.module("sparse_solve")))
         self._info_roots = []
         for factor in data.imu:
             cov = np.asarray(factor.preintegrated.covariance)
             info = np.linalg.inv(cov + 1e-15 * np.eye(9))
             self._info_roots.append(np.linalg.cholesky(0.5 * (info + info.T)))  # L L^T = Sigma^-1
+        # the IMU factors as arrays, for the analytic Jacobians of all of them at once
+        self._imu_i = np.array([f.i for f in data.imu], dtype=np.int64)
+        self._imu_j = np.array([f.j for f in data.imu], dtype=np.int64)
+        self._stacked = stack_preintegrated([f.preintegrated for f in data.imu])
+        self._root_t = np.array(self._info_roots).reshape(-1, 9, 9).transpose(0, 2, 1)  # L^T (K, 9, 9)
+        root_dt = np.sqrt(self._stacked.delta_t)[:, None]
+        self._walk_scale = np.hstack([np.ones((1, 3)) / data.gyro_walk,
+                                      np.ones((1, 3)) / data.accel_walk]) / root_dt  # (K, 6)
 
     # ------------------------------------------------------------------ layout
     def frames(self, x):
@@ -218,18 +239,36 @@ class VioProblem:
 
     def retract(self, x, h):
         """Frames by :func:`frame_retract`, landmarks by addition."""
-        frames = self.frames(x).copy()
+        frames = self.frames(x)
         dframes = np.asarray(h[:self.split]).reshape(-1, FRAME_DOF)
-        for f in range(self.num_frames):
-            frames[f] = frame_retract(frames[f], dframes[f])
+        frames = frames + dframes
+        frames[:, 0:3] = log_many(np.matmul(exp_many(self.frames(x)[:, 0:3]), exp_many(dframes[:, 0:3])))
         return np.concatenate([frames.ravel(), self.landmarks(x).ravel() + h[self.split:]])
 
     # ------------------------------------------------------------------ residuals
-    def _imu_residual(self, k, s_i, s_j):
-        """The whitened (15,) residual of IMU factor k: ``L^T r_imu`` (9,) then the bias walk (6,)."""
+    def _imu_residuals(self, frames) -> np.ndarray:
+        """Every IMU factor's :meth:`_imu_residual` at the frame states ``frames`` (F, 15): (K, 15).
+
+        The loop calls ``chi2`` at a trial point and then ``linearize`` at the same point once the
+        step is taken: the last point's residuals are kept, so each point costs one call of the
+        implementation's residual per factor."""
+        frames = np.asarray(frames, dtype=float)
+        last = self._last_imu
+        if last is not None and np.array_equal(last[0], frames):
+            return last[1]
+        R = exp_many(frames[:, 0:3])
+        r = np.array([self._imu_residual(k, frames[f.i], frames[f.j], R[f.i], R[f.j])
+                      for k, f in enumerate(self.data.imu)]).reshape(-1, 15)
+        self._last_imu = (frames.copy(), r)
+        return r
+
+    def _imu_residual(self, k, s_i, s_j, Ri=None, Rj=None):
+        """The whitened (15,) residual of IMU factor k: ``L^T r_imu`` (9,) then the bias walk (6,);
+        ``Ri``, ``Rj`` ``Exp`` of the frames' rotation vectors where known."""
         d = self.data
         factor = d.imu[k]
-        Ri, Rj = so3_exp(s_i[0:3]), so3_exp(s_j[0:3])
+        Ri = so3_exp(s_i[0:3]) if Ri is None else Ri
+        Rj = so3_exp(s_j[0:3]) if Rj is None else Rj
         r = self.imu.imu_factor_residual((Ri, s_i[6:9], s_i[3:6]), (Rj, s_j[6:9], s_j[3:6]),
                                          factor.preintegrated, (s_i[9:12], s_i[12:15]), d.gravity)
         root_t = np.sqrt(factor.preintegrated.delta_t)
@@ -237,37 +276,40 @@ class VioProblem:
                                (s_j[12:15] - s_i[12:15]) / (d.accel_walk * root_t)])
         return np.concatenate([self._info_roots[k].T @ r, walk])
 
-    def _imu_jacobian(self, k, s_i, s_j):
-        """(15, 30): the rows of :meth:`_imu_residual` in the tangents of (i, j): analytic
-        (``course.problems.vio.imu_jacobians``, the reference residual's) or, with ``imu_jacobian="numeric"``,
-        central differences of the loaded implementation's residual; exact for the bias walk."""
-        J = np.zeros((15, 30))
+    def _imu_jacobians(self, frames) -> np.ndarray:
+        """(K, 15, 30): the rows of every :meth:`_imu_residual` in the tangents of its (i, j), at the
+        frame states ``frames`` (F, 15): analytic (``course.problems.vio.imu_jacobians``, the
+        reference residual's, all factors at once) or, with ``imu_jacobian="numeric"``, central
+        differences of the loaded implementation's residual; exact for the bias walk."""
+        K = len(self._imu_i)
+        J = np.zeros((K, 15, 30))
         if self.imu_jacobian == "analytic":
-            _, J_imu = imu_residual_jacobian(s_i, s_j, self.data.imu[k].preintegrated, self.data.gravity)
-            J[:9] = self._info_roots[k].T @ J_imu
+            _, J_imu = imu_residual_jacobians(frames[self._imu_i], frames[self._imu_j], self._stacked,
+                                              self.data.gravity)
+            J[:, :9] = np.matmul(self._root_t, J_imu)
         else:
-            for col in range(30):
-                d = np.zeros(FRAME_DOF)
-                d[col % 15] = FD_STEP
-                if col < 15:
-                    plus = self._imu_residual(k, frame_retract(s_i, d), s_j)
-                    minus = self._imu_residual(k, frame_retract(s_i, -d), s_j)
-                else:
-                    plus = self._imu_residual(k, s_i, frame_retract(s_j, d))
-                    minus = self._imu_residual(k, s_i, frame_retract(s_j, -d))
-                J[:9, col] = (plus[:9] - minus[:9]) / (2.0 * FD_STEP)
-        root_t = np.sqrt(self.data.imu[k].preintegrated.delta_t)
-        scale = np.r_[np.full(3, 1.0 / (self.data.gyro_walk * root_t)),
-                      np.full(3, 1.0 / (self.data.accel_walk * root_t))]
-        J[9:15, 9:15] = -np.diag(scale)
-        J[9:15, 24:30] = np.diag(scale)
+            for k in range(K):
+                s_i, s_j = frames[self._imu_i[k]], frames[self._imu_j[k]]
+                for col in range(30):
+                    d = np.zeros(FRAME_DOF)
+                    d[col % 15] = FD_STEP
+                    if col < 15:
+                        plus = self._imu_residual(k, frame_retract(s_i, d), s_j)
+                        minus = self._imu_residual(k, frame_retract(s_i, -d), s_j)
+                    else:
+                        plus = self._imu_residual(k, s_i, frame_retract(s_j, d))
+                        minus = self._imu_residual(k, s_i, frame_retract(s_j, -d))
+                    J[k, :9, col] = (plus[:9] - minus[:9]) / (2.0 * FD_STEP)
+        walk = np.arange(6)
+        J[:, 9 + walk, 9 + walk] = -self._walk_scale
+        J[:, 9 + walk, 24 + walk] = self._walk_scale
         return J
 
     def _reprojection(self, x, jacobians):
         """Whitened residuals (M, 2) and, when asked, Jacobians (M, 2, 15) in the frame, (M, 2, 3) in the point."""
         d = self.data
         frames, points = self.frames(x), self.landmarks(x)
-        R = np.stack([so3_exp(s[0:3]) for s in frames]) if len(frames) else np.zeros((0, 3, 3))
+        R = exp_many(frames[:, 0:3])
         Rf, pf = R[d.obs_frame], frames[d.obs_frame, 3:6]
         X_b = np.einsum("mji,mj->mi", Rf, points[d.obs_landmark] - pf)  # R^T (X - p)
         X_c = (X_b - d.t_bc) @ d.R_bc  # R_bc^T (X_b - t_bc), row-wise
@@ -316,8 +358,7 @@ class VioProblem:
         factors model, every ``chi2 / dof`` is near 1 (the priors' excepted: their centre is the truth)."""
         x = np.asarray(x, dtype=float)
         frames = self.frames(x)
-        imu = np.array([self._imu_residual(k, frames[f.i], frames[f.j]) for k, f in enumerate(self.data.imu)])
-        imu = imu.reshape(-1, 15)
+        imu = self._imu_residuals(frames)
         r, _, _ = self._reprojection(x, False)
         priors = [rows for rows, _, _ in self._prior_rows(x, False)]
         out = {name: (float(np.sum(imu[:, part] ** 2)), imu[:, part].size)
@@ -332,9 +373,7 @@ class VioProblem:
     def chi2(self, x) -> float:
         x = np.asarray(x, dtype=float)
         frames = self.frames(x)
-        total = 0.0
-        for k, factor in enumerate(self.data.imu):
-            total += float(np.sum(self._imu_residual(k, frames[factor.i], frames[factor.j]) ** 2))
+        total = float(np.sum(self._imu_residuals(frames) ** 2))
         r, _, _ = self._reprojection(x, False)
         if len(r):
             total += robust_chi2(self.kernels, self.loss, r) if self.loss else float(np.sum(r * r))
@@ -366,16 +405,20 @@ class VioProblem:
             res.append(r)
             m += k
 
-        for k, factor in enumerate(self.data.imu):
-            s_i, s_j = frames[factor.i], frames[factor.j]
-            r = self._imu_residual(k, s_i, s_j)
-            chi2 += float(r @ r)
-            c_idx = np.r_[FRAME_DOF * factor.i + np.arange(FRAME_DOF), FRAME_DOF * factor.j + np.arange(FRAME_DOF)]
-            if fej is None:
-                add(r, c_idx, self._imu_jacobian(k, s_i, s_j))
-            else:  # the Jacobian at the first estimates, linearised around the residual at x
-                f_i, f_j = fej_frames[factor.i], fej_frames[factor.j]
-                add(r, c_idx, self._imu_jacobian(k, f_i, f_j))
+        K = len(self._imu_i)
+        if K:
+            r_imu = self._imu_residuals(frames)
+            chi2 += float(np.sum(r_imu * r_imu))
+            # the Jacobians at the first estimates where given, linearised around the residuals at x
+            J_imu = self._imu_jacobians(frames if fej is None else fej_frames)  # (K, 15, 30)
+            row = m + 15 * np.arange(K)[:, None, None] + np.arange(15)[None, :, None]
+            col = np.concatenate([FRAME_DOF * self._imu_i[:, None] + np.arange(FRAME_DOF),
+                                  FRAME_DOF * self._imu_j[:, None] + np.arange(FRAME_DOF)], axis=1)[:, None, :]
+            rows.append(np.broadcast_to(row, J_imu.shape).ravel())
+            cols.append(np.broadcast_to(col, J_imu.shape).ravel())
+            vals.append(J_imu.ravel())
+            res.append(r_imu.ravel())
+            m += 15 * K
         r, J_f, J_p = self._reprojection(x, True)
         if fej is not None:
             _, J_f, J_p = self._reprojection(x_fej, True)
@@ -426,14 +469,24 @@ class VioProblem:
         return (J_out.T @ J_out).toarray(), np.asarray(J_out.T @ r_out).ravel()
 
     def linearize(self, x) -> Linearization:
-        """Dense ``H = J~^T J~`` (n, n), ``b = J~^T r~`` (n,), chi2 (robust)."""
+        """``H = J~^T J~`` (n, n): dense, or its upper triangle (CSC) where the problem is sparse;
+        ``b = J~^T r~`` (n,), chi2 (robust)."""
         r, J, chi2 = self.residual_and_jacobian(x)
-        H = (J.T @ J).toarray()
-        return Linearization(H=H, b=np.asarray(J.T @ r).ravel(), chi2=float(chi2))
+        b = np.asarray(J.T @ r).ravel()
+        H = J.T @ J
+        if self.sparse:
+            return Linearization(H=sp.triu(H, format="csc"), b=b, chi2=float(chi2), upper=True)
+        return Linearization(H=H.toarray(), b=b, chi2=float(chi2))
 
     def solve(self, lin: Linearization, damping=None):
-        """Step (n,) of ``(H + diag(damping)) h = -b`` by a dense Cholesky factorisation."""
+        """Step (n,) of ``(H + diag(damping)) h = -b`` by a dense or a sparse Cholesky factorisation."""
         A = lin.with_diagonal_added(damping)
+        if lin.upper:
+            h = np.asarray(self._sparse_solver.solve(A, lin.b), dtype=np.float64)
+            if h.shape != lin.b.shape or not np.all(np.isfinite(h)) or h @ lin.b > 0:
+                raise SingularSystemError("vio: the sparse solve gave a non-finite step or an ascent direction: "
+                                          "H (+ damping) is not positive definite")
+            return h
         try:
             h = scipy.linalg.cho_solve(scipy.linalg.cho_factor(A), -lin.b)
         except np.linalg.LinAlgError:
