@@ -383,6 +383,13 @@ class VioProblem:
 
     def residual_and_jacobian(self, x):
         """``(r (m,), J (m, n) sparse CSR, chi2)``, the reprojections reweighted by the robust loss."""
+        r, J, chi2, _ = self._rows(x, priors_in_J=True)
+        return r, J, chi2
+
+    def _rows(self, x, priors_in_J):
+        """:meth:`residual_and_jacobian` and, when not ``priors_in_J``, the priors' rows apart (they
+        are dense over their variables, where a sparse ``J^T J`` is slow): ``(r, J, chi2, priors)``,
+        ``priors`` a list of ``(r (k,), columns (c,), block (k, c))``."""
         x = np.asarray(x, dtype=float)
         frames = self.frames(x)
         fej = self.data.first_estimates
@@ -438,9 +445,13 @@ class VioProblem:
             vals += [J_f.ravel(), J_p.ravel()]
             res.append(r.ravel())
             m += 2 * M
+        priors = self._prior_rows(x, True)
+        chi2 += sum(float(r @ r) for r, _, _ in priors)
+        if not priors_in_J:
+            J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, self.n))
+            return np.concatenate(res), J, chi2, priors
         starts = []
-        for r, c_idx, block in self._prior_rows(x, True):
-            chi2 += float(r @ r)
+        for r, c_idx, block in priors:
             starts.append(m)
             add(r, c_idx, block)
         starts.append(m)
@@ -451,7 +462,7 @@ class VioProblem:
         named = [name for name, g in zip(("linear_prior", "anchor"), groups) if g is not None]
         self.prior_row_ranges = dict(zip(named, ranges))
         J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, self.n))
-        return np.concatenate(res), J, chi2
+        return np.concatenate(res), J, chi2, []
 
     def marginal_system(self, x, remove) -> tuple[np.ndarray, np.ndarray]:
         """``(H, b)`` (n, n), (n,) of the factors that leave the window when the tangent indices
@@ -471,12 +482,16 @@ class VioProblem:
     def linearize(self, x) -> Linearization:
         """``H = J~^T J~`` (n, n): dense, or its upper triangle (CSC) where the problem is sparse;
         ``b = J~^T r~`` (n,), chi2 (robust)."""
-        r, J, chi2 = self.residual_and_jacobian(x)
-        b = np.asarray(J.T @ r).ravel()
-        H = J.T @ J
         if self.sparse:
-            return Linearization(H=sp.triu(H, format="csc"), b=b, chi2=float(chi2), upper=True)
-        return Linearization(H=H.toarray(), b=b, chi2=float(chi2))
+            r, J, chi2 = self.residual_and_jacobian(x)
+            return Linearization(H=sp.triu(J.T @ J, format="csc"), b=np.asarray(J.T @ r).ravel(), chi2=float(chi2),
+                                 upper=True)
+        r, J, chi2, priors = self._rows(x, priors_in_J=False)
+        H, b = (J.T @ J).toarray(), np.asarray(J.T @ r).ravel()
+        for r_p, columns, block in priors:
+            H[np.ix_(columns, columns)] += block.T @ block
+            b[columns] += block.T @ r_p
+        return Linearization(H=H, b=b, chi2=float(chi2))
 
     def solve(self, lin: Linearization, damping=None):
         """Step (n,) of ``(H + diag(damping)) h = -b`` by a dense or a sparse Cholesky factorisation."""
