@@ -113,6 +113,9 @@ def test_the_window_and_gtsam_on_a_short_run():
     assert results["window 10 (with prior)"]["rmse"] < 0.5 * results["window 10 (without prior)"]["rmse"]
     assert results["batch"]["rmse"] == pytest.approx(results["GTSAM batch"]["rmse"], abs=1e-3)
     assert results["GTSAM fixed-lag (window 10)"]["solves"] == results["window 10 (with prior)"]["solves"]
+    speed = vio_app.speed_ratios(results)
+    assert set(speed) == {"window per solve", "batch per iteration"} and all(v > 0 for v in speed.values())
+    assert "ours over GTSAM, same run: window per solve" in vio_app.format_comparison(results)
 
 
 def test_trajectories_carry_the_rotations_in_w_x_y_z_order():

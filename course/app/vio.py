@@ -65,7 +65,29 @@ def format_comparison(results: dict) -> str:
             continue
         lines.append(f"{label:<30} {r['rmse']:>12.4f} {r['max']:>9.4f} {r['scale']:>8.4f} "
                      f"{r['mean_solve_seconds']:>9.3f} {r['solves']:>7d} {r['mean_iterations']:>6.1f}")
+    speed = speed_ratios(results)
+    if speed:
+        lines.append("ours over GTSAM, same run: " + ", ".join(f"{what} {ratio:.2f}x" for what, ratio in speed.items()))
     return "\n".join(lines)
+
+
+def speed_ratios(results: dict) -> dict:
+    """``{what: ours / GTSAM}`` from :func:`compare`'s figures where both ran: the window with the
+    prior against the fixed-lag smoother in seconds per solve, and the batch against GTSAM's batch in
+    seconds per iteration."""
+    def first(test):
+        return next((r for label, r in results.items() if test(label) and "failed" not in r), None)
+
+    out = {}
+    window = first(lambda label: label.startswith("window") and label.endswith("(with prior)"))
+    smoother = first(lambda label: label.startswith("GTSAM fixed-lag"))
+    ours, theirs = first(lambda label: label == "batch"), first(lambda label: label == "GTSAM batch")
+    if window and smoother:
+        out["window per solve"] = window["mean_solve_seconds"] / smoother["mean_solve_seconds"]
+    if ours and theirs:
+        out["batch per iteration"] = ((ours["mean_solve_seconds"] / ours["mean_iterations"])
+                                      / (theirs["mean_solve_seconds"] / theirs["mean_iterations"]))
+    return out
 
 
 def consistency(sim="vio-sim:12:0", keyframe_every=5, impl="solutions") -> dict:
