@@ -167,7 +167,7 @@ def invariants(J, e) -> dict:
 _LABELS = {"JtJ": "J^T J", "Jte": "J^T e", "rows": "the number of rows of J"}
 _CAUSES = {"JtJ": "J = diag(sqrt(s)) V^T over the eigenpairs of H_prior with s > eps max(s), so that J^T J = H_prior",
            "Jte": "e = diag(1 / sqrt(s)) V^T b_prior, so that J^T e = b_prior",
-           "rows": "one row per eigenvalue s > eps max(s) of H_prior (eps relative to the largest)"}
+           "rows": "one row per eigenvalue s > eps max(s) of H_prior (eps is relative, to the largest)"}
 
 
 def _judge_residual(names):
@@ -197,7 +197,7 @@ _M_LABELS = {"H_prior": "H_prior[{}]", "b_prior": "b_prior[{}]"}
 _M_CAUSE = {"H_prior": "H_prior = H_rr - H_rm H_mm^-1 H_mr over the kept indices in their original order",
             "b_prior": "b_prior = b_r - H_rm H_mm^-1 b_m over the kept indices in their original order"}
 _SINGULAR = ("H_mm can be singular (a landmark seen once): invert it by its eigen-decomposition "
-             "(np.linalg.eigh), dropping the eigenvalues s <= eps max(s), relative to the largest")
+             "(np.linalg.eigh), dropping the eigenvalues s <= eps max(s) (eps is relative, to the largest)")
 
 
 def _m_values(names, cause):
