@@ -90,7 +90,7 @@ _MARGINAL_SLIPS = (
 def marginal_mistakes(call, ref):
     known: dict = {name: [] for name in ref}
     for slip, text in _MARGINAL_SLIPS:
-        outputs = _stable(lambda c: marginal(c, **slip), call)
+        outputs = _stable(lambda c, slip=slip: marginal(c, **slip), call)
         if outputs is None:
             continue
         for name, value in outputs.items():
@@ -129,7 +129,7 @@ def residual_mistakes(call, ref):
     want = invariants(ref["J"], ref["e"])
     known: dict = {name: [] for name in want}
     for slip, text in _RESIDUAL_SLIPS:
-        got = _stable(lambda c: invariants(*residual(c, **slip)), call)
+        got = _stable(lambda c, slip=slip: invariants(*residual(c, **slip)), call)
         if got is None:
             continue
         for name, value in got.items():
