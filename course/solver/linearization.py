@@ -37,7 +37,9 @@ class Linearization:
         if d is None:
             return self.H
         if not self.upper:
-            return self.H + np.diag(d)
+            H = np.array(self.H, dtype=float)  # a copy
+            H.flat[::H.shape[0] + 1] += d
+            return H
         if self.diagonal_positions is None:
             return self.H + sp.diags(d, format="csc")
         H = self.H.copy()

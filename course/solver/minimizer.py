@@ -95,10 +95,11 @@ def minimize(problem: Problem, method="gauss-newton", impl="solutions", options:
         trace.append(record)
         strategy.step_done(trial, lin, rho, accepted)
         if accepted:
+            # judged on the trial's chi2: a run that stops here never linearizes at its last point
             x, previous = trial.x, lin.chi2
-            lin = trial.lin if trial.lin is not None else problem.linearize(x)
-            converged = abs(previous - lin.chi2) <= options.cost_tolerance * previous
+            converged = abs(previous - trial.chi2) <= options.cost_tolerance * previous
             if not converged:
+                lin = trial.lin if trial.lin is not None else problem.linearize(x)
                 strategy.relinearized(problem, lin)
         else:  # a rejected step that changes chi2 by less than cost_tolerance: the optimum, to rounding
             # (rho is noise there; going on would only shrink the step to the step tolerance, as
