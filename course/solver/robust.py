@@ -93,6 +93,10 @@ def reweight(module, loss: RobustLoss, r, jacobians):
         raise ValueError(f"{where} returned d_rho[{k}] = {d_rho[k]} < 0 at s = {s[k]}: a robust kernel never decreases")
     weight = check_array(module.robust_information(r, np.eye(n), d_rho, dd_rho), (K, n, n),
                          "robust_kernels.robust_information", "weighted")
+    if n == 2:  # pixel residuals (bundle adjustment, VIO): the 2x2 Cholesky factor written out
+        out = _reweight_2(r, jacobians, weight, d_rho)
+        if out is not None:
+            return out[0], out[1], float(np.sum(rho))
     active = np.flatnonzero(d_rho > 0)
     L = np.zeros((K, n, n))
     try:
@@ -110,3 +114,31 @@ def reweight(module, loss: RobustLoss, r, jacobians):
     r_tilde[active] = np.linalg.solve(L[active], scaled[:, :, None])[:, :, 0]
     L_t = L.transpose(0, 2, 1)
     return r_tilde, tuple(np.matmul(L_t, np.asarray(J, dtype=float)) for J in jacobians), float(np.sum(rho))
+
+
+def _reweight_2(r, jacobians, weight, d_rho):
+    """:func:`reweight`'s ``(r~, J~s)`` for blocks of 2 rows, with ``L = [[l00, 0], [l10, l11]]``,
+    ``l00 = sqrt(w00)``, ``l10 = w10 / l00``, ``l11 = sqrt(w11 - l10^2)`` (what LAPACK computes), or
+    None when some active weight is not positive definite (the general path says which)."""
+    active = d_rho > 0
+    w00, w10, w11 = weight[:, 0, 0], weight[:, 1, 0], weight[:, 1, 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        l00 = np.sqrt(np.where(active, w00, 1.0))
+        l10 = np.where(active, w10, 0.0) / l00
+        pivot = np.where(active, w11, 1.0) - l10 * l10
+        if not np.all(w00[active] > 0) or not np.all(pivot > 0):
+            return None
+    l11 = np.sqrt(pivot)
+    scaled = np.where(active, d_rho, 0.0)[:, None] * r
+    y0 = scaled[:, 0] / l00
+    r_tilde = np.stack([y0, (scaled[:, 1] - l10 * y0) / l11], axis=1)
+    on = active.astype(float)[:, None]
+    l00, l10, l11 = (v[:, None] * on for v in (l00, l10, l11))
+    weighted = []
+    for J in jacobians:
+        J = np.asarray(J, dtype=float)
+        J_tilde = np.empty_like(J)
+        J_tilde[:, 0] = l00 * J[:, 0] + l10 * J[:, 1]
+        J_tilde[:, 1] = l11 * J[:, 1]
+        weighted.append(J_tilde)
+    return r_tilde, tuple(weighted)
