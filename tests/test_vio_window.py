@@ -173,7 +173,12 @@ def test_the_sparse_and_the_dense_step_agree():
     x = sparse.retract(sparse.x0, 1e-3 * np.random.default_rng(2).standard_normal(sparse.n))
     lin_s, lin_d = sparse.linearize(x), dense.linearize(x)
     assert lin_s.upper and not lin_d.upper
-    np.testing.assert_allclose(lin_s.H.toarray() + np.triu(lin_s.H.toarray(), 1).T, lin_d.H, rtol=0, atol=1e-9)
+    # the dense H is summed factor by factor, the sparse one by J^T J: entries of up to 1e10 (whitened
+    # IMU rows) summed in another order, so equal to rounding of the largest
+    np.testing.assert_allclose(lin_s.H.toarray() + np.triu(lin_s.H.toarray(), 1).T, lin_d.H, rtol=0,
+                               atol=1e-14 * np.abs(lin_d.H).max())
+    np.testing.assert_allclose(lin_s.b, lin_d.b, rtol=0, atol=1e-14 * np.abs(lin_d.H).max())
+    assert lin_s.chi2 == pytest.approx(lin_d.chi2, rel=1e-14)
     for damping in (np.full(sparse.n, 1.0), np.full(sparse.n, 10.0)):  # no prior here: H alone is singular
         h_s, h_d = sparse.solve(lin_s, damping), dense.solve(lin_d, damping)
         A = lin_d.H + np.diag(damping)  # entries from 1 to 1e10 (whitened IMU rows): compare by residuals
@@ -209,3 +214,35 @@ def test_a_new_pattern_gets_a_new_analysis():
         full = H.toarray() + np.triu(H.toarray(), 1).T
         np.testing.assert_allclose(full @ dx, -b, rtol=0, atol=1e-12)
         assert Counting.made == made == solver.analyses
+
+
+def test_the_dense_normal_equations_are_j_transpose_j_with_every_prior():
+    """The window's H and b, summed factor by factor with the priors' constant J^T J kept, equal J^T J
+    and J^T r of the stacked rows, at two points (the second after the kept blocks are made), on
+    windows with the first frame's prior and with the marginalisation prior and the anchor."""
+    captured = []
+    original = vw.minimize
+
+    def capture(problem, *args, **kwargs):
+        captured.append(problem)
+        return original(problem, *args, **kwargs)
+
+    vw.minimize = capture
+    try:
+        vw.sliding_window(load_vio_sim("vio-sim:3:0"), "prior", window=4)
+    finally:
+        vw.minimize = original
+    with_frame_prior = captured[0]
+    with_linear_prior = next(p for p in captured if p.data.linear_prior is not None and p.data.anchor is not None)
+    assert with_frame_prior.data.frame_priors
+    rng = np.random.default_rng(3)
+    for problem in (with_frame_prior, with_linear_prior):
+        assert not problem.sparse
+        for scale in (1e-3, 1e-2):
+            x = problem.retract(problem.x0, scale * rng.standard_normal(problem.n))
+            lin = problem.linearize(x)
+            r, J, chi2 = problem.residual_and_jacobian(x)
+            H = (J.T @ J).toarray()
+            np.testing.assert_allclose(lin.H, H, rtol=0, atol=1e-14 * np.abs(H).max())
+            np.testing.assert_allclose(lin.b, J.T @ r, rtol=0, atol=1e-14 * np.abs(H).max())
+            assert lin.chi2 == pytest.approx(chi2, rel=1e-13) and lin.chi2 == pytest.approx(problem.chi2(x), rel=1e-13)

@@ -136,9 +136,11 @@ def imu_residual_jacobian(s_i, s_j, preintegrated, gravity) -> tuple[np.ndarray,
     return r[0], J[0]
 
 
-def imu_residual_jacobians(s_i, s_j, pre: StackedPreintegration, gravity) -> tuple[np.ndarray, np.ndarray]:
+def imu_residual_jacobians(s_i, s_j, pre: StackedPreintegration, gravity, R_i=None,
+                           R_j=None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`imu_residual_jacobian` of K factors at once: ``s_i``, ``s_j`` (K, 15), ``pre`` a
-    :class:`StackedPreintegration` of K; returns ``r`` (K, 9) and ``J`` (K, 9, 30)."""
+    :class:`StackedPreintegration` of K; ``R_i``, ``R_j`` (K, 3, 3) ``Exp`` of the frames' rotation
+    vectors where the caller has them; returns ``r`` (K, 9) and ``J`` (K, 9, 30)."""
     s_i, s_j = np.asarray(s_i, dtype=float), np.asarray(s_j, dtype=float)
     K = len(pre.delta_t)
     if s_i.shape != (K, FRAME_DOF) or s_j.shape != (K, FRAME_DOF):
@@ -147,7 +149,8 @@ def imu_residual_jacobians(s_i, s_j, pre: StackedPreintegration, gravity) -> tup
     if g.shape != (3,):
         raise ValueError(f"gravity must have shape (3,), got {g.shape}")
     T = pre.delta_t[:, None]
-    R_i, R_j = exp_many(s_i[:, 0:3]), exp_many(s_j[:, 0:3])
+    R_i = exp_many(s_i[:, 0:3]) if R_i is None else R_i
+    R_j = exp_many(s_j[:, 0:3]) if R_j is None else R_j
     p_i, v_i, p_j, v_j = s_i[:, 3:6], s_i[:, 6:9], s_j[:, 3:6], s_j[:, 6:9]
 
     def times(M, v):  # M_k v_k, (K, 3)

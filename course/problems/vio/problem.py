@@ -223,6 +223,20 @@ class VioProblem:
         root_dt = np.sqrt(self._stacked.delta_t)[:, None]
         self._walk_scale = np.hstack([np.ones((1, 3)) / data.gyro_walk,
                                       np.ones((1, 3)) / data.accel_walk]) / root_dt  # (K, 6)
+        # the tangent columns of every IMU factor (K, 30: frame i's 15, then frame j's) and of every
+        # observation (M, 18: its frame's 15, then its point's 3)
+        self._imu_columns = np.concatenate([FRAME_DOF * self._imu_i[:, None] + np.arange(FRAME_DOF),
+                                            FRAME_DOF * self._imu_j[:, None] + np.arange(FRAME_DOF)],
+                                           axis=1).reshape(-1, 2 * FRAME_DOF)
+        self._obs_columns = np.concatenate(
+            [FRAME_DOF * np.asarray(data.obs_frame, dtype=np.int64)[:, None] + np.arange(FRAME_DOF),
+             self.split + POINT_DOF * np.asarray(data.obs_landmark, dtype=np.int64)[:, None] + np.arange(POINT_DOF)],
+            axis=1).reshape(-1, FRAME_DOF + POINT_DOF)
+        self._flat_index: np.ndarray | None = None  # the dense H's positions of every factor's J^T J
+        self._last_rotations: tuple | None = None
+        self._priors = [self._frame_prior_rows(prior) for prior in data.frame_priors]
+        self._priors += [self._linear_prior_rows(lp) for lp in (data.linear_prior, data.anchor) if lp is not None]
+        self._prior_H: np.ndarray | None = None  # the priors' J^T J (constant), dense
 
     # ------------------------------------------------------------------ layout
     def frames(self, x):
@@ -245,6 +259,16 @@ class VioProblem:
         frames[:, 0:3] = log_many(np.matmul(exp_many(self.frames(x)[:, 0:3]), exp_many(dframes[:, 0:3])))
         return np.concatenate([frames.ravel(), self.landmarks(x).ravel() + h[self.split:]])
 
+    def _rotations(self, frames) -> np.ndarray:
+        """``Exp(phi_f)`` (F, 3, 3) of the frame states ``frames`` (F, 15); the last point's kept
+        (every factor type needs them, and the loop asks for the same point more than once)."""
+        last = self._last_rotations
+        if last is not None and np.array_equal(last[0], frames[:, 0:3]):
+            return last[1]
+        R = exp_many(frames[:, 0:3])
+        self._last_rotations = (frames[:, 0:3].copy(), R)
+        return R
+
     # ------------------------------------------------------------------ residuals
     def _imu_residuals(self, frames) -> np.ndarray:
         """Every IMU factor's :meth:`_imu_residual` at the frame states ``frames`` (F, 15): (K, 15).
@@ -256,25 +280,27 @@ class VioProblem:
         last = self._last_imu
         if last is not None and np.array_equal(last[0], frames):
             return last[1]
-        R = exp_many(frames[:, 0:3])
-        r = np.array([self._imu_residual(k, frames[f.i], frames[f.j], R[f.i], R[f.j])
-                      for k, f in enumerate(self.data.imu)]).reshape(-1, 15)
+        R = self._rotations(frames)
+        raw = np.array([self._raw_imu_residual(k, frames[f.i], frames[f.j], R[f.i], R[f.j])
+                        for k, f in enumerate(self.data.imu)]).reshape(-1, 9)
+        walk = (frames[self._imu_j, 9:15] - frames[self._imu_i, 9:15]) * self._walk_scale
+        r = np.concatenate([np.matmul(self._root_t, raw[:, :, None])[:, :, 0], walk], axis=1)
         self._last_imu = (frames.copy(), r)
         return r
 
-    def _imu_residual(self, k, s_i, s_j, Ri=None, Rj=None):
-        """The whitened (15,) residual of IMU factor k: ``L^T r_imu`` (9,) then the bias walk (6,);
-        ``Ri``, ``Rj`` ``Exp`` of the frames' rotation vectors where known."""
-        d = self.data
-        factor = d.imu[k]
+    def _raw_imu_residual(self, k, s_i, s_j, Ri=None, Rj=None):
+        """The implementation's ``imu_factor_residual`` (9,) of IMU factor k at frame states ``s_i``,
+        ``s_j`` (15,); ``Ri``, ``Rj`` ``Exp`` of their rotation vectors where known."""
         Ri = so3_exp(s_i[0:3]) if Ri is None else Ri
         Rj = so3_exp(s_j[0:3]) if Rj is None else Rj
-        r = self.imu.imu_factor_residual((Ri, s_i[6:9], s_i[3:6]), (Rj, s_j[6:9], s_j[3:6]),
-                                         factor.preintegrated, (s_i[9:12], s_i[12:15]), d.gravity)
-        root_t = np.sqrt(factor.preintegrated.delta_t)
-        walk = np.concatenate([(s_j[9:12] - s_i[9:12]) / (d.gyro_walk * root_t),
-                               (s_j[12:15] - s_i[12:15]) / (d.accel_walk * root_t)])
-        return np.concatenate([self._info_roots[k].T @ r, walk])
+        return self.imu.imu_factor_residual((Ri, s_i[6:9], s_i[3:6]), (Rj, s_j[6:9], s_j[3:6]),
+                                            self.data.imu[k].preintegrated, (s_i[9:12], s_i[12:15]),
+                                            self.data.gravity)
+
+    def _imu_residual(self, k, s_i, s_j):
+        """The whitened (15,) residual of IMU factor k: ``L^T r_imu`` (9,) then the bias walk (6,)."""
+        walk = (s_j[9:15] - s_i[9:15]) * self._walk_scale[k]
+        return np.concatenate([self._root_t[k] @ self._raw_imu_residual(k, s_i, s_j), walk])
 
     def _imu_jacobians(self, frames) -> np.ndarray:
         """(K, 15, 30): the rows of every :meth:`_imu_residual` in the tangents of its (i, j), at the
@@ -284,8 +310,9 @@ class VioProblem:
         K = len(self._imu_i)
         J = np.zeros((K, 15, 30))
         if self.imu_jacobian == "analytic":
+            R = self._rotations(frames)
             _, J_imu = imu_residual_jacobians(frames[self._imu_i], frames[self._imu_j], self._stacked,
-                                              self.data.gravity)
+                                              self.data.gravity, R[self._imu_i], R[self._imu_j])
             J[:, :9] = np.matmul(self._root_t, J_imu)
         else:
             for k in range(K):
@@ -309,7 +336,7 @@ class VioProblem:
         """Whitened residuals (M, 2) and, when asked, Jacobians (M, 2, 15) in the frame, (M, 2, 3) in the point."""
         d = self.data
         frames, points = self.frames(x), self.landmarks(x)
-        R = exp_many(frames[:, 0:3])
+        R = self._rotations(frames)
         Rf, pf = R[d.obs_frame], frames[d.obs_frame, 3:6]
         X_b = np.einsum("mji,mj->mi", Rf, points[d.obs_landmark] - pf)  # R^T (X - p)
         X_c = (X_b - d.t_bc) @ d.R_bc  # R_bc^T (X_b - t_bc), row-wise
@@ -334,21 +361,42 @@ class VioProblem:
         J_frame[:, :, 3:6] = -J_point
         return r, J_frame, J_point
 
+    def _frame_prior_rows(self, prior: FramePrior) -> tuple:
+        """A frame prior as ``(frames (1,), references (1, 15), R_ref^T (1, 3, 3), row weights (k,),
+        kept entries (k,) of the 15, columns (15,), J (k, 15))``: the rows ``(s_f [-] s_ref)[kept] *
+        weights``, their Jacobian constant (the identity at s_ref, scaled)."""
+        keep = np.flatnonzero(np.isfinite(prior.sigmas))
+        weights = 1.0 / np.asarray(prior.sigmas, dtype=float)[keep]
+        reference = np.asarray(prior.reference, dtype=float).reshape(1, FRAME_DOF)
+        return (np.array([prior.frame]), reference, exp_many(reference[:, 0:3]).transpose(0, 2, 1), weights,
+                keep, FRAME_DOF * prior.frame + np.arange(FRAME_DOF), weights[:, None] * np.eye(FRAME_DOF)[keep])
+
+    def _linear_prior_rows(self, lp: LinearPrior) -> tuple:
+        """A :class:`LinearPrior` in the form of :meth:`_frame_prior_rows`, with its landmarks: ``(frames,
+        frame_lin, R_lin^T, e0, landmarks, landmark_lin, columns, J)``."""
+        frame_lin = np.asarray(lp.frame_lin, dtype=float).reshape(-1, FRAME_DOF)
+        return (np.asarray(lp.frames, dtype=np.int64), frame_lin, exp_many(frame_lin[:, 0:3]).transpose(0, 2, 1),
+                np.asarray(lp.e0, dtype=float), np.asarray(lp.landmarks, dtype=np.int64),
+                np.asarray(lp.landmark_lin, dtype=float).reshape(-1, POINT_DOF), self.columns(lp.frames, lp.landmarks),
+                np.asarray(lp.J, dtype=float))
+
     def _prior_rows(self, x, jacobians):
-        """The frame priors' and the linear prior's residuals (and Jacobian rows as (cols, block))."""
+        """The frame priors' and the linear priors' residuals (and Jacobian rows) as a list of
+        ``(r (k,), columns (c,), block (k, c) or None)``; every block is constant."""
         frames, points = self.frames(x), self.landmarks(x)
+        R = self._rotations(frames) if self._priors else None
         out = []
-        for prior in self.data.frame_priors:
-            keep = np.isfinite(prior.sigmas)
-            r = (frame_difference(frames[prior.frame], prior.reference) / np.where(keep, prior.sigmas, 1.0))[keep]
-            cols = FRAME_DOF * prior.frame + np.arange(FRAME_DOF)
-            out.append((r, cols, np.diag(1.0 / prior.sigmas[keep]) @ np.eye(FRAME_DOF)[keep] if jacobians else None))
-        for lp in (self.data.linear_prior, self.data.anchor):
-            if lp is None:
-                continue
-            dx = np.concatenate([frame_difference(frames[lp.frames], lp.frame_lin).ravel(),
-                                 (points[lp.landmarks] - lp.landmark_lin).ravel()])
-            out.append((lp.e0 + lp.J @ dx, self.columns(lp.frames, lp.landmarks), lp.J if jacobians else None))
+        for prior in self._priors:
+            f, ref, R_ref_t = prior[0], prior[1], prior[2]
+            d = frames[f] - ref  # the tangent difference s [-] s_ref of frame_difference
+            d[:, 0:3] = log_many(np.matmul(R_ref_t, R[f]))
+            if len(prior) == 7:
+                _, _, _, weights, keep, columns, block = prior
+                r = d[0, keep] * weights
+            else:
+                _, _, _, e0, landmarks, landmark_lin, columns, block = prior
+                r = e0 + block @ np.concatenate([d.ravel(), (points[landmarks] - landmark_lin).ravel()])
+            out.append((r, columns, block if jacobians else None))
         return out
 
     def chi2_by_factor(self, x) -> dict:
@@ -382,14 +430,43 @@ class VioProblem:
         return total if np.isfinite(total) else float("inf")
 
     def residual_and_jacobian(self, x):
-        """``(r (m,), J (m, n) sparse CSR, chi2)``, the reprojections reweighted by the robust loss."""
-        r, J, chi2, _ = self._rows(x, priors_in_J=True)
-        return r, J, chi2
+        """``(r (m,), J (m, n) sparse CSR, chi2)``, the reprojections reweighted by the robust loss;
+        the rows: the IMU factors' (15 each), the reprojections' (2 each), then the priors'."""
+        groups, priors, chi2 = self._factor_blocks(x)
+        rows, cols, vals, res = [], [], [], []
+        m = 0
+        for r, c_idx, block in groups:
+            k, d = r.shape
+            row = m + d * np.arange(k)[:, None, None] + np.arange(d)[None, :, None]
+            rows.append(np.broadcast_to(row, block.shape).ravel())
+            cols.append(np.broadcast_to(c_idx[:, None, :], block.shape).ravel())
+            vals.append(block.ravel())
+            res.append(r.ravel())
+            m += k * d
+        starts = []
+        for r, c_idx, block in priors:
+            starts.append(m)
+            rr, cc = np.meshgrid(m + np.arange(len(r)), c_idx, indexing="ij")
+            rows.append(rr.ravel())
+            cols.append(cc.ravel())
+            vals.append(np.asarray(block, dtype=float).ravel())
+            res.append(r)
+            m += len(r)
+        starts.append(m)
+        # the rows of the linear prior and of the anchor, the last one or two groups
+        named = [name for name, g in (("linear_prior", self.data.linear_prior), ("anchor", self.data.anchor))
+                 if g is not None]
+        self.prior_row_ranges = dict(zip(named, zip(starts[len(starts) - 1 - len(named):-1],
+                                                    starts[len(starts) - len(named):])))
+        J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, self.n))
+        return np.concatenate(res), J, chi2
 
-    def _rows(self, x, priors_in_J):
-        """:meth:`residual_and_jacobian` and, when not ``priors_in_J``, the priors' rows apart (they
-        are dense over their variables, where a sparse ``J^T J`` is slow): ``(r, J, chi2, priors)``,
-        ``priors`` a list of ``(r (k,), columns (c,), block (k, c))``."""
+    def _factor_blocks(self, x):
+        """The whitened (and robustly reweighted) rows at ``x`` by factor type, with their Jacobians:
+        ``(groups, priors, chi2)``. ``groups``: the IMU factors' ``(r (K, 15), columns (K, 30), J (K,
+        15, 30))`` and the reprojections' ``(r (M, 2), columns (M, 18), J (M, 2, 18))`` (the frame's
+        15 tangent columns, then the point's 3), where there are any; ``priors``: a list of ``(r (k,),
+        columns (c,), block (k, c))``, dense over their variables."""
         x = np.asarray(x, dtype=float)
         frames = self.frames(x)
         fej = self.data.first_estimates
@@ -398,34 +475,14 @@ class VioProblem:
             fej_frames = self.frames(x_fej)
             fej_frames[np.asarray(fej[0], dtype=np.int64)] = fej[1]
             self.landmarks(x_fej)[np.asarray(fej[2], dtype=np.int64)] = fej[3]
-        rows, cols, vals, res = [], [], [], []
-        m = 0
+        groups = []
         chi2 = 0.0
-
-        def add(r, c_idx, block):
-            nonlocal m
-            k = len(r)
-            rr, cc = np.meshgrid(m + np.arange(k), c_idx, indexing="ij")
-            rows.append(rr.ravel())
-            cols.append(cc.ravel())
-            vals.append(np.asarray(block, dtype=float).ravel())
-            res.append(r)
-            m += k
-
-        K = len(self._imu_i)
-        if K:
+        imu_cols, obs_cols = self._imu_columns, self._obs_columns
+        if len(self._imu_i):
             r_imu = self._imu_residuals(frames)
             chi2 += float(np.sum(r_imu * r_imu))
             # the Jacobians at the first estimates where given, linearised around the residuals at x
-            J_imu = self._imu_jacobians(frames if fej is None else fej_frames)  # (K, 15, 30)
-            row = m + 15 * np.arange(K)[:, None, None] + np.arange(15)[None, :, None]
-            col = np.concatenate([FRAME_DOF * self._imu_i[:, None] + np.arange(FRAME_DOF),
-                                  FRAME_DOF * self._imu_j[:, None] + np.arange(FRAME_DOF)], axis=1)[:, None, :]
-            rows.append(np.broadcast_to(row, J_imu.shape).ravel())
-            cols.append(np.broadcast_to(col, J_imu.shape).ravel())
-            vals.append(J_imu.ravel())
-            res.append(r_imu.ravel())
-            m += 15 * K
+            groups.append((r_imu, imu_cols, self._imu_jacobians(frames if fej is None else fej_frames)))
         r, J_f, J_p = self._reprojection(x, True)
         if fej is not None:
             _, J_f, J_p = self._reprojection(x_fej, True)
@@ -435,34 +492,35 @@ class VioProblem:
                 chi2 += c
             else:
                 chi2 += float(np.sum(r * r))
-            M = len(r)
-            d = self.data
-            row = m + 2 * np.arange(M)[:, None, None] + np.arange(2)[None, :, None]
-            cf = FRAME_DOF * d.obs_frame[:, None, None] + np.arange(FRAME_DOF)[None, None, :]
-            cp = self.split + POINT_DOF * d.obs_landmark[:, None, None] + np.arange(POINT_DOF)[None, None, :]
-            rows += [np.broadcast_to(row, J_f.shape).ravel(), np.broadcast_to(row, J_p.shape).ravel()]
-            cols += [np.broadcast_to(cf, J_f.shape).ravel(), np.broadcast_to(cp, J_p.shape).ravel()]
-            vals += [J_f.ravel(), J_p.ravel()]
-            res.append(r.ravel())
-            m += 2 * M
+            groups.append((r, obs_cols, np.concatenate([J_f, J_p], axis=2)))
         priors = self._prior_rows(x, True)
         chi2 += sum(float(r @ r) for r, _, _ in priors)
-        if not priors_in_J:
-            J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, self.n))
-            return np.concatenate(res), J, chi2, priors
-        starts = []
-        for r, c_idx, block in priors:
-            starts.append(m)
-            add(r, c_idx, block)
-        starts.append(m)
-        # the rows of the linear prior and of the anchor, the last one or two groups
-        groups = [self.data.linear_prior, self.data.anchor]
-        n_groups = sum(g is not None for g in groups)
-        ranges = list(zip(starts[-n_groups - 1:-1], starts[-n_groups:])) if n_groups else []
-        named = [name for name, g in zip(("linear_prior", "anchor"), groups) if g is not None]
-        self.prior_row_ranges = dict(zip(named, ranges))
-        J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, self.n))
-        return np.concatenate(res), J, chi2, []
+        return groups, priors, chi2
+
+    def _dense_normal_equations(self, x) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(H (n, n), b (n,), chi2)`` summed factor by factor: each factor's ``J_k^T J_k`` and
+        ``J_k^T r_k`` added at its columns (one ``bincount`` over all of them), the priors' dense
+        blocks after; equal to ``J^T J`` and ``J^T r`` of :meth:`residual_and_jacobian` to rounding."""
+        groups, priors, chi2 = self._factor_blocks(x)
+        n = self.n
+        if self._flat_index is None:  # the (c, c) positions in H of every factor's block
+            self._flat_index = np.concatenate([(c[:, :, None] * n + c[:, None, :]).ravel()
+                                               for c in (self._imu_columns, self._obs_columns)])
+        JtJ = [np.matmul(J.transpose(0, 2, 1), J).ravel() for _, _, J in groups]
+        Jtr = [np.matmul(r[:, None, :], J).ravel() for r, _, J in groups]
+        H: np.ndarray = np.bincount(self._flat_index, np.concatenate(JtJ + [np.zeros(0)]),
+                                    minlength=n * n).reshape(n, n).astype(float, copy=False)
+        b: np.ndarray = np.bincount(np.concatenate([self._imu_columns.ravel(), self._obs_columns.ravel()]),
+                        np.concatenate(Jtr + [np.zeros(0)]), minlength=n)
+        if priors:
+            if self._prior_H is None:
+                self._prior_H = np.zeros((n, n))
+                for _, columns, block in priors:
+                    self._prior_H[np.ix_(columns, columns)] += block.T @ block
+            H += self._prior_H
+            for r_p, columns, block in priors:
+                b[columns] += r_p @ block
+        return H, b, chi2
 
     def marginal_system(self, x, remove) -> tuple[np.ndarray, np.ndarray]:
         """``(H, b)`` (n, n), (n,) of the factors that leave the window when the tangent indices
@@ -486,11 +544,7 @@ class VioProblem:
             r, J, chi2 = self.residual_and_jacobian(x)
             return Linearization(H=sp.triu(J.T @ J, format="csc"), b=np.asarray(J.T @ r).ravel(), chi2=float(chi2),
                                  upper=True)
-        r, J, chi2, priors = self._rows(x, priors_in_J=False)
-        H, b = (J.T @ J).toarray(), np.asarray(J.T @ r).ravel()
-        for r_p, columns, block in priors:
-            H[np.ix_(columns, columns)] += block.T @ block
-            b[columns] += block.T @ r_p
+        H, b, chi2 = self._dense_normal_equations(x)
         return Linearization(H=H, b=b, chi2=float(chi2))
 
     def solve(self, lin: Linearization, damping=None):
@@ -503,7 +557,8 @@ class VioProblem:
                                           "H (+ damping) is not positive definite")
             return h
         try:
-            h = scipy.linalg.cho_solve(scipy.linalg.cho_factor(A), -lin.b)
+            # no finite check of A (a copy of H's n^2 entries): a non-finite A gives a non-finite h
+            h = scipy.linalg.cho_solve(scipy.linalg.cho_factor(A, check_finite=False), -lin.b, check_finite=False)
         except np.linalg.LinAlgError:
             raise SingularSystemError("vio: H (+ damping) is not positive definite") from None
         if not np.all(np.isfinite(h)):
