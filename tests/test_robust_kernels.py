@@ -266,3 +266,17 @@ def test_a_robust_kernel_recovers_the_outlier_free_inliers_rms():
     assert plain.ratio > 1.1 and plain.ratio > 5.0  # not within 10%: many times the outlier-free RMS
     text = outliers.table(reference, [plain, cauchy])
     assert "cauchy(a=2.45)" in text and "least squares" in text
+
+
+@pytest.mark.parametrize("loss", [("huber", 3.0), ("cauchy", 3.0), ("tukey", 8.0)])
+def test_the_written_out_2x2_factor_is_lapacks(loss, monkeypatch):
+    """Pixel blocks take reweight's 2x2 path; the general path (LAPACK's Cholesky) gives the same to rounding."""
+    _, r, J_cam, J_point = _linearized()
+    loss = robust.RobustLoss.of(loss)
+    fast = robust.reweight(rk, loss, r, (J_cam, J_point))
+    monkeypatch.setattr(robust, "_reweight_2", lambda *args: None)
+    general = robust.reweight(rk, loss, r, (J_cam, J_point))
+    np.testing.assert_allclose(fast[0], general[0], rtol=1e-12, atol=1e-14 * np.abs(general[0]).max())
+    for a, b in zip(fast[1], general[1]):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14 * np.abs(b).max())
+    assert fast[2] == general[2]
