@@ -5,9 +5,12 @@ import numpy as np
 import pytest
 
 from course.app import vio as vio_app
+from course.core.errors import SingularSystemError
+from course.problems.vio import problem as vp
 from course.problems.vio import window as vw
 from course.problems.vio.problem import VioProblem, gauge_directions
 from course.problems.vio.sim import load_vio_sim
+from course.solver.linearization import Linearization
 
 #: the analytic reprojection and the central-difference IMU Jacobians against central
 #: differences of the whole residual (whitened units; entries reach 1e5)
@@ -166,7 +169,6 @@ def test_the_seed_table_compares_the_window_and_the_batch_per_seed():
 def test_the_sparse_and_the_dense_step_agree():
     """The batch's sparse H (upper triangle, the implementation's sparse Cholesky) gives the dense
     step, and a problem above ``SPARSE_FROM`` unknowns takes the sparse path by itself."""
-    from course.problems.vio import problem as vp
 
     sparse, dense = _small_problem(), _small_problem()
     sparse.sparse = True
@@ -246,3 +248,27 @@ def test_the_dense_normal_equations_are_j_transpose_j_with_every_prior():
             np.testing.assert_allclose(lin.H, H, rtol=0, atol=1e-14 * np.abs(H).max())
             np.testing.assert_allclose(lin.b, J.T @ r, rtol=0, atol=1e-14 * np.abs(H).max())
             assert lin.chi2 == pytest.approx(chi2, rel=1e-13) and lin.chi2 == pytest.approx(problem.chi2(x), rel=1e-13)
+    # the step with the free landmarks eliminated first is the whole system's, and says when H is not definite
+    problem = with_linear_prior
+    assert len(problem.data.linear_prior.landmarks) and problem.num_landmarks > len(problem.data.linear_prior.landmarks)
+    lin = problem.linearize(problem.x0)
+    for damping in (None, np.full(problem.n, 10.0)):
+        A = lin.with_diagonal_added(damping)
+        h = problem.solve(lin, damping)
+        np.testing.assert_allclose(h, np.linalg.solve(A, -lin.b), rtol=0, atol=1e-8 * np.abs(h).max())
+        assert np.linalg.norm(A @ h + lin.b) <= 1e-10 * np.linalg.norm(lin.b)
+    indefinite = Linearization(H=lin.H - 2 * np.abs(np.linalg.eigvalsh(lin.H)).max() * np.eye(problem.n), b=lin.b,
+                                  chi2=lin.chi2)
+    with pytest.raises(SingularSystemError, match="not positive definite"):
+        problem.solve(indefinite)
+    # and the sparse path (the batch's) puts the same H, priors included, on its fixed pattern
+    problem.sparse = True
+    for x in (problem.x0, problem.retract(problem.x0, 1e-3 * rng.standard_normal(problem.n))):
+        upper = problem.linearize(x)
+        problem.sparse = False
+        full = problem.linearize(x)
+        problem.sparse = True
+        H = upper.H.toarray()
+        np.testing.assert_allclose(H + np.triu(H, 1).T, full.H, rtol=0, atol=1e-14 * np.abs(full.H).max())
+        np.testing.assert_allclose(upper.b, full.b, rtol=0, atol=1e-14 * np.abs(full.H).max())
+        np.testing.assert_allclose(upper.H.data[upper.diagonal_positions], np.diag(full.H), rtol=1e-14)

@@ -47,17 +47,23 @@ Factors (every residual whitened, so chi2 is a plain sum of squares, as in the c
 - An optional gauge anchor (``VioData.anchor``, the same linear form), kept apart from the prior
   so that :meth:`VioProblem.marginal_system` can leave it out.
 
-H is formed from a sparse J. A problem of at least :data:`SPARSE_FROM` unknowns (the 12-s batch:
-1488) keeps H sparse (its upper triangle) and takes the step by the implementation's sparse
-Cholesky (chapter 2; SuperLU where qdldl is not installed), the pattern analysed once while it
-holds (:class:`course.solver.per_pattern.PerPattern`); a smaller one (a window: a few hundred
-unknowns, with the marginalisation prior's dense block) forms H dense and takes a dense Cholesky
-step, which is faster there.
+H and b are summed factor by factor: every factor's ``J_k^T J_k`` and ``J_k^T r_k`` (the IMU
+factors' 30 columns, a reprojection's 9: its frame's dphi and dp and its point) added where its
+columns say, the priors' constant ``J^T J`` kept from the first linearization. A problem of at
+least :data:`SPARSE_FROM` unknowns (the 12-s batch: 1488) sums them into H's upper triangle on a
+CSC pattern made once and takes the step by the implementation's sparse Cholesky (chapter 2;
+SuperLU where qdldl is not installed; :class:`course.solver.per_pattern.PerPattern`, so the
+pattern is analysed once); a smaller one (a window: a few hundred unknowns, with the
+marginalisation prior's dense block) sums them into a dense H and takes a dense Cholesky step,
+the landmarks no prior touches eliminated first (:meth:`VioProblem.solve`), which is faster there.
+:meth:`VioProblem.residual_and_jacobian` stacks the same rows into a sparse J (the
+marginalisation and the tests use it).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import scipy.linalg
@@ -75,6 +81,8 @@ from course.solver.superlu import sparse_solver
 EZ = np.array([0.0, 0.0, 1.0])
 
 FRAME_DOF, POINT_DOF = 15, 3
+#: a frame's rotation and position, the first 6 of its 15 tangent coordinates (a reprojection's only)
+POSE_DOF = 6
 #: the central-difference step of the numerical IMU Jacobians (tangent units: rad, m, m/s, ...)
 FD_STEP = 1e-6
 #: below this camera depth (m) a reprojection is clamped (a point behind or at the camera)
@@ -83,6 +91,8 @@ DEFAULT_LOSS = RobustLoss("cauchy", 3.0)
 #: from this many unknowns on, H is kept sparse and solved by a sparse Cholesky (measured: the
 #: window, 150-400 unknowns with a dense prior block, is faster dense; the batch, 1488, sparse)
 SPARSE_FROM = 1000
+#: the dense step eliminates the landmarks no prior touches first when there are at least this many
+MIN_ELIMINATED = 4
 
 
 @dataclass
@@ -183,6 +193,20 @@ def frame_retract(s, d):
     return out
 
 
+class _UpperPattern(NamedTuple):
+    """H's upper triangle as CSC (``indices`` (nnz,), ``indptr`` (n + 1,)); ``upper``: the entries of
+    the factors' concatenated ``J^T J`` blocks on or above the diagonal, ``where``: their positions in
+    ``data``; ``prior_data`` (nnz,): the priors' constant ``J^T J``; ``diagonal`` (n,): the diagonal's
+    positions."""
+
+    upper: np.ndarray
+    where: np.ndarray
+    indices: np.ndarray
+    indptr: np.ndarray
+    prior_data: np.ndarray
+    diagonal: np.ndarray
+
+
 class VioProblem:
     """``linearize`` / ``chi2`` / ``solve`` / ``retract`` for F frames and L landmarks.
 
@@ -224,19 +248,27 @@ class VioProblem:
         self._walk_scale = np.hstack([np.ones((1, 3)) / data.gyro_walk,
                                       np.ones((1, 3)) / data.accel_walk]) / root_dt  # (K, 6)
         # the tangent columns of every IMU factor (K, 30: frame i's 15, then frame j's) and of every
-        # observation (M, 18: its frame's 15, then its point's 3)
+        # observation (M, 9: its frame's dphi and dp, the only ones a reprojection depends on, then its point's 3)
         self._imu_columns = np.concatenate([FRAME_DOF * self._imu_i[:, None] + np.arange(FRAME_DOF),
                                             FRAME_DOF * self._imu_j[:, None] + np.arange(FRAME_DOF)],
                                            axis=1).reshape(-1, 2 * FRAME_DOF)
         self._obs_columns = np.concatenate(
-            [FRAME_DOF * np.asarray(data.obs_frame, dtype=np.int64)[:, None] + np.arange(FRAME_DOF),
+            [FRAME_DOF * np.asarray(data.obs_frame, dtype=np.int64)[:, None] + np.arange(POSE_DOF),
              self.split + POINT_DOF * np.asarray(data.obs_landmark, dtype=np.int64)[:, None] + np.arange(POINT_DOF)],
-            axis=1).reshape(-1, FRAME_DOF + POINT_DOF)
+            axis=1).reshape(-1, POSE_DOF + POINT_DOF)
         self._flat_index: np.ndarray | None = None  # the dense H's positions of every factor's J^T J
         self._last_rotations: tuple | None = None
         self._priors = [self._frame_prior_rows(prior) for prior in data.frame_priors]
         self._priors += [self._linear_prior_rows(lp) for lp in (data.linear_prior, data.anchor) if lp is not None]
         self._prior_H: np.ndarray | None = None  # the priors' J^T J (constant), dense
+        # the landmarks no prior touches: only their reprojections do, so their block of H is
+        # 3x3 block diagonal and the dense step eliminates them first (:meth:`solve`)
+        in_priors = {int(k) for lp in (data.linear_prior, data.anchor) if lp is not None for k in lp.landmarks}
+        free = np.array([k for k in range(self.num_landmarks) if k not in in_priors], dtype=np.int64)
+        self._free_columns = self.split + POINT_DOF * free[:, None] + np.arange(POINT_DOF)  # (e, 3)
+        self._kept_columns = np.setdiff1d(np.arange(self.n), self._free_columns.ravel())  # frames first
+        self._pattern: _UpperPattern | None = None  # H's upper triangle, made on the first sparse linearization
+        self._kept_block: np.ndarray | None = None  # A_KK's flat positions in A, made on the first dense step
 
     # ------------------------------------------------------------------ layout
     def frames(self, x):
@@ -464,8 +496,8 @@ class VioProblem:
     def _factor_blocks(self, x):
         """The whitened (and robustly reweighted) rows at ``x`` by factor type, with their Jacobians:
         ``(groups, priors, chi2)``. ``groups``: the IMU factors' ``(r (K, 15), columns (K, 30), J (K,
-        15, 30))`` and the reprojections' ``(r (M, 2), columns (M, 18), J (M, 2, 18))`` (the frame's
-        15 tangent columns, then the point's 3), where there are any; ``priors``: a list of ``(r (k,),
+        15, 30))`` and the reprojections' ``(r (M, 2), columns (M, 9), J (M, 2, 9))`` (the frame's
+        dphi and dp columns, then the point's 3), where there are any; ``priors``: a list of ``(r (k,),
         columns (c,), block (k, c))``, dense over their variables."""
         x = np.asarray(x, dtype=float)
         frames = self.frames(x)
@@ -492,7 +524,7 @@ class VioProblem:
                 chi2 += c
             else:
                 chi2 += float(np.sum(r * r))
-            groups.append((r, obs_cols, np.concatenate([J_f, J_p], axis=2)))
+            groups.append((r, obs_cols, np.concatenate([J_f[:, :, :POSE_DOF], J_p], axis=2)))
         priors = self._prior_rows(x, True)
         chi2 += sum(float(r @ r) for r, _, _ in priors)
         return groups, priors, chi2
@@ -537,13 +569,59 @@ class VioProblem:
         J_out, r_out = J[touches], r[touches]
         return (J_out.T @ J_out).toarray(), np.asarray(J_out.T @ r_out).ravel()
 
+    def _upper_pattern(self, groups, priors) -> _UpperPattern:
+        """The pattern of H's upper triangle (CSC) from the factors' columns, the priors' and the
+        diagonal, and where every upper entry of every factor's ``J^T J`` block and of the priors'
+        (constant) ``J^T J`` adds in its ``data``: made once, as chapter 2 scatters into a pattern."""
+        n = self.n
+        block_rows = [np.broadcast_to(c[:, :, None], (len(c), c.shape[1], c.shape[1])).ravel() for _, c, _ in groups]
+        block_cols = [np.broadcast_to(c[:, None, :], (len(c), c.shape[1], c.shape[1])).ravel() for _, c, _ in groups]
+        rows, cols = np.concatenate(block_rows + [np.zeros(0, dtype=np.int64)]), \
+            np.concatenate(block_cols + [np.zeros(0, dtype=np.int64)])
+        upper = np.flatnonzero(rows <= cols)
+        prior_rows, prior_cols, prior_values = [], [], []
+        for _, columns, block in priors:
+            JtJ = block.T @ block
+            r, c = np.meshgrid(columns, columns, indexing="ij")
+            keep = r <= c
+            prior_rows.append(r[keep])
+            prior_cols.append(c[keep])
+            prior_values.append(JtJ[keep])
+        diagonal = np.arange(n)
+        all_rows = np.concatenate([rows[upper], *prior_rows, diagonal])
+        all_cols = np.concatenate([cols[upper], *prior_cols, diagonal])
+        shape = sp.csc_matrix((np.ones(len(all_rows)), (all_rows, all_cols)), shape=(n, n))  # duplicates summed
+        shape.sort_indices()
+        indptr, nnz = shape.indptr, shape.nnz
+        keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr)) * n + shape.indices  # ascending: CSC order
+        where = np.searchsorted(keys, all_cols * n + all_rows)
+        prior_where = where[len(upper):len(all_rows) - n]
+        prior_data = np.bincount(prior_where, np.concatenate(prior_values + [np.zeros(0)]), minlength=nnz)
+        return _UpperPattern(upper, where[:len(upper)], (keys % n).astype(np.int32), indptr.astype(np.int32),
+                             prior_data.astype(float), np.searchsorted(keys, diagonal * n + diagonal))
+
+    def _sparse_normal_equations(self, x) -> Linearization:
+        """:meth:`_dense_normal_equations` into H's upper triangle (CSC) on the pattern of
+        :meth:`_upper_pattern`."""
+        groups, priors, chi2 = self._factor_blocks(x)
+        if self._pattern is None:
+            self._pattern = self._upper_pattern(groups, priors)
+        pattern = self._pattern
+        JtJ = np.concatenate([np.matmul(J.transpose(0, 2, 1), J).ravel() for _, _, J in groups] + [np.zeros(0)])
+        data = np.bincount(pattern.where, JtJ[pattern.upper], minlength=len(pattern.prior_data)) + pattern.prior_data
+        Jtr = [np.matmul(r[:, None, :], J).ravel() for r, _, J in groups]
+        b: np.ndarray = np.bincount(np.concatenate([self._imu_columns.ravel(), self._obs_columns.ravel()]),
+                                    np.concatenate(Jtr + [np.zeros(0)]), minlength=self.n)
+        for r_p, columns, block in priors:
+            b[columns] += r_p @ block
+        H = sp.csc_matrix((data, pattern.indices, pattern.indptr), shape=(self.n, self.n))
+        return Linearization(H=H, b=b, chi2=float(chi2), upper=True, diagonal_positions=pattern.diagonal)
+
     def linearize(self, x) -> Linearization:
         """``H = J~^T J~`` (n, n): dense, or its upper triangle (CSC) where the problem is sparse;
         ``b = J~^T r~`` (n,), chi2 (robust)."""
         if self.sparse:
-            r, J, chi2 = self.residual_and_jacobian(x)
-            return Linearization(H=sp.triu(J.T @ J, format="csc"), b=np.asarray(J.T @ r).ravel(), chi2=float(chi2),
-                                 upper=True)
+            return self._sparse_normal_equations(x)
         H, b, chi2 = self._dense_normal_equations(x)
         return Linearization(H=H, b=b, chi2=float(chi2))
 
@@ -557,10 +635,47 @@ class VioProblem:
                                           "H (+ damping) is not positive definite")
             return h
         try:
-            # no finite check of A (a copy of H's n^2 entries): a non-finite A gives a non-finite h
-            h = scipy.linalg.cho_solve(scipy.linalg.cho_factor(A, check_finite=False), -lin.b, check_finite=False)
+            h = self._eliminating_free_landmarks(A, lin.b) if len(self._free_columns) >= MIN_ELIMINATED \
+                else _cholesky_solve(A, -lin.b)
         except np.linalg.LinAlgError:
             raise SingularSystemError("vio: H (+ damping) is not positive definite") from None
         if not np.all(np.isfinite(h)):
             raise SingularSystemError("vio: the Cholesky solve gave a non-finite step")
         return h
+
+    def _eliminating_free_landmarks(self, A, b) -> np.ndarray:
+        """``h`` of ``A h = -b`` (A dense (n, n), positive definite) with the landmarks no prior touches
+        (e of them, columns E; the rest K, frames first) eliminated first: their block ``A_EE`` is 3x3
+        block diagonal and they are coupled to the frames F alone, so with ``W = A_FE A_EE^-1``::
+
+            S = A_KK - [W A_EF; 0],   S h_K = -b_K + [W b_E; 0],   h_E = -A_EE^-1 (b_E + A_EF h_F)
+
+        a Cholesky factorisation of S (frames and the priors' landmarks) instead of the whole A:
+        the same step to rounding, about half the flops on a window. A is positive definite
+        exactly when every 3x3 block of ``A_EE`` and S are (``LinAlgError`` otherwise)."""
+        E, K, F = self._free_columns, self._kept_columns, self.split
+        e = len(E)
+        A_EE = A[E[:, :, None], E[:, None, :]]  # (e, 3, 3)
+        np.linalg.cholesky(A_EE)  # positive definite, or LinAlgError
+        inv_EE = np.linalg.inv(A_EE)
+        A_FE = A[:F, E.ravel()]  # (F, 3e)
+        W = np.matmul(A_FE.reshape(F, e, POINT_DOF).transpose(1, 0, 2), inv_EE).transpose(1, 0, 2).reshape(F, -1)
+        if self._kept_block is None:
+            self._kept_block = K[:, None] * self.n + K
+        S = A.take(self._kept_block)
+        S[:F, :F] -= W @ A_FE.T
+        b_E = b[E.ravel()]
+        rhs = -b[K]
+        rhs[:F] += W @ b_E
+        h = np.empty(self.n)
+        h[K] = _cholesky_solve(S, rhs)
+        coupled = (b_E + A_FE.T @ h[:F]).reshape(e, POINT_DOF)
+        h[E.ravel()] = -np.einsum("eij,ej->ei", inv_EE, coupled).ravel()
+        return h
+
+
+def _cholesky_solve(A, rhs) -> np.ndarray:
+    """``A^-1 rhs`` by a dense Cholesky factorisation (``LinAlgError`` when A is not positive
+    definite); A is not checked for finite entries (a copy of its n^2 entries): a non-finite A gives
+    a non-finite result, which the caller checks."""
+    return scipy.linalg.cho_solve(scipy.linalg.cho_factor(A, check_finite=False), rhs, check_finite=False)
