@@ -288,7 +288,7 @@ class VioProblem:
         frames = self.frames(x)
         dframes = np.asarray(h[:self.split]).reshape(-1, FRAME_DOF)
         frames = frames + dframes
-        frames[:, 0:3] = log_many(np.matmul(exp_many(self.frames(x)[:, 0:3]), exp_many(dframes[:, 0:3])))
+        frames[:, 0:3] = log_many(np.matmul(self._rotations(self.frames(x)), exp_many(dframes[:, 0:3])))
         return np.concatenate([frames.ravel(), self.landmarks(x).ravel() + h[self.split:]])
 
     def _rotations(self, frames) -> np.ndarray:
@@ -313,7 +313,8 @@ class VioProblem:
         if last is not None and np.array_equal(last[0], frames):
             return last[1]
         R = self._rotations(frames)
-        raw = np.array([self._raw_imu_residual(k, frames[f.i], frames[f.j], R[f.i], R[f.j])
+        given = frames.copy()  # the implementation gets copies: what it does to them stays there
+        raw = np.array([self._raw_imu_residual(k, given[f.i], given[f.j], R[f.i].copy(), R[f.j].copy())
                         for k, f in enumerate(self.data.imu)]).reshape(-1, 9)
         walk = (frames[self._imu_j, 9:15] - frames[self._imu_i, 9:15]) * self._walk_scale
         r = np.concatenate([np.matmul(self._root_t, raw[:, :, None])[:, :, 0], walk], axis=1)
