@@ -100,9 +100,20 @@ def test_the_benchmark_without_g2o_skips_its_ratio(monkeypatch, capsys):
 
     hide(monkeypatch, "g2opy")
     lines = []
-    benchmark.main(repeats=1, graphs=("manhattan:50",), out=lines.append, bal=(), solvers=False, parallel=False)
+    benchmark.main(repeats=1, graphs=("manhattan:50",), out=lines.append, bal=(), solvers=False, parallel=False,
+                   vio=(), solution_graphs=("manhattan:50",))
     assert any(line.startswith("manhattan:50") and "g2opy is not installed here" in line for line in lines)
     assert announced(capsys.readouterr().err, "g2opy") == 1
+
+
+def test_the_vio_benchmark_without_gtsam_says_so_in_one_line(monkeypatch):
+    from course.app import benchmark_vio
+
+    hide(monkeypatch, "gtsam")
+    lines = []
+    benchmark_vio.main(("vio-sim:2:0",), repeats=1, out=lines.append)
+    assert len(lines) == 1 and lines[0].startswith("vio-sim:2:0 sliding window against GTSAM skipped: gtsam is not "
+                                                   "installed here")
 
 
 def test_the_autograder_does_not_run_a_check_whose_library_is_missing(monkeypatch, capsys):

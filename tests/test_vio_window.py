@@ -121,6 +121,21 @@ def test_the_window_and_gtsam_on_a_short_run():
     assert "ours over GTSAM, same run: window per solve" in vio_app.format_comparison(results)
 
 
+@pytest.mark.slow
+def test_the_vio_benchmark_gives_both_ratios_over_gtsam():
+    pytest.importorskip("gtsam")
+    from course.app import benchmark_vio
+
+    rows = benchmark_vio.speed("vio-sim:3:0", repeats=2)
+    assert [row.what for row in rows] == list(benchmark_vio.ROWS)
+    for row in rows:
+        assert len(row.ours) == len(row.theirs) == 2 and min(row.ours + row.theirs) > 0
+        low, high = row.spread
+        assert low <= row.ratio * (1 + 1e-12) and row.ratio <= high * (1 + 1e-12)
+    table = benchmark_vio.format_speed(rows, "vio-sim:3:0", 2)
+    assert "medians of 2 interleaved runs" in table and "window per solve" in table and "batch per iteration" in table
+
+
 def test_trajectories_carry_the_rotations_in_w_x_y_z_order():
     from course.problems.vio.trajectory_io import quaternion_to_rotation
 

@@ -119,15 +119,23 @@ def dense_vs_sparse(name="intel", repeats=5, impl="solutions"):
     return statistics.median(dense), statistics.median(sparse)
 
 
+#: the public 2D graphs of the time-to-solution table (mit left out: no peer reaches its minimum from
+#: the file's poses)
+SOLUTION_GRAPHS = ("intel", "intel-g2o", "csail", "fr079", "m3500", "w10000")
+
+
 def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal=("ladybug-49",), solvers=True,
-         parallel=True, graphs3d=("sphere2500", "torus3D", "parking-garage")):
+         parallel=True, graphs3d=("sphere2500", "torus3D", "parking-garage"), vio=("vio-sim:12:0",),
+         solution_graphs=SOLUTION_GRAPHS):
     """Print the benchmarks of ``impl``; what cannot run here (a graph, g2opy) is one line.
 
     ``bal``: the bundle-adjustment problems of :mod:`course.app.benchmark_bal` (and, when there are
     any, its size sweep on ``bal-synthetic``); ``solvers``: the
     sparse and dense solves (SuperLU against qdldl on w10000, dense against sparse on intel);
     ``parallel``: the parallel assembly against the serial one; ``graphs3d``: chapter 6's 3D graphs
-    (:mod:`course.app.benchmark_3d`, medians of ``min(repeats, 3)``: g2o takes minutes on torus3D)."""
+    (:mod:`course.app.benchmark_3d`, medians of ``min(repeats, 3)``: g2o takes minutes on torus3D);
+    ``vio``: chapter 5's window and batch against GTSAM's (:mod:`course.app.benchmark_vio`);
+    ``solution_graphs``: the 2D graphs of the time-to-solution table (every public one by default)."""
     out(f"Gauss-Newton seconds per iteration, ours over g2o (g2opy), median of {repeats}; impl {impl}:")
     out(f"{'graph':10} {'ours ms/it':>11} {'g2o ms/it':>10} {'ratio':>6} {'ours chi2':>14} {'g2o chi2':>14}")
     for name in graphs:
@@ -145,7 +153,7 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal
         f"from the file's poses, median of {repeats}:")
     out(f"{'graph':10} {'ours ms':>9} {'g2o ms':>9} {'ratio':>6} {'ours it':>8} {'g2o it':>7} {'ours chi2':>14} "
         f"{'g2o chi2':>14}")
-    for name in graphs:
+    for name in solution_graphs:
         progress = Progress(2 * repeats, label=f"{name} time to solution")
         try:
             ours, theirs, r_ours, r_g2o = time_to_solution(name, repeats, impl=impl, progress=progress)
@@ -166,6 +174,10 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal
     from course.app import benchmark_bal
 
     benchmark_bal.main(names=bal, repeats=repeats, impl=impl, out=out, sweep=benchmark_bal.SWEEP if bal else ())
+    if vio:  # chapter 5: the sliding window and the batch against GTSAM's
+        from course.app import benchmark_vio
+
+        benchmark_vio.main(vio, repeats=repeats, impl=impl, out=out)
     if parallel:  # chapter 4: the parallel assembly against the serial one, alone and in whole LM / dogleg iterations
         from course.app import parallel_speedup
 

@@ -80,8 +80,9 @@ def build_parser() -> argparse.ArgumentParser:
                          help="seed of the hidden checks' inputs in the Gradescope zip (default: a random one)")
     release.set_defaults(func=cmd_release)
 
-    bench = sub.add_parser("benchmark", help="our time per iteration against the peers' on pose graphs and bundle "
-                                             "adjustment, medians (course.app.benchmark)")
+    bench = sub.add_parser("benchmark", help="our time per iteration and to solution against the peers' on pose "
+                                             "graphs, bundle adjustment and the VIO window, medians "
+                                             "(course.app.benchmark)")
     bench.add_argument("--repeats", type=int, default=5)
     bench.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
     bench.set_defaults(func=cmd_benchmark)
