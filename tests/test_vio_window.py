@@ -136,6 +136,16 @@ def test_the_vio_benchmark_gives_both_ratios_over_gtsam():
     assert "medians of 2 interleaved runs" in table and "window per solve" in table and "batch per iteration" in table
 
 
+def test_the_vio_benchmark_of_an_unwritten_todo_is_one_line():
+    pytest.importorskip("gtsam")
+    from course.app import benchmark_vio
+
+    lines = []
+    benchmark_vio.main(("vio-sim:2:0",), repeats=1, impl="exercises", out=lines.append)
+    assert len(lines) == 1 and lines[0].startswith("vio-sim:2:0 sliding window against GTSAM not run:")
+    assert "TODO" in lines[0]
+
+
 def test_trajectories_carry_the_rotations_in_w_x_y_z_order():
     from course.problems.vio.trajectory_io import quaternion_to_rotation
 

@@ -72,11 +72,15 @@ def format_speed(rows: list, name: str, repeats: int) -> str:
 
 
 def main(names=("vio-sim:12:0",), repeats=5, impl="solutions", out=print) -> None:
-    """Print :func:`format_speed` for each simulated run; without gtsam, one line."""
+    """Print :func:`format_speed` for each simulated run; without gtsam, or stopped at a TODO of
+    ``impl``, one line saying so."""
     for name in names:
         try:
             rows = speed(name, repeats, impl=impl)
         except PeerMissing as exc:
             out(f"{name} sliding window against GTSAM skipped: {exc}")
+            continue
+        except NotImplementedError as exc:
+            out(f"{name} sliding window against GTSAM not run: {exc}")
             continue
         out(format_speed(rows, name, repeats))
