@@ -193,6 +193,22 @@ def frame_retract(s, d):
     return out
 
 
+class _PriorRows(NamedTuple):
+    """A prior as the problem evaluates it: ``e0 + J (x_k [-] x_lin)`` over ``frames`` (a,) and
+    ``landmarks`` (c,), linearised at ``frame_lin`` (a, 15) (``R_lin_t`` (a, 3, 3) the transposes of
+    their rotations, kept) and ``landmark_lin`` (c, 3); ``columns`` (15a + 3c,) its tangent indices,
+    ``J`` (r, 15a + 3c) constant."""
+
+    frames: np.ndarray
+    frame_lin: np.ndarray
+    R_lin_t: np.ndarray
+    e0: np.ndarray
+    landmarks: np.ndarray
+    landmark_lin: np.ndarray
+    columns: np.ndarray
+    J: np.ndarray
+
+
 class _UpperPattern(NamedTuple):
     """H's upper triangle as CSC (``indices`` (nnz,), ``indptr`` (n + 1,)); ``upper``: the entries of
     the factors' concatenated ``J^T J`` blocks on or above the diagonal, ``where``: their positions in
@@ -256,6 +272,7 @@ class VioProblem:
             [FRAME_DOF * np.asarray(data.obs_frame, dtype=np.int64)[:, None] + np.arange(POSE_DOF),
              self.split + POINT_DOF * np.asarray(data.obs_landmark, dtype=np.int64)[:, None] + np.arange(POINT_DOF)],
             axis=1).reshape(-1, POSE_DOF + POINT_DOF)
+        self._all_columns = np.concatenate([self._imu_columns.ravel(), self._obs_columns.ravel()])
         self._flat_index: np.ndarray | None = None  # the dense H's positions of every factor's J^T J
         self._last_rotations: tuple | None = None
         self._priors = [self._frame_prior_rows(prior) for prior in data.frame_priors]
@@ -394,24 +411,24 @@ class VioProblem:
         J_frame[:, :, 3:6] = -J_point
         return r, J_frame, J_point
 
-    def _frame_prior_rows(self, prior: FramePrior) -> tuple:
-        """A frame prior as ``(frames (1,), references (1, 15), R_ref^T (1, 3, 3), row weights (k,),
-        kept entries (k,) of the 15, columns (15,), J (k, 15))``: the rows ``(s_f [-] s_ref)[kept] *
-        weights``, their Jacobian constant (the identity at s_ref, scaled)."""
-        keep = np.flatnonzero(np.isfinite(prior.sigmas))
-        weights = 1.0 / np.asarray(prior.sigmas, dtype=float)[keep]
+    def _frame_prior_rows(self, prior: FramePrior) -> _PriorRows:
+        """A frame prior in the linear form of :class:`_PriorRows`: ``e0 = 0`` and ``J`` the rows of
+        the identity it keeps, scaled by ``1 / sigma`` (its Jacobian, taken at the reference)."""
+        keep = np.isfinite(prior.sigmas)
         reference = np.asarray(prior.reference, dtype=float).reshape(1, FRAME_DOF)
-        return (np.array([prior.frame]), reference, exp_many(reference[:, 0:3]).transpose(0, 2, 1), weights,
-                keep, FRAME_DOF * prior.frame + np.arange(FRAME_DOF), weights[:, None] * np.eye(FRAME_DOF)[keep])
+        J = (1.0 / np.asarray(prior.sigmas, dtype=float)[keep])[:, None] * np.eye(FRAME_DOF)[keep]
+        return _PriorRows(np.array([prior.frame]), reference, exp_many(reference[:, 0:3]).transpose(0, 2, 1),
+                          np.zeros(len(J)), np.zeros(0, dtype=np.int64), np.zeros((0, POINT_DOF)),
+                          FRAME_DOF * prior.frame + np.arange(FRAME_DOF), J)
 
-    def _linear_prior_rows(self, lp: LinearPrior) -> tuple:
-        """A :class:`LinearPrior` in the form of :meth:`_frame_prior_rows`, with its landmarks: ``(frames,
-        frame_lin, R_lin^T, e0, landmarks, landmark_lin, columns, J)``."""
+    def _linear_prior_rows(self, lp: LinearPrior) -> _PriorRows:
+        """A :class:`LinearPrior` as :class:`_PriorRows`, its reference rotations made once."""
         frame_lin = np.asarray(lp.frame_lin, dtype=float).reshape(-1, FRAME_DOF)
-        return (np.asarray(lp.frames, dtype=np.int64), frame_lin, exp_many(frame_lin[:, 0:3]).transpose(0, 2, 1),
-                np.asarray(lp.e0, dtype=float), np.asarray(lp.landmarks, dtype=np.int64),
-                np.asarray(lp.landmark_lin, dtype=float).reshape(-1, POINT_DOF), self.columns(lp.frames, lp.landmarks),
-                np.asarray(lp.J, dtype=float))
+        return _PriorRows(np.asarray(lp.frames, dtype=np.int64), frame_lin,
+                          exp_many(frame_lin[:, 0:3]).transpose(0, 2, 1), np.asarray(lp.e0, dtype=float),
+                          np.asarray(lp.landmarks, dtype=np.int64),
+                          np.asarray(lp.landmark_lin, dtype=float).reshape(-1, POINT_DOF),
+                          self.columns(lp.frames, lp.landmarks), np.asarray(lp.J, dtype=float))
 
     def _prior_rows(self, x, jacobians):
         """The frame priors' and the linear priors' residuals (and Jacobian rows) as a list of
@@ -420,16 +437,10 @@ class VioProblem:
         R = self._rotations(frames) if self._priors else None
         out = []
         for prior in self._priors:
-            f, ref, R_ref_t = prior[0], prior[1], prior[2]
-            d = frames[f] - ref  # the tangent difference s [-] s_ref of frame_difference
-            d[:, 0:3] = log_many(np.matmul(R_ref_t, R[f]))
-            if len(prior) == 7:
-                _, _, _, weights, keep, columns, block = prior
-                r = d[0, keep] * weights
-            else:
-                _, _, _, e0, landmarks, landmark_lin, columns, block = prior
-                r = e0 + block @ np.concatenate([d.ravel(), (points[landmarks] - landmark_lin).ravel()])
-            out.append((r, columns, block if jacobians else None))
+            d = frames[prior.frames] - prior.frame_lin  # the tangent difference s [-] s_lin of frame_difference
+            d[:, 0:3] = log_many(np.matmul(prior.R_lin_t, R[prior.frames]))
+            r = prior.e0 + prior.J @ np.concatenate([d.ravel(), (points[prior.landmarks] - prior.landmark_lin).ravel()])
+            out.append((r, prior.columns, prior.J if jacobians else None))
         return out
 
     def chi2_by_factor(self, x) -> dict:
@@ -539,21 +550,25 @@ class VioProblem:
         if self._flat_index is None:  # the (c, c) positions in H of every factor's block
             self._flat_index = np.concatenate([(c[:, :, None] * n + c[:, None, :]).ravel()
                                                for c in (self._imu_columns, self._obs_columns)])
-        JtJ = [np.matmul(J.transpose(0, 2, 1), J).ravel() for _, _, J in groups]
-        Jtr = [np.matmul(r[:, None, :], J).ravel() for r, _, J in groups]
-        H: np.ndarray = np.bincount(self._flat_index, np.concatenate(JtJ + [np.zeros(0)]),
-                                    minlength=n * n).reshape(n, n).astype(float, copy=False)
-        b: np.ndarray = np.bincount(np.concatenate([self._imu_columns.ravel(), self._obs_columns.ravel()]),
-                        np.concatenate(Jtr + [np.zeros(0)]), minlength=n)
+        JtJ, b = self._block_products(groups, priors)
+        H: np.ndarray = np.bincount(self._flat_index, JtJ, minlength=n * n).reshape(n, n).astype(float, copy=False)
         if priors:
             if self._prior_H is None:
                 self._prior_H = np.zeros((n, n))
                 for _, columns, block in priors:
                     self._prior_H[np.ix_(columns, columns)] += block.T @ block
             H += self._prior_H
-            for r_p, columns, block in priors:
-                b[columns] += r_p @ block
         return H, b, chi2
+
+    def _block_products(self, groups, priors) -> tuple[np.ndarray, np.ndarray]:
+        """Every factor's ``J_k^T J_k``, flattened and concatenated (the IMU factors', then the
+        reprojections'), and b (n,): the factors' ``J_k^T r_k`` summed at their columns, the priors' added."""
+        JtJ = np.concatenate([np.matmul(J.transpose(0, 2, 1), J).ravel() for _, _, J in groups] + [np.zeros(0)])
+        Jtr = np.concatenate([np.matmul(r[:, None, :], J).ravel() for r, _, J in groups] + [np.zeros(0)])
+        b: np.ndarray = np.bincount(self._all_columns, Jtr, minlength=self.n).astype(float, copy=False)
+        for r_p, columns, block in priors:
+            b[columns] += r_p @ block
+        return JtJ, b
 
     def marginal_system(self, x, remove) -> tuple[np.ndarray, np.ndarray]:
         """``(H, b)`` (n, n), (n,) of the factors that leave the window when the tangent indices
@@ -608,13 +623,8 @@ class VioProblem:
         if self._pattern is None:
             self._pattern = self._upper_pattern(groups, priors)
         pattern = self._pattern
-        JtJ = np.concatenate([np.matmul(J.transpose(0, 2, 1), J).ravel() for _, _, J in groups] + [np.zeros(0)])
+        JtJ, b = self._block_products(groups, priors)
         data = np.bincount(pattern.where, JtJ[pattern.upper], minlength=len(pattern.prior_data)) + pattern.prior_data
-        Jtr = [np.matmul(r[:, None, :], J).ravel() for r, _, J in groups]
-        b: np.ndarray = np.bincount(np.concatenate([self._imu_columns.ravel(), self._obs_columns.ravel()]),
-                                    np.concatenate(Jtr + [np.zeros(0)]), minlength=self.n)
-        for r_p, columns, block in priors:
-            b[columns] += r_p @ block
         H = sp.csc_matrix((data, pattern.indices, pattern.indptr), shape=(self.n, self.n))
         return Linearization(H=H, b=b, chi2=float(chi2), upper=True, diagonal_positions=pattern.diagonal)
 
