@@ -36,13 +36,20 @@ class SparseAssembler3D:
         # global row and column of the 12 x 12 entries of every edge
         local = np.arange(6)
         dof = np.concatenate([6 * edges_i[:, None] + local, 6 * edges_j[:, None] + local], axis=1)  # (M, 12)
-        rows = np.repeat(dof, 12, axis=1)  # (M, 144): entry (a, b) at a * 12 + b
-        cols = np.tile(dof, (1, 12))
+        # (M, 144): entry (a, b) at a * 12 + b, put at row dof[b] and column dof[a] (the block is
+        # symmetric), so that an edge's entries come column by column, nearly in CSC order
+        rows = np.tile(dof, (1, 12))
+        cols = np.repeat(dof, 12, axis=1)
         upper = rows <= cols  # 78 per edge
         self._take = np.flatnonzero(upper)  # where in the flattened (M * 144) products
         diagonal = np.arange(n)
-        keys = np.concatenate([cols[upper] * n + rows[upper], diagonal * n + diagonal])  # CSC order: column, row
-        unique, inverse = np.unique(keys, return_inverse=True)
+        keys = np.concatenate([(cols * n + rows).ravel()[self._take], diagonal * n + diagonal])  # CSC order
+        # np.unique(keys, return_inverse=True), written out: on keys that come nearly in order,
+        # numpy's stable sort is several times faster than the sort np.unique uses
+        order = np.argsort(keys, kind="stable")
+        first = np.concatenate([[True], np.diff(keys[order]) != 0])
+        unique, inverse = keys[order][first], np.empty(len(keys), dtype=np.int64)
+        inverse[order] = np.cumsum(first) - 1
         self._positions = inverse[: len(self._take)]
         self.diagonal_positions = inverse[len(self._take):]
         self._indices = unique % n

@@ -113,7 +113,8 @@ def test_an_unwritten_optional_exercise_says_the_loop_is_used(tmp_path):
     for anchors, old, todo in (
             (["def edge_errors_and_jacobians", "# BEGIN SOLUTION"], "xi, xj = poses[edges_i], poses[edges_j]",
              "pose_graph_fast.edge_errors_and_jacobians"),
-            (["def __init__", "# BEGIN SOLUTION"], "edges_i, edges_j = np.asarray(edges_i), np.asarray(edges_j)",
+            (["def __init__", "# BEGIN SOLUTION"],
+             "edges_i, edges_j = np.asarray(edges_i, dtype=np.int64), np.asarray(edges_j, dtype=np.int64)",
              "pose_graph_fast.SparseAssembler.__init__")):
         text = apply(text, V("pose_graph_fast.py", anchors, old,
                              f'raise NotImplementedError("TODO {todo}: not implemented yet")', set()))
