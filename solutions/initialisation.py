@@ -346,13 +346,22 @@ def chordal_translations(num_poses, edges_i, edges_j, measurements, information,
         + scatter(edges_j[from_anchor], Wa[from_anchor]) + scatter(edges_i[to_anchor], Wa[to_anchor])
     t = np.empty((n, 2))
     t[anchor] = anchor_xy
+
+    def solve(H, rhs):  # H^-1 rhs for H sparse, symmetric positive definite; rhs (n,) or (n, k)
+        try:  # chapter 2's LDL^T, where qdldl has a wheel: 2 to 3 times faster here than SuperLU's LU
+            import qdldl
+        except ImportError:
+            return splu(H, permc_spec="MMD_AT_PLUS_A").solve(rhs)
+        factor = qdldl.Solver(sp.triu(H, format="csc"), upper=True)
+        return factor.solve(rhs) if rhs.ndim == 1 else np.column_stack([factor.solve(col) for col in rhs.T])
+
     if not np.any(o01) and np.array_equal(o00, o11):  # W = a I: x and y share one Laplacian
         diagonal = np.bincount(edges_i, o00, minlength=n) + np.bincount(edges_j, o00, minlength=n)
         rows = np.concatenate([unknown[others], ui[both], uj[both]])
         cols = np.concatenate([unknown[others], uj[both], ui[both]])
         data = np.concatenate([diagonal[others], -o00[both], -o00[both]])
         H = sp.coo_matrix((data, (rows, cols)), shape=(n - 1, n - 1)).tocsc()
-        t[others] = splu(H, permc_spec="MMD_AT_PLUS_A").solve(g[others])
+        t[others] = solve(H, g[others])
         return t
 
     def blocks(p, q, b00, b01, b11):  # entries of the symmetric 2x2 blocks at block (p, q)
@@ -368,7 +377,7 @@ def chordal_translations(num_poses, edges_i, edges_j, measurements, information,
                blocks(uj[both], ui[both], -w00[both], -w01[both], -w11[both])]
     rows, cols, data = (np.concatenate(parts) for parts in zip(*entries))
     H = sp.coo_matrix((data, (rows, cols)), shape=(2 * n - 2, 2 * n - 2)).tocsc()
-    t[others] = splu(H, permc_spec="MMD_AT_PLUS_A").solve(g[others].ravel()).reshape(-1, 2)
+    t[others] = solve(H, g[others].ravel()).reshape(-1, 2)
     return t
     # END SOLUTION
 

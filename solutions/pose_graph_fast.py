@@ -99,13 +99,14 @@ class SparseAssembler:
         J = np.concatenate([A, B], axis=2)
         JtO = np.matmul(J.transpose(0, 2, 1), information)
         H_edges = np.matmul(JtO, J)[:, self.UPPER[0], self.UPPER[1]]
-        g_edges = np.matmul(JtO, e[:, :, None])
+        Oe = np.matmul(information, e[:, :, None])  # (M, 3, 1)
+        g_edges = np.matmul(J.transpose(0, 2, 1), Oe)
         data = np.bincount(self._positions, weights=H_edges.ravel(), minlength=self.nnz)
         data[self._dead] = 0.0
         data[self._fixed_diagonal] = 1.0
         b = np.bincount(self._b_positions, weights=g_edges.ravel(), minlength=self._shape[0])
         b[self._fixed_dof] = 0.0
-        chi2 = float(np.vdot(e, np.matmul(information, e[:, :, None])))
+        chi2 = float(np.vdot(e, Oe))
         H = sp.csc_matrix((data, self._indices, self._indptr), shape=self._shape)
         return H, b, chi2
         # END SOLUTION

@@ -999,10 +999,12 @@ ALTERNATIVES_POSE_GRAPH_3D = {
 }
 BUGS_POSE_GRAPH_3D_ASSEMBLY = {
     "p3a_no_information": V(
-        "pose_graph_3d_assembly.py", [], "OJ = np.matmul(information, J)", "OJ = J", {P3_ASM},
+        "pose_graph_3d_assembly.py", [], "OA, OB = np.matmul(information, A), np.matmul(information, B)",
+        "OA, OB = A, B", {P3_ASM},
         "weigh every edge by its information"),
     "p3a_lower_triangle": V(
-        "pose_graph_3d_assembly.py", [], "upper = rows <= cols", "upper = rows >= cols", {P3_ASM},
+        "pose_graph_3d_assembly.py", [], "rows, cols = np.minimum(r, c).ravel(), np.maximum(r, c).ravel()",
+        "rows, cols = np.maximum(r, c).ravel(), np.minimum(r, c).ravel()", {P3_ASM},
         "H holds the lower triangle"),
     "p3a_b_sign": V(
         "pose_graph_3d_assembly.py", [], "b = np.bincount(", "b = -np.bincount(", {P3_ASM},
