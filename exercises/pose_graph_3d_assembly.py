@@ -27,6 +27,9 @@ class SparseAssembler3D:
     (the LM loop adds its damping there).
     """
 
+    #: row and column of the 21 upper-triangle entries of a 6x6 block
+    UPPER = np.triu_indices(6)
+
     def __init__(self, num_poses, edges_i, edges_j, fixed):
         raise NotImplementedError("TODO pose_graph_3d_assembly.SparseAssembler3D.__init__: not implemented yet")
 

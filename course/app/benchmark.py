@@ -1,8 +1,9 @@
 """Benchmarks: ratios against a peer measured in the same run, medians of several runs.
 
 ``python -m course benchmark`` prints, on w10000 and m3500, our Gauss-Newton time per
-iteration over g2o's (g2opy), the time to solution of our chordal start plus Gauss-Newton
-over g2o's Gauss-Newton from the file's poses, SuperLU over qdldl on w10000, on intel the
+iteration over g2o's (g2opy), on every public 2D graph the time to solution of our chordal
+start plus Gauss-Newton and of our Gauss-Newton from the file's poses over g2o's Gauss-Newton
+from the file's poses (all stopped by the same rule), SuperLU over qdldl on w10000, on intel the
 dense over the sparse solve of one Gauss-Newton system, the 3D graphs against g2o
 (:mod:`course.app.benchmark_3d`, with and without CHOLMOD), on ladybug-49 our LM iteration over
 Ceres' (pycolmap), GTSAM's and scipy's, and every back end's time to the minimum of
@@ -15,6 +16,7 @@ rest runs.
 
 import statistics
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,9 +24,10 @@ from course.backends import registry
 from course.core.errors import DatasetError
 from course.core.peers import PeerMissing
 from course.core.progress import Progress, quiet
+from course.core.trace import RunResult
 from course.problems.posegraph import dataset as datasets
 from course.problems.posegraph.problem import PoseGraphProblem
-from course.solver import minimize
+from course.solver import SolverOptions, minimize
 from course.solver.superlu import sparse_solver
 
 
@@ -52,27 +55,50 @@ def gauss_newton_vs_g2o(name, repeats=5, impl="solutions", progress=None):
     return ours, theirs, ours_result, g2o_result
 
 
-def time_to_solution(name, repeats=5, impl="solutions", progress=None):
-    """``(ours, g2o, ours_result, g2o_result)``: median seconds to solution of our chordal start
-    plus Gauss-Newton (the initialisation included) and of g2o's Gauss-Newton from the file's
-    poses, in the same run. ``PeerMissing`` without g2opy, ``DatasetError`` without the graph."""
+#: every run of the time-to-solution table stops at the first step that lowers chi2 by less than this,
+#: relative: g2o's gain threshold (``course.backends.posegraph.g2o``) and our ``cost_tolerance``
+STOP = 1e-10
+
+
+@dataclass
+class TimeToSolution:
+    """Median seconds to solution on one graph, the runs interleaved: our chordal start plus
+    Gauss-Newton (the start included), our Gauss-Newton from the file's poses, and g2o's from
+    the file's poses; each with its last run (``RunResult``: iterations, final chi2 in our error)."""
+
+    chordal: float
+    file: float
+    g2o: float
+    chordal_run: RunResult
+    file_run: RunResult
+    g2o_run: RunResult
+
+
+def time_to_solution(name, repeats=5, impl="solutions", progress=None) -> TimeToSolution:
+    """:class:`TimeToSolution` of ``name``, every run stopped by the same rule (:data:`STOP`).
+    ``PeerMissing`` without g2opy, ``DatasetError`` without the graph."""
     from course.app.starts import initialise
 
     progress = progress or quiet()
     g2o = registry.peer_solver("posegraph", "g2o")
     graph = datasets.load_dataset(name)
-    ours, theirs = [], []
+    options = SolverOptions(cost_tolerance=STOP)
+    chordal, file, theirs = [], [], []
     for _ in range(repeats):
         with progress.run("ours", "chordal + gauss-newton") as callback:
             start, init_seconds = initialise(graph, "chordal", impl)
-            run = minimize(PoseGraphProblem(start, impl), "gauss-newton", impl=impl, callback=callback)
+            run = minimize(PoseGraphProblem(start, impl), "gauss-newton", options=options, impl=impl,
+                           callback=callback)
             run.init, run.init_seconds = "chordal", init_seconds
-        ours.append(run)
+        chordal.append(run)
+        with progress.run("ours", "gauss-newton from the file") as callback:
+            file.append(minimize(PoseGraphProblem(graph, impl), "gauss-newton", options=options, impl=impl,
+                                 callback=callback))
         with progress.run("g2o", "gauss-newton"):
-            theirs.append(g2o(graph, "gauss-newton"))
-    ours_median = statistics.median(r.total_seconds for r in ours)
-    g2o_median = statistics.median(r.seconds for r in theirs)
-    return ours_median, g2o_median, ours[-1], theirs[-1]
+            theirs.append(g2o(graph, "gauss-newton", gain_threshold=STOP))
+    return TimeToSolution(statistics.median(r.total_seconds for r in chordal),
+                          statistics.median(r.total_seconds for r in file),
+                          statistics.median(r.seconds for r in theirs), chordal[-1], file[-1], theirs[-1])
 
 
 def superlu_vs_qdldl(name="w10000", repeats=5, impl="solutions", progress=None):
@@ -149,21 +175,24 @@ def main(repeats=5, graphs=("w10000", "m3500"), impl="solutions", out=print, bal
             progress.close()
         out(f"{name:10} {ours * 1e3:11.2f} {theirs * 1e3:10.2f} {ours / theirs:6.2f} "
             f"{r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")
-    out(f"Time to solution, ours (chordal start + Gauss-Newton, the start included) over g2o's Gauss-Newton "
-        f"from the file's poses, median of {repeats}:")
-    out(f"{'graph':10} {'ours ms':>9} {'g2o ms':>9} {'ratio':>6} {'ours it':>8} {'g2o it':>7} {'ours chi2':>14} "
-        f"{'g2o chi2':>14}")
+    out(f"Time to solution on the 2D graphs, median of {repeats}, every run stopped at a relative chi2 decrease "
+        f"below {STOP:g} (g2o's gain threshold): ours from the chordal start (the start included) and from the "
+        "file's poses, over g2o's Gauss-Newton from the file's poses; iterations in brackets:")
+    out(f"{'graph':10} {'chordal ms':>15} {'file ms':>13} {'g2o ms':>14} {'chordal/g2o':>11} {'file/g2o':>8} "
+        f"{'chi2 chordal':>13} {'chi2 file':>13} {'chi2 g2o':>13}")
     for name in solution_graphs:
-        progress = Progress(2 * repeats, label=f"{name} time to solution")
+        progress = Progress(3 * repeats, label=f"{name} time to solution")
         try:
-            ours, theirs, r_ours, r_g2o = time_to_solution(name, repeats, impl=impl, progress=progress)
+            t = time_to_solution(name, repeats, impl=impl, progress=progress)
         except (PeerMissing, DatasetError) as exc:
             out(f"{name:10} skipped: {exc}")
             continue
         finally:
             progress.close()
-        out(f"{name:10} {ours * 1e3:9.1f} {theirs * 1e3:9.1f} {ours / theirs:6.2f} {r_ours.iterations:8d} "
-            f"{r_g2o.iterations:7d} {r_ours.final_chi2:14.6f} {r_g2o.final_chi2:14.6f}")
+        out(f"{name:10} {t.chordal * 1e3:10.1f} ({t.chordal_run.iterations:2d}) {t.file * 1e3:8.1f} "
+            f"({t.file_run.iterations:2d}) {t.g2o * 1e3:9.1f} ({t.g2o_run.iterations:2d}) {t.chordal / t.g2o:11.2f} "
+            f"{t.file / t.g2o:8.2f} {t.chordal_run.final_chi2:13.6f} {t.file_run.final_chi2:13.6f} "
+            f"{t.g2o_run.final_chi2:13.6f}")
     if solvers:
         _solvers(repeats, impl, out)
     if graphs3d:

@@ -76,7 +76,14 @@ class PoseGraphProblem:
                              chi2=float(chi2), upper=True)
 
     def solve(self, lin: Linearization, damping=None):
-        """Step (3N,) of ``(H + diag(damping)) h = -b`` by the sparse solver."""
+        """Step (3N,) of ``(H + diag(damping)) h = -b`` by the sparse solver.
+
+        With no pose fixed and no damping, H is singular (the whole graph can move: 3 gauge
+        freedoms) and ``SingularSystemError`` says so; a sparse LDL^T need not notice, as
+        rounding leaves tiny pivots where H has zero ones."""
+        if not len(self.graph.fixed) and (damping is None or not np.any(damping)):
+            raise SingularSystemError(f"{self.graph.name}: H is not positive definite: no pose is fixed, so the "
+                                      "whole graph can move (3 gauge freedoms); fix one pose")
         H = lin.with_diagonal_added(damping)
         h = np.asarray(self._solver.solve(H, lin.b), dtype=float)
         if h.shape != lin.b.shape or not np.all(np.isfinite(h)) or (h @ lin.b > 0):
