@@ -262,7 +262,9 @@ def chordal_rotations(num_poses, edges_i, edges_j, measurements, information, an
     from_anchor, to_anchor = ui < 0, uj < 0
     np.add.at(rhs, uj[from_anchor], w[from_anchor] * a[from_anchor] * z_anchor)
     np.add.at(rhs, ui[to_anchor], w[to_anchor] * np.conj(a[to_anchor]) * z_anchor)
-    z = splu(H, permc_spec="MMD_AT_PLUS_A").solve(rhs)
+    # H is Hermitian positive definite: no pivoting is needed, and SuperLU's symmetric mode keeps
+    # the fill-reducing order as it is (m3500: 3.9 against 6.6 ms)
+    z = splu(H, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}).solve(rhs)
     theta = np.empty(n)
     theta[others] = (np.angle(z) + np.pi) % (2.0 * np.pi) - np.pi
     theta[anchor] = anchor_theta
@@ -350,8 +352,9 @@ def chordal_translations(num_poses, edges_i, edges_j, measurements, information,
     def solve(H, rhs):  # H^-1 rhs for H sparse, symmetric positive definite; rhs (n,) or (n, k)
         try:  # chapter 2's LDL^T, where qdldl has a wheel: 2 to 3 times faster here than SuperLU's LU
             import qdldl
-        except ImportError:
-            return splu(H, permc_spec="MMD_AT_PLUS_A").solve(rhs)
+        except ImportError:  # SuperLU, as for the rotations
+            factor = splu(H, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+            return factor.solve(rhs)
         factor = qdldl.Solver(sp.triu(H, format="csc"), upper=True)
         return factor.solve(rhs) if rhs.ndim == 1 else np.column_stack([factor.solve(col) for col in rhs.T])
 
