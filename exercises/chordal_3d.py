@@ -20,7 +20,8 @@ ICRA 2015; GTSAM's ``InitializePose3``) needs no start at all:
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
-from scipy.sparse.linalg import splu
+
+from course.solver.spd import spd_solve
 
 
 def check_graph(num_poses, edges_i, edges_j, anchor):
@@ -65,7 +66,8 @@ def relaxed_rotations(num_poses, edges_i, edges_j, R_z, weights, R_anchor, ancho
         H_ii += w I     H_jj += w I     H_ij += -w R_z     H_ji += -w R_z^T
 
     Eliminate the anchor: ``H_FF X_F = -H_FA X_A`` with ``X_A = R_anchor^T`` (its rows as
-    columns). Solve it sparse (``splu``), then ``R_k[a, :] = X[3k:3k+3, a]``.
+    columns). Solve it sparse (``scipy.sparse.linalg.splu``, or ``course.solver.spd.spd_solve``:
+    qdldl's LDL^T where installed), then ``R_k[a, :] = X[3k:3k+3, a]``.
 
     Args: ``weights`` (M,) the rotation weight of each edge (``chordal_poses`` gives
     ``trace(Omega_rot) / 3``); ``R_z`` (M, 3, 3); ``R_anchor`` (3, 3).

@@ -23,6 +23,8 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.sparse.linalg import splu
 
+from course.solver.spd import spd_solve
+
 #: how many vertex indices an error message lists
 _SHOWN = 10
 
@@ -245,7 +247,8 @@ def chordal_translations(num_poses, edges_i, edges_j, measurements, information,
 
     Eliminate the anchor as in ``chordal_rotations`` (``H_FF t_F = g_F - H_FA t_A``;
     ``-H_FA t_A`` adds ``W t_A`` to the row of the anchor's neighbour on every edge at the
-    anchor) and solve the sparse symmetric positive definite system.
+    anchor) and solve the sparse symmetric positive definite system (``splu`` as in
+    ``chordal_rotations``, or ``course.solver.spd.spd_solve``: qdldl's LDL^T where installed).
 
     Shortcut (in the reference, optional): when every ``Omega_tt`` is a multiple ``a_k I``
     of the identity (w10000, m3500, intel; not mit or intel-g2o), ``W_k = a_k I`` whatever

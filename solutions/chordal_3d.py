@@ -20,7 +20,8 @@ ICRA 2015; GTSAM's ``InitializePose3``) needs no start at all:
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
-from scipy.sparse.linalg import splu
+
+from course.solver.spd import spd_solve
 
 
 def check_graph(num_poses, edges_i, edges_j, anchor):
@@ -65,7 +66,8 @@ def relaxed_rotations(num_poses, edges_i, edges_j, R_z, weights, R_anchor, ancho
         H_ii += w I     H_jj += w I     H_ij += -w R_z     H_ji += -w R_z^T
 
     Eliminate the anchor: ``H_FF X_F = -H_FA X_A`` with ``X_A = R_anchor^T`` (its rows as
-    columns). Solve it sparse (``splu``), then ``R_k[a, :] = X[3k:3k+3, a]``.
+    columns). Solve it sparse (``scipy.sparse.linalg.splu``, or ``course.solver.spd.spd_solve``:
+    qdldl's LDL^T where installed), then ``R_k[a, :] = X[3k:3k+3, a]``.
 
     Args: ``weights`` (M,) the rotation weight of each edge (``chordal_poses`` gives
     ``trace(Omega_rot) / 3``); ``R_z`` (M, 3, 3); ``R_anchor`` (3, 3).
@@ -94,7 +96,7 @@ def relaxed_rotations(num_poses, edges_i, edges_j, R_z, weights, R_anchor, ancho
     free = np.flatnonzero(np.repeat(index >= 0, 3))
     fixed = np.arange(3 * anchor, 3 * anchor + 3)
     rhs = -(H[free][:, fixed] @ R_anchor.T)  # (3(N-1), 3): one column per row a of the R's
-    X = splu(H[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A").solve(np.asarray(rhs))
+    X = spd_solve(H[free][:, free], np.asarray(rhs))
     out = np.empty((n, 3, 3))
     out[index >= 0] = X.reshape(n - 1, 3, 3).transpose(0, 2, 1)
     out[anchor] = R_anchor
@@ -156,7 +158,7 @@ def translations_given_rotations(num_poses, edges_i, edges_j, t_z, R_z, informat
     fixed = np.arange(3 * anchor, 3 * anchor + 3)
     rhs = g[free] - H[free][:, fixed] @ t_anchor
     t = np.empty((n, 3))
-    t[index >= 0] = splu(H[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A").solve(rhs).reshape(-1, 3)
+    t[index >= 0] = spd_solve(H[free][:, free], rhs).reshape(-1, 3)
     t[anchor] = t_anchor
     return t
     # END SOLUTION

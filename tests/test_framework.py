@@ -228,3 +228,22 @@ def test_the_scaled_nielsen_rule_is_type_1s_system_with_type_3s_update():
     assert (rejected.lam, rejected.nu) == (2 * state.lam, 4.0)
     result = minimize(_Quadratic(), "lm-scaled-nielsen")
     assert result.final_chi2 < 1e-12 * result.initial_chi2
+
+
+@pytest.mark.parametrize("qdldl_installed", [True, False])
+def test_spd_solve_agrees_with_a_dense_solve(monkeypatch, qdldl_installed):
+    import sys
+
+    from course.solver.spd import spd_solve
+
+    if not qdldl_installed:
+        monkeypatch.setitem(sys.modules, "qdldl", None)  # the SuperLU fallback
+    else:
+        pytest.importorskip("qdldl", reason="qdldl has no wheel here")
+    rng = np.random.default_rng(3)
+    A = sp.random(60, 60, density=0.05, random_state=4) + sp.eye(60)
+    H = (A @ A.T + sp.eye(60)).tocsc()
+    rhs = rng.standard_normal((60, 3))
+    expected = np.linalg.solve(H.toarray(), rhs)
+    np.testing.assert_allclose(spd_solve(H, rhs), expected, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(spd_solve(H, rhs[:, 1]), expected[:, 1], rtol=1e-10, atol=1e-12)

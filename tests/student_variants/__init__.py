@@ -1060,13 +1060,16 @@ BUGS_CHORDAL_3D = {
 }
 ALTERNATIVES_CHORDAL_3D = {
     "c3_dense_solve": V(
-        "chordal_3d.py", [], 'X = splu(H[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A").solve(np.asarray(rhs))',
+        "chordal_3d.py", [], "X = spd_solve(H[free][:, free], np.asarray(rhs))",
         "X = np.linalg.solve(H[free][:, free].toarray(), np.asarray(rhs))", set()),
+    "c3_superlu_solve": V(  # what the hint suggests
+        "chordal_3d.py", [], "X = spd_solve(H[free][:, free], np.asarray(rhs))",
+        'X = sp.linalg.splu(H[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A").solve(np.asarray(rhs))', set()),
     "c3_determinant_of_m": V(
         "chordal_3d.py", [], "d = np.linalg.det(np.matmul(U, Vt))", "d = np.sign(np.linalg.det(np.asarray(M)))",
         set()),
     "c3_translations_by_lsqr_normal_equations": V(
-        "chordal_3d.py", [], "t[index >= 0] = splu(H[free][:, free].tocsc(), permc_spec=\"MMD_AT_PLUS_A\").solve(rhs)",
+        "chordal_3d.py", [], "t[index >= 0] = spd_solve(H[free][:, free], rhs)",
         "t[index >= 0] = sp.linalg.spsolve(H[free][:, free].tocsc(), rhs)", set()),
 }
 
