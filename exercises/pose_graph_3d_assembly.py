@@ -14,14 +14,16 @@ keeps an identity diagonal block and zero rows, columns and b, so its step is ze
 import numpy as np
 import scipy.sparse as sp
 
+from course.solver.unique import unique_inverse
+
 
 class SparseAssembler3D:
     """Scatter-add edge blocks into the upper triangle of a sparse H whose pattern is fixed.
 
     ``__init__`` finds, once, where each edge's entries go: for every edge, the position in
-    ``H.data`` of each of the 144 entries of ``J^T Omega J`` (12, 12) that lands in the
-    upper triangle (78 of them: 21 + 21 on the two diagonal blocks, 36 off it), and the
-    pattern itself. ``assemble`` then costs batched products and one ``np.bincount``.
+    ``H.data`` of each of the 78 entries of ``J^T Omega J`` (12, 12) that H's upper triangle
+    needs (the upper 21 of ``A^T Omega A`` and of ``B^T Omega B``, the 36 of ``A^T Omega B``),
+    and the pattern itself. ``assemble`` then costs batched products and one ``np.bincount``.
 
     Attribute ``diagonal_positions`` (6N,): where H's diagonal entries sit in ``H.data``
     (the LM loop adds its damping there).

@@ -7,6 +7,8 @@ falls back to the per-edge loop of ``pose_graph_assembly`` (fine for small graph
 import numpy as np
 import scipy.sparse as sp
 
+from course.solver.unique import unique_inverse
+
 
 def edge_errors_and_jacobians(poses, edges_i, edges_j, measurements):
     """All edges at once: ``e`` (M, 3), ``A`` (M, 3, 3), ``B`` (M, 3, 3).

@@ -7,6 +7,8 @@ falls back to the per-edge loop of ``pose_graph_assembly`` (fine for small graph
 import numpy as np
 import scipy.sparse as sp
 
+from course.solver.unique import unique_inverse
+
 
 def edge_errors_and_jacobians(poses, edges_i, edges_j, measurements):
     """All edges at once: ``e`` (M, 3), ``A`` (M, 3, 3), ``B`` (M, 3, 3).
@@ -69,13 +71,7 @@ class SparseAssembler:
         rows, cols = np.minimum(r, c).ravel(), np.maximum(r, c).ravel()
         diagonal = np.arange(n)
         keys = np.concatenate([cols * n + rows, diagonal * n + diagonal])  # CSC order: column, then row
-        # np.unique(keys, return_inverse=True), written out: on keys that come nearly in order
-        # (edges follow the trajectory), numpy's stable sort is several times faster than the
-        # sort np.unique uses
-        order = np.argsort(keys, kind="stable")
-        first = np.concatenate([[True], np.diff(keys[order]) != 0])
-        unique, inverse = keys[order][first], np.empty(len(keys), dtype=np.int64)
-        inverse[order] = np.cumsum(first) - 1
+        unique, inverse = unique_inverse(keys)  # np.unique(keys, return_inverse=True), faster here
         self._positions = inverse[: len(rows)]
         self.diagonal_positions = inverse[len(rows):]
         self._indices = unique % n

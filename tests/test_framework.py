@@ -247,3 +247,15 @@ def test_spd_solve_agrees_with_a_dense_solve(monkeypatch, qdldl_installed):
     expected = np.linalg.solve(H.toarray(), rhs)
     np.testing.assert_allclose(spd_solve(H, rhs), expected, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(spd_solve(H, rhs[:, 1]), expected[:, 1], rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("keys", [np.array([], dtype=np.int64), np.array([5]), np.array([3, 3, 3]),
+                                  np.random.default_rng(0).integers(0, 50, 300),
+                                  np.sort(np.random.default_rng(1).integers(0, 10**9, 1000)) - 7])
+def test_unique_inverse_is_numpys(keys):
+    from course.solver.unique import unique_inverse
+
+    unique, inverse = unique_inverse(keys)
+    expected_unique, expected_inverse = np.unique(keys, return_inverse=True)
+    assert np.array_equal(unique, expected_unique) and np.array_equal(inverse, expected_inverse)
+    assert inverse.dtype == np.int64 and np.array_equal(unique[inverse], keys)
