@@ -32,6 +32,10 @@ class SparseAssembler:
 
     Optional attribute ``diagonal_positions`` (3N,): where H's diagonal entries sit in
     ``H.data``, so the LM loop adds its damping in place instead of building H + D.
+
+    Hint: give every entry a CSC key (column * 3N + row) and keep the distinct keys with
+    ``np.unique(keys, return_inverse=True)``, or ``course.solver.unique.unique_inverse(keys)``,
+    the same and faster on keys that come nearly in order.
     """
 
     #: row and column of the 21 upper-triangle entries of a 6x6 edge block

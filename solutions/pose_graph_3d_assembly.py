@@ -27,6 +27,9 @@ class SparseAssembler3D:
 
     Attribute ``diagonal_positions`` (6N,): where H's diagonal entries sit in ``H.data``
     (the LM loop adds its damping there).
+
+    Hint: ``course.solver.unique.unique_inverse(keys)`` is ``np.unique(keys, return_inverse=True)``,
+    faster on keys that come nearly in order.
     """
 
     #: row and column of the 21 upper-triangle entries of a 6x6 block
