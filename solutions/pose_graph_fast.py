@@ -97,10 +97,10 @@ class SparseAssembler:
         """
         # BEGIN SOLUTION
         J = np.concatenate([A, B], axis=2)
-        JtO = np.matmul(J.transpose(0, 2, 1), information)
-        H_edges = np.matmul(JtO, J)[:, self.UPPER[0], self.UPPER[1]]
+        JT = J.transpose(0, 2, 1)
+        H_edges = np.matmul(np.matmul(JT, information), J)[:, self.UPPER[0], self.UPPER[1]]
         Oe = np.matmul(information, e[:, :, None])  # (M, 3, 1)
-        g_edges = np.matmul(J.transpose(0, 2, 1), Oe)
+        g_edges = np.matmul(JT, Oe)
         data = np.bincount(self._positions, weights=H_edges.ravel(), minlength=self.nnz)
         data[self._dead] = 0.0
         data[self._fixed_diagonal] = 1.0

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from course.app.benchmark_3d import STOP
 from course.backends import registry
 from course.core.errors import DatasetError
 from course.core.peers import PeerMissing
@@ -55,11 +56,6 @@ def gauss_newton_vs_g2o(name, repeats=5, impl="solutions", progress=None):
     return ours, theirs, ours_result, g2o_result
 
 
-#: every run of the time-to-solution table stops at the first step that lowers chi2 by less than this,
-#: relative: g2o's gain threshold (``course.backends.posegraph.g2o``) and our ``cost_tolerance``
-STOP = 1e-10
-
-
 @dataclass
 class TimeToSolution:
     """Median seconds to solution on one graph, the runs interleaved: our chordal start plus
@@ -75,7 +71,8 @@ class TimeToSolution:
 
 
 def time_to_solution(name, repeats=5, impl="solutions", progress=None) -> TimeToSolution:
-    """:class:`TimeToSolution` of ``name``, every run stopped by the same rule (:data:`STOP`).
+    """:class:`TimeToSolution` of ``name``, every run stopped by the same rule as the 3D table's
+    (:data:`course.app.benchmark_3d.STOP`).
     ``PeerMissing`` without g2opy, ``DatasetError`` without the graph."""
     from course.app.starts import initialise
 

@@ -28,8 +28,8 @@ from course.solver import SolverOptions, minimize
 from course.solver.cholmod import CholmodSolver
 
 GRAPHS = ("sphere2500", "torus3D", "parking-garage")
-#: time to solution: every run stops at the first step that lowers chi2 by less than this, relative
-#: (g2o's gain threshold, our ``cost_tolerance``), as in the 2D table of ``course.app.benchmark``
+#: time to solution, 3D and 2D (``course.app.benchmark``): every run stops at the first step that lowers
+#: chi2 by less than this, relative (g2o's gain threshold, our ``cost_tolerance``)
 STOP = 1e-10
 
 
