@@ -37,6 +37,7 @@ import numpy as np
 
 from autograder import forkserver, isolation, runtime
 from autograder.records import ErrorInfo, Outcome
+from course.solver.schur_reduction import NO_JIT
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_TIMEOUT = 10.0
@@ -78,7 +79,7 @@ class ChildRun:
 
 def child_env() -> dict:
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
-    for name in THREAD_VARIABLES:
+    for name in THREAD_VARIABLES + (NO_JIT,):
         env[name] = "1"
     return env
 
@@ -87,7 +88,7 @@ def isolated_env(work, extra=None) -> dict:
     """The environment of an isolated child: a few variables, none of the grader's secrets."""
     env = {k: os.environ[k] for k in KEPT_VARIABLES if k in os.environ}
     env.setdefault("PATH", "/usr/local/bin:/usr/bin:/bin")
-    for name in THREAD_VARIABLES:
+    for name in THREAD_VARIABLES + (NO_JIT,):
         env[name] = "1"
     env.update({"HOME": str(work), "TMPDIR": str(work), "MPLCONFIGDIR": str(work)})
     env.update(extra or {})

@@ -22,6 +22,7 @@ import scipy.sparse.linalg as spla
 
 from course.core.errors import SingularSystemError
 from course.geometry.so3 import skew
+from course.solver.schur_reduction import schur_reduction
 
 #: below this |w| the coefficients of Rodrigues' formula use their Taylor series
 SMALL_ANGLE = 1e-4
@@ -99,6 +100,9 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
     and Ws are the sparse (9C, 3P) matrices holding the blocks Y_k and W_k at (c_k, p_k)
     (``scipy.sparse.csr_matrix((data, (rows, cols)), shape)``): no loop over pairs. Faster:
     ``scipy.sparse.bsr_matrix((blocks, block_columns, block_row_pointers), shape)``, which
-    multiplies 9x3 blocks at a time.
+    multiplies 9x3 blocks at a time. Fastest: the framework's
+    ``course.solver.schur_reduction.schur_reduction(W, V_inv, camera_index, point_index, C)``,
+    the same sum by camera pair, compiled where numba is installed (write the BSR product first:
+    it is the idea).
     """
     raise NotImplementedError("TODO bundle_adjustment.schur_solve: not implemented yet")

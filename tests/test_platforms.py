@@ -57,11 +57,12 @@ def test_the_marker_environment_is_the_targets():
     )
 
 
-def test_qdldl_and_jupytext_are_left_out_on_3_15_only():
+def test_qdldl_numba_and_jupytext_are_left_out_on_3_15_only():
     core = requirements()
     for one in TARGETS:
         got = names(applicable(core, one))
         assert ("qdldl" in got) == (one.python != "3.15"), one
+        assert ("numba" in got) == (one.python != "3.15"), one
         assert ("jupytext" in got) == (one.python != "3.15"), one
         assert {"numpy", "scipy", "matplotlib"} <= set(got)
 
@@ -128,7 +129,7 @@ def test_requirements_table_is_the_markers_and_deterministic():
     assert lines[0].startswith("| platform | Python 3.10 |") and lines[0].endswith("| Python 3.15 |")
     row = {line.split(" | ")[0].lstrip("| "): line.strip("| ").split(" | ")[1:] for line in lines[2:]}
     assert row["Linux x86_64 (glibc 2.28+)"][2] == "all peers"
-    assert row["Windows amd64"][5] == "g2opy; no qdldl, jupytext"
+    assert row["Windows amd64"][5] == "g2opy; no qdldl, numba, jupytext"
 
 
 def test_the_student_readme_carries_the_requirements_table():

@@ -1,8 +1,8 @@
 """Which optional libraries are installed here, and the one line said when one is not.
 
 The peers (pyceres, g2opy, gtsam, pycolmap) and cvxopt (CHOLMOD, for large factorizations with
-fill-in) come with the ``peers`` extra, and only where they publish wheels; qdldl and jupytext
-are core requirements with no wheel for every Python. A missing one is never a traceback: the
+fill-in) come with the ``peers`` extra, and only where they publish wheels; qdldl, numba and
+jupytext are core requirements with no wheel for every Python. A missing one is never a traceback: the
 runs, checks or datasets that need it step aside, and :func:`announce` says so once per
 process, on stderr.
 """
@@ -19,12 +19,14 @@ LIBRARIES = {
     "gtsam": "GTSAM's runs and the datasets in its wheel (w100, w10000) are skipped",
     "pycolmap": "Ceres' bundle-adjustment runs are skipped",
     "qdldl": "the sparse solves use scipy's SuperLU instead",
+    "numba": "the Schur complement's reduction uses scipy's block-sparse product instead (about 3 times slower)",
     "jupytext": "the notebooks run from their .ipynb files as shipped",
     "cvxopt": "the 3D outlier experiments factorize with the sparse solve of the exercises (slower under fill-in)",
 }
 #: what installs a library where a wheel exists
 INSTALL = {"pyceres": EXTRA_HINT, "g2opy": EXTRA_HINT, "gtsam": EXTRA_HINT, "pycolmap": EXTRA_HINT,
-           "qdldl": "pip install qdldl", "jupytext": "pip install jupytext", "cvxopt": EXTRA_HINT}
+           "qdldl": "pip install qdldl", "numba": "pip install numba",
+           "jupytext": "pip install jupytext", "cvxopt": EXTRA_HINT}
 
 _announced: set = set()
 

@@ -524,8 +524,8 @@ BUGS_BUNDLE_ADJUSTMENT = {
         "S = scipy.linalg.block_diag(*U) + reduction.toarray()",
         {BA_CAM, BA_PT}, "the coupling term is subtracted"),
     "schur_rhs_sign": V(
-        "bundle_adjustment.py", [], "rhs = -np.asarray(g_cam, dtype=float).ravel() + Ys @",
-        "rhs = -np.asarray(g_cam, dtype=float).ravel() - Ys @",
+        "bundle_adjustment.py", [], "rhs = -np.asarray(g_cam, dtype=float).ravel() + np.bincount(",
+        "rhs = -np.asarray(g_cam, dtype=float).ravel() - np.bincount(",
         {BA_CAM, BA_PT}, "the reduced right-hand side is -g_cam + W V^-1 g_point"),
     "schur_back_substitution_sign": V(
         "bundle_adjustment.py", [], "(-np.asarray(g_point, dtype=float) - back)",
@@ -538,6 +538,26 @@ BUGS_BUNDLE_ADJUSTMENT = {
     "schur_large_systems_solve_the_wrong_sign": V(
         "bundle_adjustment.py", [], 'permc_spec="MMD_AT_PLUS_A").solve(rhs)', 'permc_spec="MMD_AT_PLUS_A").solve(-rhs)',
         {BA_CAM, BA_PT}, "on a problem of 112 cameras"),
+}
+
+_REDUCTION = "    reduction = schur_reduction(W, V_inv, ci, pi, C)  # (9C, 9C), blocks (9, 9)\n"
+
+# chapter 4: the Schur complement's reduction written as the hint says, without the framework's helper
+ALTERNATIVES_BUNDLE_ADJUSTMENT = {
+    "schur_reduction_by_bsr_product": V(
+        "bundle_adjustment.py", ["def schur_solve"], _REDUCTION,
+        "    order = np.argsort(ci, kind='stable')\n"
+        "    indptr = np.concatenate([[0], np.cumsum(np.bincount(ci, minlength=C))])\n"
+        "    Ys = sp.bsr_matrix((np.matmul(W[order], V_inv[pi[order]]), pi[order], indptr), shape=(9 * C, 3 * P))\n"
+        "    Ws = sp.bsr_matrix((W[order], pi[order], indptr), shape=(9 * C, 3 * P))\n"
+        "    reduction = Ys @ Ws.T\n", set()),
+    "schur_reduction_by_csr_entries": V(
+        "bundle_adjustment.py", ["def schur_solve"], _REDUCTION,
+        "    rows = np.broadcast_to((9 * ci)[:, None, None] + np.arange(9)[:, None], (len(ci), 9, 3)).ravel()\n"
+        "    cols = np.broadcast_to((3 * pi)[:, None, None] + np.arange(3), (len(ci), 9, 3)).ravel()\n"
+        "    Ys = sp.csr_matrix((np.matmul(W, V_inv[pi]).ravel(), (rows, cols)), shape=(9 * C, 3 * P))\n"
+        "    Ws = sp.csr_matrix((W.ravel(), (rows, cols)), shape=(9 * C, 3 * P))\n"
+        "    reduction = Ys @ Ws.T\n", set()),
 }
 
 RK_HUBER, RK_CAUCHY, RK_TUKEY = "robust_kernels.huber: ", "robust_kernels.cauchy: ", "robust_kernels.tukey: "
@@ -1114,7 +1134,8 @@ ALTERNATIVES_GNC = {
 }
 
 VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION,
-            **BUGS_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS, **ALTERNATIVES_ROBUST_KERNELS,
+            **BUGS_BUNDLE_ADJUSTMENT, **ALTERNATIVES_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS,
+            **ALTERNATIVES_ROBUST_KERNELS,
             **BUGS_GAUGE, **ALTERNATIVES_GAUGE, **BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY,
             **BUGS_MARGINALISATION, **ALTERNATIVES_MARGINALISATION,
             **BUGS_IMU_PREINTEGRATION, **ALTERNATIVES_IMU_PREINTEGRATION,

@@ -1,0 +1,99 @@
+"""course.solver.schur_reduction: the compiled pass and scipy's BSR product give the same R as a
+dense sum over the pairs, on structures with the odd cases a BAL file can hold."""
+
+import numpy as np
+import pytest
+
+from course.core import peers
+from course.solver import schur_reduction as sr
+from tests.conftest import needs
+
+
+def _structure(seed=3, cameras=7, points=40):
+    """Observations with a camera that sees nothing, a point seen twice by one camera, a point
+    seen once, and observations in no particular order."""
+    rng = np.random.default_rng(seed)
+    ci, pi = [], []
+    for p in range(points):
+        seen = rng.choice(cameras - 1, size=rng.integers(1, 5), replace=False)  # camera C-1 sees nothing
+        ci += list(seen)
+        pi += [p] * len(seen)
+    ci += [2, 2]  # point 0 seen twice by camera 2
+    pi += [0, 0]
+    order = rng.permutation(len(ci))
+    ci, pi = np.array(ci)[order], np.array(pi)[order]
+    W = rng.normal(size=(len(ci), 9, 3))
+    A = rng.normal(size=(points, 3, 3))
+    V_inv = np.matmul(A, A.transpose(0, 2, 1)) + 3 * np.eye(3)
+    return W, V_inv, ci, pi, cameras
+
+
+def _dense(W, V_inv, ci, pi, C):
+    """The definition, pair by pair."""
+    R = np.zeros((9 * C, 9 * C))
+    for k in range(len(ci)):
+        for m in np.flatnonzero(pi == pi[k]):
+            R[9 * ci[k]:9 * ci[k] + 9, 9 * ci[m]:9 * ci[m] + 9] += W[k] @ V_inv[pi[k]] @ W[m].T
+    return R
+
+
+@pytest.fixture(params=["compiled", "bsr"])
+def path(request, monkeypatch):
+    if request.param == "compiled":
+        if not peers.installed("numba"):
+            pytest.skip(peers.missing_message("numba"))
+        monkeypatch.delenv(sr.NO_JIT, raising=False)
+    else:
+        monkeypatch.setenv(sr.NO_JIT, "1")
+    return request.param
+
+
+def test_the_reduction_is_the_sum_over_pairs(path):
+    W, V_inv, ci, pi, C = _structure()
+    R = sr.schur_reduction(W, V_inv, ci, pi, C)
+    assert R.shape == (9 * C, 9 * C) and R.blocksize == (9, 9)
+    dense = _dense(W, V_inv, ci, pi, C)
+    np.testing.assert_allclose(R.toarray(), dense, rtol=1e-12, atol=1e-10)
+    np.testing.assert_allclose(R.toarray(), R.toarray().T, rtol=1e-12, atol=1e-10)
+    assert R.has_sorted_indices
+
+
+def test_one_camera(path):
+    W, V_inv, _, pi, _ = _structure(seed=5)
+    ci = np.zeros_like(pi)
+    np.testing.assert_allclose(sr.schur_reduction(W, V_inv, ci, pi, 1).toarray(), _dense(W, V_inv, ci, pi, 1),
+                               rtol=1e-12, atol=1e-10)
+
+
+@needs("numba")
+def test_the_paths_agree_on_ladybug(monkeypatch, data_folder):
+    from course.problems.bal.dataset import load_bal
+    from course.problems.bal.problem import BundleAdjustmentProblem
+
+    problem = BundleAdjustmentProblem(load_bal("ladybug-49"))
+    lin = problem.linearize(problem.x0)
+    V_inv = np.linalg.inv(lin.V + np.eye(3))
+    args = (lin.W, V_inv, lin.camera_index, lin.point_index, problem.num_cameras)
+    monkeypatch.delenv(sr.NO_JIT, raising=False)
+    compiled = sr.schur_reduction(*args).toarray()
+    monkeypatch.setenv(sr.NO_JIT, "1")
+    product = sr.schur_reduction(*args).toarray()
+    np.testing.assert_allclose(compiled, product, rtol=1e-12, atol=1e-12 * np.abs(product).max())
+
+
+def test_the_autograder_children_do_not_compile():
+    from autograder import sandbox
+
+    assert sandbox.child_env()[sr.NO_JIT] == "1"
+    assert sandbox.isolated_env("/nowhere")[sr.NO_JIT] == "1"
+
+
+def test_without_numba_the_product_is_used_and_said(monkeypatch, capsys):
+    monkeypatch.delenv(sr.NO_JIT, raising=False)
+    monkeypatch.setattr(peers, "installed", lambda name: name != "numba")
+    monkeypatch.setattr(peers, "_announced", set())
+    monkeypatch.setattr(sr, "_compiled", lambda: pytest.fail("compiled without numba"))
+    W, V_inv, ci, pi, C = _structure()
+    np.testing.assert_allclose(sr.schur_reduction(W, V_inv, ci, pi, C).toarray(), _dense(W, V_inv, ci, pi, C),
+                               rtol=1e-12, atol=1e-10)
+    assert "numba is not installed here" in capsys.readouterr().err
