@@ -97,3 +97,11 @@ def test_without_numba_the_product_is_used_and_said(monkeypatch, capsys):
     np.testing.assert_allclose(sr.schur_reduction(W, V_inv, ci, pi, C).toarray(), _dense(W, V_inv, ci, pi, C),
                                rtol=1e-12, atol=1e-10)
     assert "numba is not installed here" in capsys.readouterr().err
+
+
+def test_a_kept_pattern_is_used_for_the_same_observations_only(path):
+    W, V_inv, ci, pi, C = _structure(seed=11)
+    other = np.roll(ci, 1)  # the same sizes, other pairs
+    for cams in (ci, other, ci):
+        np.testing.assert_allclose(sr.schur_reduction(W, V_inv, cams, pi, C).toarray(),
+                                   _dense(W, V_inv, cams, pi, C), rtol=1e-12, atol=1e-10)
