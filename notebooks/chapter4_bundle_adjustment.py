@@ -164,7 +164,8 @@ for name in (["bal-synthetic:10:300"] if SMALL else ["bal-synthetic:30:3000", "l
 # 2 evaluations) from the start, `min(REPEAT, 3)` times, interleaved, and the table keeps the
 # median time per iteration (`course.app.benchmark_bal.per_iteration`), on ladybug-49 (quick
 # setting: 5 iterations on the synthetic problem). Ours evaluates the Jacobians and assembles U, V, W in
-# numpy and forms and factors S with scipy; Ceres does all of it in C++ (one thread); GTSAM
+# numpy, sums S's reduction term over the camera pairs in a compiled pass (numba, where installed:
+# `course.solver.schur_reduction`) and factors S with scipy; Ceres does all of it in C++ (one thread); GTSAM
 # linearizes one factor at a time and eliminates with its own ordering; scipy differentiates
 # by finite differences (one evaluation per group of independent columns) and solves with
 # LSMR.
