@@ -19,7 +19,7 @@ LIBRARIES = {
     "gtsam": "GTSAM's runs and the datasets in its wheel (w100, w10000) are skipped",
     "pycolmap": "Ceres' bundle-adjustment runs are skipped",
     "qdldl": "the sparse solves use scipy's SuperLU instead",
-    "numba": "the Schur complement's reduction uses scipy's block-sparse product instead (about 3 times slower)",
+    "numba": "the Schur complement's reduction uses scipy's block-sparse product instead (about 4 times slower)",
     "jupytext": "the notebooks run from their .ipynb files as shipped",
     "cvxopt": "the 3D outlier experiments factorize with the sparse solve of the exercises (slower under fill-in)",
 }
