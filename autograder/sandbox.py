@@ -37,7 +37,7 @@ import numpy as np
 
 from autograder import forkserver, isolation, runtime
 from autograder.records import ErrorInfo, Outcome
-from course.solver.schur_reduction import NO_JIT
+from course.core.jit import NO_JIT
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_TIMEOUT = 10.0

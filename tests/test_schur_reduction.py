@@ -4,7 +4,7 @@ dense sum over the pairs, on structures with the odd cases a BAL file can hold."
 import numpy as np
 import pytest
 
-from course.core import peers
+from course.core import jit, peers
 from course.solver import schur_reduction as sr
 from tests.conftest import needs
 
@@ -42,9 +42,9 @@ def path(request, monkeypatch):
     if request.param == "compiled":
         if not peers.installed("numba"):
             pytest.skip(peers.missing_message("numba"))
-        monkeypatch.delenv(sr.NO_JIT, raising=False)
+        monkeypatch.delenv(jit.NO_JIT, raising=False)
     else:
-        monkeypatch.setenv(sr.NO_JIT, "1")
+        monkeypatch.setenv(jit.NO_JIT, "1")
     return request.param
 
 
@@ -74,9 +74,9 @@ def test_the_paths_agree_on_ladybug(monkeypatch, data_folder):
     lin = problem.linearize(problem.x0)
     V_inv = np.linalg.inv(lin.V + np.eye(3))
     args = (lin.W, V_inv, lin.camera_index, lin.point_index, problem.num_cameras)
-    monkeypatch.delenv(sr.NO_JIT, raising=False)
+    monkeypatch.delenv(jit.NO_JIT, raising=False)
     compiled = sr.schur_reduction(*args).toarray()
-    monkeypatch.setenv(sr.NO_JIT, "1")
+    monkeypatch.setenv(jit.NO_JIT, "1")
     product = sr.schur_reduction(*args).toarray()
     np.testing.assert_allclose(compiled, product, rtol=1e-12, atol=1e-12 * np.abs(product).max())
 
@@ -84,15 +84,15 @@ def test_the_paths_agree_on_ladybug(monkeypatch, data_folder):
 def test_the_autograder_children_do_not_compile():
     from autograder import sandbox
 
-    assert sandbox.child_env()[sr.NO_JIT] == "1"
-    assert sandbox.isolated_env("/nowhere")[sr.NO_JIT] == "1"
+    assert sandbox.child_env()[jit.NO_JIT] == "1"
+    assert sandbox.isolated_env("/nowhere")[jit.NO_JIT] == "1"
 
 
 def test_without_numba_the_product_is_used_and_said(monkeypatch, capsys):
-    monkeypatch.delenv(sr.NO_JIT, raising=False)
+    monkeypatch.delenv(jit.NO_JIT, raising=False)
     monkeypatch.setattr(peers, "installed", lambda name: name != "numba")
     monkeypatch.setattr(peers, "_announced", set())
-    monkeypatch.setattr(sr, "_compiled", lambda: pytest.fail("compiled without numba"))
+    monkeypatch.setattr(sr, "_pattern_of", lambda *args: pytest.fail("compiled without numba"))
     W, V_inv, ci, pi, C = _structure()
     np.testing.assert_allclose(sr.schur_reduction(W, V_inv, ci, pi, C).toarray(), _dense(W, V_inv, ci, pi, C),
                                rtol=1e-12, atol=1e-10)

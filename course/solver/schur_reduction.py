@@ -14,20 +14,14 @@ pairs that fill each block), computed once per problem and kept, and the values,
 block product per pair with ``c_l >= c_k`` only (R is symmetric: the lower blocks are the upper
 ones transposed). ladybug-49: 214,329 block products in scipy's BSR product, 123,086 here; 34
 against 8.4 ms, this machine. Without numba (no wheel for every Python), for other block sizes
-than (9, 3), and in the autograder's children (``COURSE_NO_JIT=1``) it is that BSR product.
+than (9, 3), and in the autograder's children (:mod:`course.core.jit`) it is that BSR product.
 Same R to rounding.
 """
-
-import os
 
 import numpy as np
 import scipy.sparse as sp
 
-from course.core import peers
-
-#: set to 1, the BSR product is used even where numba is installed: the autograder's children set it
-#: (compiling takes seconds of a check's time limit and writes a cache; a check needs no speed)
-NO_JIT = "COURSE_NO_JIT"
+from course.core import jit
 
 
 def schur_reduction(W, V_inv, camera_index, point_index, num_cameras) -> sp.bsr_matrix:
@@ -41,16 +35,13 @@ def schur_reduction(W, V_inv, camera_index, point_index, num_cameras) -> sp.bsr_
     ci = np.ascontiguousarray(camera_index, dtype=np.int64)
     pi = np.ascontiguousarray(point_index, dtype=np.int64)
     a = W.shape[1]
-    shape = (a * num_cameras, a * num_cameras)
-    if os.environ.get(NO_JIT) == "1" or W.shape[1:] != (CAMERA, POINT):
+    compiled = jit.kernels(globals(), KERNELS) if W.shape[1:] == (CAMERA, POINT) else None
+    if compiled is None:
         return _bsr_product(W, V_inv, ci, pi, num_cameras)
-    if not peers.installed("numba"):  # numba is imported at the first call: it takes a while
-        peers.announce("numba")
-        return _bsr_product(W, V_inv, ci, pi, num_cameras)
-    pattern, values = _compiled()
+    pattern, values = compiled[-2:]
     indptr, indices, pairs, source, transposed = _pattern_of(pattern, ci, pi, num_cameras, len(V_inv))
     data = values(W, V_inv, pi, *pairs, source, transposed)
-    return sp.bsr_matrix((data, indices, indptr), shape=shape)
+    return sp.bsr_matrix((data, indices, indptr), shape=(a * num_cameras, a * num_cameras))
 
 
 def _bsr_product(W, V_inv, ci, pi, num_cameras):
@@ -71,27 +62,10 @@ def _bsr_product(W, V_inv, ci, pi, num_cameras):
 #: compiler unrolls and vectorizes the block products)
 CAMERA, POINT = 9, 3
 
-_COMPILED: tuple = ()
+#: the compiled functions (:func:`course.core.jit.kernels`), callees first
+KERNELS = ("_groups", "_sort", "_position", "_pattern", "_values")
 #: the last pattern computed: ``(camera_index, point_index, C, P)`` and what ``_pattern`` gave for it
 _LAST: tuple = ()
-
-
-def _compiled():
-    """``(_pattern, _values)`` compiled, at their first use (seconds; cached on disk where numba may
-    write its cache, else compiled once per process)."""
-    global _COMPILED, _groups, _sort, _position
-    if not _COMPILED:
-        import numba
-
-        try:
-            numba.njit(cache=True)(_groups)
-            jit = numba.njit(cache=True)
-        except RuntimeError:  # "no locator available": nowhere to write the cache (a read-only install)
-            jit = numba.njit(cache=False)
-        # _pattern calls these by their global names: compiled, the names must be the compiled ones
-        _groups, _sort, _position = jit(_groups), jit(_sort), jit(_position)
-        _COMPILED = (jit(_pattern), jit(_values))
-    return _COMPILED
 
 
 def _pattern_of(pattern, ci, pi, C, P):
