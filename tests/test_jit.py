@@ -50,3 +50,35 @@ def test_a_point_on_the_camera_plane_gives_the_same_non_finite_residual_on_both_
     numpy = _residuals(problem, monkeypatch, False)
     assert not np.any(np.isfinite(compiled[0])) and not np.any(np.isfinite(numpy[0]))
     np.testing.assert_allclose(compiled[1:], numpy[1:], rtol=1e-13, atol=1e-12)
+
+
+def test_an_index_out_of_range_raises_as_numpy_does(monkeypatch):
+    problem = dataset.load_bal("bal-synthetic:6:80:2")
+    bad = problem.camera_index.copy()
+    bad[5] = problem.num_cameras
+    monkeypatch.delenv(jit.NO_JIT, raising=False)
+    with pytest.raises(IndexError):
+        dataset.residuals(problem.cameras, problem.points, bad, problem.point_index, problem.observations)
+
+
+@pytest.mark.skipif(not peers.installed("numba"), reason=peers.missing_message("numba"))
+@pytest.mark.parametrize("module", ["dataset", "schur_reduction"])
+def test_a_well_formed_problem_takes_the_compiled_path(monkeypatch, module):
+    from course.solver import schur_reduction
+
+    monkeypatch.delenv(jit.NO_JIT, raising=False)
+    target = {"dataset": dataset, "schur_reduction": schur_reduction}[module]
+    problem = dataset.load_bal("bal-synthetic:6:80:2")
+    compiled = jit.kernels(vars(target), target.KERNELS)
+    called = []
+    monkeypatch.setattr(jit, "kernels", lambda namespace, names: tuple(
+        (lambda *args, kernel=kernel: called.append(1) or kernel(*args)) for kernel in compiled)
+        if names == target.KERNELS else None)
+    if module == "dataset":
+        dataset.residuals(problem.cameras, problem.points, problem.camera_index, problem.point_index,
+                          problem.observations)
+    else:
+        W = np.random.default_rng(0).normal(size=(problem.num_observations, 9, 3))
+        V_inv = np.broadcast_to(np.eye(3), (problem.num_points, 3, 3))
+        schur_reduction.schur_reduction(W, V_inv, problem.camera_index, problem.point_index, problem.num_cameras)
+    assert called

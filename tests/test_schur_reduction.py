@@ -105,3 +105,18 @@ def test_a_kept_pattern_is_used_for_the_same_observations_only(path):
     for cams in (ci, other, ci):
         np.testing.assert_allclose(sr.schur_reduction(W, V_inv, cams, pi, C).toarray(),
                                    _dense(W, V_inv, cams, pi, C), rtol=1e-12, atol=1e-10)
+
+
+@pytest.mark.parametrize("slip", ["camera out of range", "point out of range", "W too short"])
+def test_bad_input_is_a_clear_error_not_a_crash(path, slip):
+    W, V_inv, ci, pi, C = _structure()
+    if slip == "camera out of range":
+        ci = ci.copy()
+        ci[3] = C
+    elif slip == "point out of range":
+        pi = pi.copy()
+        pi[0] = -1
+    else:
+        W = W[:-1]
+    with pytest.raises(ValueError, match="schur_reduction"):
+        sr.schur_reduction(W, V_inv, ci, pi, C)

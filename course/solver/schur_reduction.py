@@ -28,12 +28,20 @@ def schur_reduction(W, V_inv, camera_index, point_index, num_cameras) -> sp.bsr_
     """``R`` (a C, a C) as a ``scipy.sparse.bsr_matrix`` with (a, a) blocks, both triangles.
 
     Args: W (K, a, b); V_inv (P, b, b), symmetric; camera_index, point_index (K,) int;
-    num_cameras C. Every camera row lists its blocks in column order.
+    num_cameras C. Every camera row lists its blocks in column order. ``ValueError`` on shapes
+    that do not fit or an index out of range (the compiled pass does not check its indices).
     """
     W = np.ascontiguousarray(W, dtype=float)
     V_inv = np.ascontiguousarray(V_inv, dtype=float)
     ci = np.ascontiguousarray(camera_index, dtype=np.int64)
     pi = np.ascontiguousarray(point_index, dtype=np.int64)
+    K = len(ci)
+    if W.ndim != 3 or len(W) != K or pi.shape != (K,) or ci.ndim != 1 or V_inv.shape[1:] != (W.shape[2],) * 2:
+        raise ValueError(f"schur_reduction: W {W.shape}, V_inv {V_inv.shape}, camera_index {ci.shape} and "
+                         f"point_index {pi.shape} do not fit: W (K, a, b), V_inv (P, b, b), both indices (K,)")
+    for name, index, count in (("camera_index", ci, num_cameras), ("point_index", pi, len(V_inv))):
+        if K and (index.min() < 0 or index.max() >= count):
+            raise ValueError(f"schur_reduction: {name} holds {index.min()} to {index.max()}, not in [0, {count})")
     a = W.shape[1]
     compiled = jit.kernels(globals(), KERNELS) if W.shape[1:] == (CAMERA, POINT) else None
     if compiled is None:

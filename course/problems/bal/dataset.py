@@ -116,7 +116,7 @@ def residuals(cameras, points, camera_index, point_index, observations):
     ladybug-49: 0.3 against 3.1 ms, the cost of every trial step), else numpy; the same numbers
     to rounding."""
     compiled = jit.kernels(globals(), KERNELS)
-    if compiled is not None:
+    if compiled is not None and _fits(cameras, points, camera_index, point_index, observations):
         cameras = np.ascontiguousarray(cameras, dtype=float)
         return compiled[0](exp_many(cameras[:, :3]), cameras, np.ascontiguousarray(points, dtype=float),
                            np.ascontiguousarray(camera_index, dtype=np.int64),
@@ -133,6 +133,19 @@ def residuals(cameras, points, camera_index, point_index, observations):
 
 #: the compiled functions of this module (:func:`course.core.jit.kernels`)
 KERNELS = ("_projected",)
+
+
+def _fits(cameras, points, camera_index, point_index, observations) -> bool:
+    """Whether the arrays have the shapes of a problem and every index is in range: the compiled
+    loop does not check (numpy's path raises or broadcasts as numpy does)."""
+    cameras, points, observations = np.shape(cameras), np.shape(points), np.shape(observations)
+    ci, pi = np.asarray(camera_index), np.asarray(point_index)
+    K = observations[0] if observations else -1
+    if len(cameras) != 2 or cameras[1] != 9 or points[1:] != (3,) or observations != (K, 2) \
+            or ci.shape != (K,) or pi.shape != (K,) or not np.issubdtype(ci.dtype, np.integer) \
+            or not np.issubdtype(pi.dtype, np.integer):
+        return False
+    return K == 0 or (0 <= ci.min() and ci.max() < cameras[0] and 0 <= pi.min() and pi.max() < points[0])
 
 
 def _projected(R, cameras, points, ci, pi, observations):
