@@ -120,3 +120,16 @@ def test_bad_input_is_a_clear_error_not_a_crash(path, slip):
         W = W[:-1]
     with pytest.raises(ValueError, match="schur_reduction"):
         sr.schur_reduction(W, V_inv, ci, pi, C)
+
+
+def test_long_camera_rows(path):
+    """A row of more than SHORT_ROW blocks (a point every camera sees) is listed in column order too."""
+    C = sr.SHORT_ROW + 16
+    rng = np.random.default_rng(5)
+    ci = np.concatenate([rng.permutation(C), rng.integers(0, C, size=40)])
+    pi = np.concatenate([np.zeros(C, dtype=int), rng.integers(1, 20, size=40)])
+    W = rng.normal(size=(len(ci), 9, 3))
+    V_inv = np.broadcast_to(np.eye(3), (20, 3, 3)) * 0.5
+    R = sr.schur_reduction(W, V_inv, ci, pi, C)
+    assert R.has_sorted_indices and np.diff(R.indptr).max() == C
+    np.testing.assert_allclose(R.toarray(), _dense(W, V_inv, ci, pi, C), rtol=1e-12, atol=1e-10)

@@ -70,6 +70,8 @@ def _bsr_product(W, V_inv, ci, pi, num_cameras):
 #: compiler unrolls and vectorizes the block products)
 CAMERA, POINT = 9, 3
 
+#: a camera row of at most this many blocks is sorted by insertion, a longer one by a pass over the columns
+SHORT_ROW = 64
 #: the compiled functions (:func:`course.core.jit.kernels`), callees first
 KERNELS = ("_groups", "_sort", "_position", "_pattern", "_values")
 #: the last pattern computed: ``(camera_index, point_index, C, P)`` and what ``_pattern`` gave for it
@@ -158,8 +160,14 @@ def _pattern(ci, pi, C, P):
                         n += 1
             if stage == 0:
                 upper_ptr[c + 1] = n
-            else:
+            elif n - upper_ptr[c] <= SHORT_ROW:
                 _sort(upper_cols, upper_ptr[c], n)
+            else:  # a long row: the marked columns in order, one pass over them (no quadratic sort)
+                n = upper_ptr[c]
+                for d in range(c, C):
+                    if mark[d] == c:
+                        upper_cols[n] = d
+                        n += 1
         if stage == 0:
             upper_cols = np.empty(upper_ptr[C], dtype=np.int64)
     # the pairs, point by point (a point's observations then stay in cache while its pairs are summed)
