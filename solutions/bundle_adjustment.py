@@ -227,7 +227,7 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
             raise SingularSystemError("schur_solve: the reduced camera system S is not positive definite")
     dx_cam = dx.reshape(C, 9)
 
-    Wt_dx = np.matmul(np.asarray(W).transpose(0, 2, 1), dx_cam[ci][:, :, None])[:, :, 0]  # (K, 3)
+    Wt_dx = np.matmul(W.transpose(0, 2, 1), dx_cam[ci][:, :, None])[:, :, 0]  # (K, 3)
     flat = (pi[:, None] * 3 + np.arange(3)).ravel()
     back = np.bincount(flat, weights=Wt_dx.ravel(), minlength=3 * P).reshape(P, 3)
     dx_point = np.matmul(V_inv, (-np.asarray(g_point, dtype=float) - back)[:, :, None])[:, :, 0]

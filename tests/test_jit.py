@@ -82,3 +82,27 @@ def test_a_well_formed_problem_takes_the_compiled_path(monkeypatch, module):
         V_inv = np.broadcast_to(np.eye(3), (problem.num_points, 3, 3))
         schur_reduction.schur_reduction(W, V_inv, problem.camera_index, problem.point_index, problem.num_cameras)
     assert called
+
+
+@pytest.mark.skipif(not peers.installed("numba"), reason=peers.missing_message("numba"))
+def test_where_no_cache_can_be_written_the_kernels_are_compiled_without_one(monkeypatch):
+    import numba
+
+    njit, asked = numba.njit, []
+
+    def refusing(function, cache=False, **options):
+        asked.append(cache)
+        if cache:
+            raise RuntimeError("cannot cache function: no locator available for file")
+        return njit(function, cache=cache, **options)
+
+    monkeypatch.delenv(jit.NO_JIT, raising=False)
+    monkeypatch.setattr(numba, "njit", refusing)
+
+    def twice(x):
+        return 2.0 * x
+
+    namespace = {"__name__": "tests.test_jit.read_only", "twice": twice}
+    (compiled,) = jit.kernels(namespace, ("twice",))
+    assert compiled(1.5) == 3.0 and namespace["twice"] is compiled
+    assert asked == [True, False]

@@ -41,12 +41,13 @@ def kernels(namespace: dict, names: tuple) -> tuple | None:
     if key not in _compiled:
         import numba  # here: importing it takes a third of a second
 
+        def compiled(cache):  # numba compiles at the first call; this only wraps
+            return [numba.njit(namespace[name], cache=cache, error_model="numpy") for name in names]
+
         try:
-            numba.njit(cache=True)(namespace[names[0]])
-            cache = True
+            dispatchers = compiled(cache=True)
         except RuntimeError:  # "no locator available": nowhere to write the cache (a read-only install)
-            cache = False
-        for name in names:
-            namespace[name] = numba.njit(namespace[name], cache=cache, error_model="numpy")
-        _compiled[key] = tuple(namespace[name] for name in names)
+            dispatchers = compiled(cache=False)
+        namespace.update(zip(names, dispatchers))
+        _compiled[key] = tuple(dispatchers)
     return _compiled[key]
