@@ -168,24 +168,49 @@ def load(module: str, directory: Path = DIRECTORY) -> dict:
         raise ExpectedDataError(f"{path}: malformed ({type(exc).__name__}: {exc})") from None
 
 
+#: how closely two renderings must agree on a known mistake's output, relative to its largest entry:
+#: the feedback matches a student's output to a mistake at about this tolerance, so a mistake that
+#: another machine rounds differently below it is the same mistake
+MISTAKE_RTOL = 1e-6
+
+
 def same_data(text_a: str, text_b: str, rtol: float = 1e-9, atol: float = 1e-12) -> bool:
     """Whether two renderings of the expected data agree: the same structure, strings and
     integers, and floats within ``rtol``/``atol``. Another numpy or CPU may round the last digit
-    of a reference output differently (``exp`` by another SIMD path); that is not stale data."""
+    of a reference output differently (``exp`` by another SIMD path); that is not stale data.
+    A known mistake's arrays (under ``"mistakes"``) agree within :data:`MISTAKE_RTOL` of their largest
+    entry."""
 
-    def same(a, b) -> bool:
+    def close(a, b, tolerance) -> bool:
+        # np.isclose's test, in plain floats (a million numpy scalar calls took 20 s)
+        if a == b or (a != a and b != b):
+            return True
+        return math.isfinite(a) and math.isfinite(b) and abs(a - b) <= tolerance + rtol * abs(b)
+
+    def same_array(a: dict, b: dict) -> bool:
+        data_a, data_b = a.get("data"), b.get("data")
+        if a.keys() != b.keys() or any(a[k] != b[k] for k in a if k != "data") or not isinstance(data_a, list) \
+                or not isinstance(data_b, list) or len(data_a) != len(data_b):
+            return a == b
+        numbers = [abs(x) for x in data_b if isinstance(x, (int, float)) and math.isfinite(x)]
+        tolerance = MISTAKE_RTOL * max(numbers, default=0.0)
+        return all(isinstance(x, (int, float)) and isinstance(y, (int, float)) and close(x, y, tolerance)
+                   for x, y in zip(data_a, data_b))
+
+    def same(a, b, mistake=False) -> bool:
         if isinstance(a, dict):
-            return isinstance(b, dict) and a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+            if not isinstance(b, dict) or a.keys() != b.keys():
+                return False
+            if mistake and "__array__" in a:
+                return same_array(a, b)
+            return all(same(a[k], b[k], mistake or k == "mistakes") for k in a)
         if isinstance(a, list):
-            return isinstance(b, list) and len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+            return isinstance(b, list) and len(a) == len(b) and all(same(x, y, mistake) for x, y in zip(a, b))
         if isinstance(a, float) or isinstance(b, float):
             if not isinstance(a, (int, float)) or not isinstance(b, (int, float)) or isinstance(a, bool) \
                     or isinstance(b, bool):
                 return False
-            # np.isclose's test, in plain floats (a million numpy scalar calls took 20 s)
-            if a == b or (a != a and b != b):
-                return True
-            return math.isfinite(a) and math.isfinite(b) and abs(a - b) <= atol + rtol * abs(b)
+            return close(a, b, atol)
         return type(a) is type(b) and a == b
 
     return text_a == text_b or same(json.loads(text_a), json.loads(text_b))

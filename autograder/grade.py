@@ -63,8 +63,9 @@ class Task:
 
     check: Check
     hidden: bool
-    expected: expected_data.Expected | None  # None when not run (``missing``)
+    expected: expected_data.Expected | None  # None when not run (``missing``, ``ungradable``)
     missing: str = ""  # a library the check needs that is not installed here
+    ungradable: str = ""  # why the reference could not give this check's expected outputs
 
     @property
     def name(self) -> str:
@@ -111,9 +112,23 @@ def plan(checks, which: str) -> list:
         seed = oracle.hidden_seed()
         for check in checks:
             missing = missing_library(check)
-            expected = None if missing else oracle.compute(check, modules[check.name], seed)
+            try:
+                expected = None if missing else oracle.compute(check, modules[check.name], seed)
+            except oracle.ReferenceFailed as exc:
+                print(f"autograder: NOT GRADABLE: {check.name}{HIDDEN_SUFFIX}: {exc}. This check counts for "
+                      "no one (0 of 0 points) and every other check is graded; instructor: fix the reference or "
+                      "the check's inputs", file=sys.stderr)
+                tasks.append(Task(check, True, None, ungradable=str(exc)))
+                continue
             tasks.append(Task(check, True, expected, missing))
     return tasks
+
+
+def not_gradable(task: Task) -> CheckResult:
+    """A check whose reference failed on its inputs: it counts for no one (0 of 0 points)."""
+    message = (f"not gradable: the reference solution failed on this check's inputs ({task.ungradable}); it counts "
+               "for no one (0 of 0 points) and the instructor has been told")
+    return CheckResult(task.name, task.check.exercise, 0.0, 0.0, message, hidden=task.hidden, status="not gradable")
 
 
 def not_run(task: Task) -> CheckResult:
@@ -240,7 +255,9 @@ def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sand
 
         def one(job):
             index, number, task = job
-            if task.missing:
+            if task.ungradable:
+                result = not_gradable(task)
+            elif task.missing:
                 result = not_run(task)
             else:
                 assert task.expected is not None

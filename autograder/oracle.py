@@ -25,6 +25,7 @@ import numpy as np
 from autograder.expected import Expected, dumps, same_data
 from autograder.records import Outcome
 from autograder.reference import reference_implementation
+from autograder.rounding import moved_call, stable
 
 DEFAULT_HIDDEN_SEED = 7211
 
@@ -77,12 +78,15 @@ def _mistake_outputs(known, call, want) -> dict:
     return {key: [(np.asarray(v, dtype=float), why) for v, why in pairs] for key, pairs in known(call, want).items()}
 
 
-def compute(check, module: str, seed=None) -> Expected:
-    """Calls, reference outputs and known mistakes of ``check`` (from ``checks/<module>.py``)."""
-    from autograder.child import run_calls
-    from autograder.feedback import fields_of
+class ReferenceFailed(RuntimeError):
+    """The reference raised, or returned a malformed output, on one of a check's inputs: that check
+    cannot be graded (:mod:`autograder.grade` reports it as not gradable and grades the others)."""
 
-    calls = check.calls(seed)
+
+def _reference(calls) -> list:
+    """The reference's :class:`Outcome` of each call (raises :class:`ReferenceFailed`)."""
+    from autograder.child import run_calls
+
     solutions = reference_implementation()
     payloads = [c.payload() for c in calls]
     with np.errstate(all="ignore"):
@@ -90,23 +94,45 @@ def compute(check, module: str, seed=None) -> Expected:
     reference = []
     for call, result in zip(calls, results):
         if not isinstance(result, tuple):
-            raise RuntimeError(f"the reference failed on {call.function} {call.where}: {result}")
+            raise ReferenceFailed(f"the reference failed on {call.function} {call.where}: {result}")
         kind, fields = result
         reference.append(Outcome(fields=fields, kind=kind))
+    return reference
+
+
+def _mistakes_of(known, call, outcome) -> dict:
+    from autograder.feedback import fields_of
+
+    want, problem = fields_of(outcome, call)
+    if problem:
+        raise ReferenceFailed(f"the reference's output of {call.function} is malformed: {problem}")
+    with np.errstate(all="ignore"):
+        # the checks of one exercise often share their calls: each mistake is evaluated once per call
+        key = ("mistakes", known, _digest(call.payload()))  # the function itself: closures share names
+        return _memo(key, functools.partial(_mistake_outputs, known, call, want))
+
+
+def compute(check, module: str, seed=None) -> Expected:
+    """Calls, reference outputs and known mistakes of ``check`` (from ``checks/<module>.py``).
+
+    A known mistake's output is kept only where it is finite and the same mistake gives the same
+    output (:data:`autograder.rounding.STABLE_RTOL`) on the inputs moved by a few units in the last
+    place (:func:`autograder.rounding.stable`; not moved for a check whose inputs are exact by
+    design, ``Check.exact_inputs``): one that turns on rounding would differ between machines.
+    Raises :class:`ReferenceFailed` when the reference fails on an input.
+    """
+    calls = check.calls(seed)
+    reference = _reference(calls)
     known = _mistake_catalogue(module).get(check.name)
-    mistakes: list = []
-    for call, outcome in zip(calls, reference):
-        if known is None:
-            mistakes.append({})
-            continue
-        want, problem = fields_of(outcome, call)
-        if problem:
-            raise RuntimeError(f"the reference's output of {call.function} is malformed: {problem}")
-        with np.errstate(all="ignore"):
-            # the checks of one exercise often share their calls: each mistake is evaluated once per call
-            key = ("mistakes", known, _digest(call.payload()))  # the function itself: closures share names
-            mistakes.append(_memo(key, functools.partial(_mistake_outputs, known, call, want)))
-    return Expected(calls, reference, mistakes)
+    if known is None:
+        return Expected(calls, reference, [{} for _ in calls])
+    mistakes = [_mistakes_of(known, call, outcome) for call, outcome in zip(calls, reference)]
+    if check.exact_inputs:
+        again = mistakes
+    else:
+        moved = [moved_call(call) for call in calls]
+        again = [_mistakes_of(known, call, outcome) for call, outcome in zip(moved, _reference(moved))]
+    return Expected(calls, reference, [stable(first, second) for first, second in zip(mistakes, again)])
 
 
 def render() -> dict:

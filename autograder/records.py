@@ -100,3 +100,6 @@ class Check:
     judge: Callable[[Context], Verdict]
     timeout: float | None = None  # seconds; None = the command line's --timeout
     needs: tuple = ()  # libraries outside the core it imports (e.g. "pyceres"); absent: not run, 0 points
+    #: the inputs sit exactly on a value the contract decides (a threshold, exact in binary, met by
+    #: arithmetic that no BLAS or LAPACK rounds): moving them by an ulp would change the question
+    exact_inputs: bool = False

@@ -29,10 +29,17 @@ class SparseCholeskySolver:
     factorization; later calls with the same sparsity pattern redo only the numeric
     factorization. ``qdldl.Solver(A, upper=True)`` does the first, ``.update(A, upper=True)``
     the second and ``.solve(rhs)`` the triangular solves.
+
+    The pattern is what the CSC matrix stores (``indptr`` and ``indices``), explicit zeros
+    included. It can change between calls: ``upper_triangle_csc`` of a dense H leaves out an entry
+    that rounding cancelled to exactly zero this time, and not the next. A call whose pattern
+    differs from the analysed one is analysed again (a new ``qdldl.Solver``): ``update`` assumes
+    the analysed pattern and, given another, silently factorizes the wrong matrix.
     """
 
     def __init__(self):
         self._solver = None
+        self._pattern = None  # (indptr, indices) of the analysed matrix
 
     def solve(self, H_upper, b):
         """``dx`` (n,) with ``H dx = -b``; ``H_upper`` the upper triangle of H (CSC, (n, n))."""

@@ -33,19 +33,32 @@ class SparseCholeskySolver:
     factorization; later calls with the same sparsity pattern redo only the numeric
     factorization. ``qdldl.Solver(A, upper=True)`` does the first, ``.update(A, upper=True)``
     the second and ``.solve(rhs)`` the triangular solves.
+
+    The pattern is what the CSC matrix stores (``indptr`` and ``indices``), explicit zeros
+    included. It can change between calls: ``upper_triangle_csc`` of a dense H leaves out an entry
+    that rounding cancelled to exactly zero this time, and not the next. A call whose pattern
+    differs from the analysed one is analysed again (a new ``qdldl.Solver``): ``update`` assumes
+    the analysed pattern and, given another, silently factorizes the wrong matrix.
     """
 
     def __init__(self):
         self._solver = None
+        self._pattern = None  # (indptr, indices) of the analysed matrix
 
     def solve(self, H_upper, b):
         """``dx`` (n,) with ``H dx = -b``; ``H_upper`` the upper triangle of H (CSC, (n, n))."""
         import qdldl  # here, not at the top: dense_solve works where qdldl has no wheel (Python 3.15)
 
         # BEGIN SOLUTION
-        if self._solver is None:
-            self._solver = qdldl.Solver(H_upper, upper=True)
-        else:
+        H_upper = sp.csc_matrix(H_upper)
+        if not H_upper.has_sorted_indices:
+            H_upper = H_upper.sorted_indices()
+        same = (self._pattern is not None and np.array_equal(H_upper.indptr, self._pattern[0])
+                and np.array_equal(H_upper.indices, self._pattern[1]))
+        if same:
             self._solver.update(H_upper, upper=True)
+        else:
+            self._solver = qdldl.Solver(H_upper, upper=True)
+            self._pattern = (H_upper.indptr.copy(), H_upper.indices.copy())
         return -self._solver.solve(np.asarray(b, dtype=float))
         # END SOLUTION

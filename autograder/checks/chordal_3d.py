@@ -5,17 +5,20 @@ alone.
 Public inputs: 7 poses turned far from each other, 12 edges (a loop and chords, some written
 from the larger index to the smaller), measurements with noise so that the relaxation is not
 exact, the anchor pose 2 (not the first), weights from 0.5 to 5; the projection on 8 matrices
-(general ones, two with a negative determinant, near-rotations, a rotation, a reflection);
-the translations with full, correlated 3x3 information blocks; hidden inputs: the same kind
-from the hidden seed.
+(general ones, two with a negative determinant, near-rotations, a rotation, a stretched
+reflection); the translations with full, correlated 3x3 information blocks; hidden inputs: the
+same kind from the hidden seed, and the projection of two exact reflections, whose nearest
+rotation is not unique: the projection is judged by the properties the contract states (a
+rotation, as near to M as the reference's), so any nearest rotation keeps full marks.
 """
 
 from functools import cache
 
 import numpy as np
 
-from autograder.checks import Call
-from autograder.checks.common import check, values
+from autograder.checks import Call, Verdict
+from autograder.checks.common import check, failed, values
+from autograder.feedback import call_fields
 from course.geometry import se3
 from course.geometry.so3 import exp_many
 
@@ -54,6 +57,8 @@ def _relaxed_calls(seed=None):
 
 
 def _project_calls(seed=None):
+    """Eight matrices with a unique nearest rotation (distinct singular values); the hidden set adds
+    a call on exact reflections ``-R``, where every ``-R (I - 2 v v^T)`` is a nearest rotation."""
     rng = np.random.default_rng(83 if seed is None else [seed, 283])
     M = rng.normal(0, 1.0, (8, 3, 3))
     for k in (0, 1):  # a negative determinant: U V^T alone is a reflection
@@ -62,10 +67,54 @@ def _project_calls(seed=None):
     R = exp_many(rng.normal(0, 1.0, (4, 3)))
     M[4:6] = R[:2] + rng.normal(0, 0.1, (2, 3, 3))  # near rotations, as the relaxation gives
     M[6] = R[2]  # a rotation: stays
-    M[7] = -R[3]  # a reflection
-    return [Call("chordal_3d:project_to_so3", (M,), where="on 8 matrices: 0-3 general (0 and 1 with a negative "
-                                                          "determinant), 4-5 near rotations, 6 a rotation, "
-                                                          "7 a reflection")]
+    M[7] = -R[3] @ np.diag([1.0, 1.3, 1.7])  # a reflection stretched: singular values 1, 1.3, 1.7
+    calls = [Call("chordal_3d:project_to_so3", (M,), where="on 8 matrices: 0-3 general (0 and 1 with a negative "
+                                                           "determinant), 4-5 near rotations, 6 a rotation, "
+                                                           "7 a stretched reflection")]
+    if seed is not None:
+        reflections = -exp_many(rng.normal(0, 1.0, (2, 3)))
+        calls.append(Call("chordal_3d:project_to_so3", (reflections,),
+                          where="on 2 exact reflections -R (every singular value 1: the nearest rotation is not "
+                                "unique, any of them is right)"))
+    return calls
+
+
+def distances(R, M) -> np.ndarray:
+    """``||R_k - M_k||_F`` (K,)."""
+    return np.linalg.norm(np.asarray(R, dtype=float) - np.asarray(M, dtype=float), axis=(1, 2))
+
+
+_PROJECT_VALUES = values(("value",), 1e-9, 1e-11, "U diag(1, 1, det(U V^T)) V^T from the SVD M = U S V^T",
+                         {"value": "R[{}]"})
+
+
+def _judge_project(ctx):
+    """By the properties the contract states, since an answer need not be unique (an exact
+    reflection): every R_k orthogonal and of determinant +1 (1e-9), and no farther from M_k than
+    the reference's rotation (1e-9 relative). Where one is not, the entries against the
+    reference's say which and why (known mistakes)."""
+    triples, failure = call_fields(ctx, failed=failed)
+    if failure:
+        return failure
+    for call, got, want in triples:
+        R, M = np.asarray(got["value"], dtype=float), np.asarray(call.args[0], dtype=float)
+        if R.shape != M.shape or not np.all(np.isfinite(R)):
+            return _PROJECT_VALUES(ctx)
+        orthogonal = np.abs(np.matmul(R.transpose(0, 2, 1), R) - np.eye(3)).max(axis=(1, 2)) <= 1e-9
+        proper = np.abs(np.linalg.det(R) - 1.0) <= 1e-9
+        best = distances(want["value"], M)
+        nearest = distances(R, M) <= best + 1e-9 * np.maximum(1.0, best)
+        bad = np.flatnonzero(~(orthogonal & proper & nearest))
+        if len(bad):
+            verdict = _PROJECT_VALUES(ctx)
+            if verdict.fraction < 1.0:
+                return verdict
+            k = int(bad[0])
+            what = ("is not orthogonal (R^T R != I)" if not orthogonal[k] else
+                    f"has determinant {np.linalg.det(R[k]):.6g}, not +1" if not proper[k] else
+                    f"is {distances(R, M)[k]:.10g} from M[{k}], farther than the nearest rotation ({best[k]:.10g})")
+            return Verdict(0.0, f"R[{k}] {what} {call.where}")
+    return Verdict(1.0, "ok")
 
 
 def _translation_calls(seed=None):
@@ -82,8 +131,7 @@ CHECKS = [
     check(RELAXED, "the relaxation's 3x3 matrices", 3, _relaxed_calls, values(
         ("value",), 1e-7, 1e-9, "minimize sum w ||r_j^a - R_z^T r_i^a||^2 over the rows r^a of every R but the "
                                 "anchor's, then R_k[a, :] = X[3k:3k+3, a]", {"value": "R[{}]"})),
-    check(PROJECT, "the nearest rotation (SVD, determinant fixed)", 2, _project_calls, values(
-        ("value",), 1e-9, 1e-11, "U diag(1, 1, det(U V^T)) V^T from the SVD M = U S V^T", {"value": "R[{}]"})),
+    check(PROJECT, "the nearest rotation (SVD, determinant fixed)", 2, _project_calls, _judge_project),
     check(TRANSLATIONS, "positions given the rotations", 3, _translation_calls, values(
         ("value",), 1e-7, 1e-9, "minimize sum r^T W r, r = t_j - t_i - R_i t_z, W = (R_i R_z) Omega_tt (R_i R_z)^T, "
                                 "the anchor held", {"value": "t[{}]"})),

@@ -221,7 +221,7 @@ def _end_calls(on):
             return [Call("@autograder.tasks.dogleg:minimize_curve_run", ("dogleg",), {"seed": noise},
                          returns="dict", label=label)]
         return [Call("@autograder.tasks.pose_graph:minimize_pose_graph", (_e2e_graph(seed), "dogleg"),
-                     {"vectorized": None}, returns="dict", label=label)]
+                     {"vectorized": None, "cost_tolerance": 1e-9}, returns="dict", label=label)]
 
     return build
 
@@ -282,15 +282,16 @@ CHECKS = [
     check(STEP, "dogleg case (|a| < radius < |h_gn|)", 3, _case_calls("dogleg"), _judge_step),
     check(STEP, "stable beta (Cauchy point almost on the boundary)", 1, _stable_calls,
            lambda ctx: _judge_step(ctx, predicted=False)),
+    # rho exactly at 0.25 and 0.75 (exact in binary): which side of the threshold is the contract's
     check(RADIUS, "good step (rho > 0.75)", 1,
            _radius_calls([(1.0, 0.9, 0.5), (2.0, 0.9, 0.5), (0.4, 0.99, 0.4)]),
-           _radius_judge("rho > 0.75: max(radius, 3 |step|)")),
+           _radius_judge("rho > 0.75: max(radius, 3 |step|)"), exact_inputs=True),
     check(RADIUS, "poor step (rho < 0.25)", 1,
            _radius_calls([(1.0, 0.1, 0.5), (3.0, -2.0, 3.0), (1.0, 0.2499, 1.0)]),
-           _radius_judge("rho < 0.25: radius / 2")),
+           _radius_judge("rho < 0.25: radius / 2"), exact_inputs=True),
     check(RADIUS, "in between (0.25 <= rho <= 0.75)", 1,
            _radius_calls([(1.0, 0.5, 0.5), (2.0, 0.25, 2.0), (2.0, 0.75, 2.0)]),
-           _radius_judge("0.25 <= rho <= 0.75: the radius stays")),
+           _radius_judge("0.25 <= rho <= 0.75: the radius stays"), exact_inputs=True),
     check(END, "curve", 2, _end_calls("curve"), _judge_end("curve")),
     check(END, "pose graph", 2, _end_calls("pose graph"), _judge_end("pose graph")),
 ]

@@ -257,9 +257,11 @@ CHECKS = [
     check(BOUNDS, "contiguous balanced chunks", 2, _bounds_calls, _judge_bounds),
     check(PARALLEL, "U, V and W as the serial assembly", 3, _value_calls,
           _values(("U", "V", "W"), "U and V are the sums of the chunks' partial blocks (every chunk added once), "
-                                   "W the chunks' blocks in observation order")),
+                                   "W the chunks' blocks in observation order"),
+          exact_inputs=True),  # entries multiples of 1/2: every sum exact, in any order
     check(PARALLEL, "gradients and chi2 as the serial assembly", 2, _value_calls,
           _values(("g_cam", "g_point", "chi2"), "g_cam, g_point and chi2 are the sums of the chunks' partial sums "
-                                                "(every chunk added once)")),
+                                                "(every chunk added once)"),
+          exact_inputs=True),
     check(PARALLEL, "chunks run on several threads at once", 1, _thread_calls, _judge_threads),
 ]

@@ -165,7 +165,8 @@ _NOT_DEFINITE_CAUSE = (_WEIGHT_CAUSE + "; Huber beyond its threshold sits exactl
 def _kernel_checks(kernel):
     name = KERNELS[kernel]
     return [check(name, _TITLES[out], 1, _kernel_calls(kernel),
-                  values((out,), 1e-10, 1e-12, _CAUSES[kernel][out], _LABELS, atol_scaled=True))
+                  values((out,), 1e-10, 1e-12, _CAUSES[kernel][out], _LABELS, atol_scaled=True),
+                  exact_inputs=True)  # s = a^2 exactly (x = 1): which side of the threshold is the contract's
             for out in ("rho", "d_rho", "dd_rho")]
 
 

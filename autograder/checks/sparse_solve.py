@@ -1,6 +1,6 @@
 """Checks of ``sparse_solve``: the dense solve, the upper triangle as CSC, and the sparse
-Cholesky solver (first solve, later solves on the same pattern, one symbolic analysis,
-two solvers on two patterns used alternately).
+Cholesky solver (first solve, later solves on the same pattern, one symbolic analysis, a
+pattern that changes between calls, two solvers on two patterns used alternately).
 
 Public inputs: H and b of the 6-pose graph of the assembly checks (first pose fixed) at
 two sets of poses, a damped H with another b, and a small dense system; the second
@@ -127,6 +127,52 @@ def _alternating_calls(seed=None):
                        "(each with its own H and a new b)")]
 
 
+def _csc(H, extra=None):
+    """``(indices, indptr, data)`` of the upper triangle of ``H`` with its zeros left out, plus an
+    explicit zero at ``extra`` (row, column) when given."""
+    import scipy.sparse as sp
+
+    upper = sp.triu(sp.csc_matrix(H), format="csc")
+    upper.eliminate_zeros()
+    if extra is not None:
+        upper = upper.tolil()
+        upper[extra] = 1.0
+        upper = upper.tocsc()
+        upper[extra] = 0.0  # an explicit zero: stored, so part of the pattern
+    upper.sort_indices()
+    return upper.indices.copy(), upper.indptr.copy(), upper.data.copy()
+
+
+@cache
+def _pattern_changes(seed=None):
+    """Four upper triangles for one solver: H1; H2 with an off-diagonal entry cancelled to exactly zero
+    (left out, as ``upper_triangle_csc`` of a dense H leaves it); the damped H3 with another entry left
+    out and an explicit zero stored elsewhere (the same number of entries as H1, other positions); H1
+    again. (shape, patterns, rhs, where)."""
+    (H1, b1), (H2, b2), (H3, b3) = systems(seed)
+    rows, cols = np.nonzero(np.triu(H1, 1))
+    rng = np.random.default_rng(17 if seed is None else [seed, 227])
+    first, second = rng.choice(len(rows), 2, replace=False)
+    H2 = H2.copy()
+    H2[rows[first], cols[first]] = H2[cols[first], rows[first]] = 0.0
+    H3 = H3.copy()
+    H3[rows[second], cols[second]] = H3[cols[second], rows[second]] = 0.0
+    empty = np.argwhere(np.triu(H1 == 0, 1))
+    extra = tuple(int(v) for v in empty[rng.integers(len(empty))])
+    patterns = [_csc(H1), _csc(H2), _csc(H3, extra), _csc(H1)]
+    where = (f"for 4 successive calls on one solver whose pattern changes: H; another H with entry "
+             f"({rows[first]}, {cols[first]}) cancelled to exactly 0 and left out; a damped H with entry "
+             f"({rows[second]}, {cols[second]}) left out and an explicit zero stored at {extra} (as many entries "
+             "as the first, other positions); the first H again")
+    return H1.shape, patterns, [b1, b2, b3, -b1], where
+
+
+def _pattern_calls(seed=None):
+    shape, patterns, rhs, where = _pattern_changes(seed)
+    return [Call("@autograder.tasks.sparse_solve:pattern_solves", (shape, patterns, rhs), returns="dict",
+                 label="sparse_solve.SparseCholeskySolver.solve", where=where)]
+
+
 # ---------------------------------------------------------------- judges
 
 
@@ -180,6 +226,15 @@ def _successive(call):
     return [(f"dx{k}", f"{call.where}, call {k + 1}" if count > 1 else call.where) for k in range(count)]
 
 
+def _changing(call):
+    return [(f"dx{k}", f"{call.where}, call {k + 1}") for k in range(len(call.args[1]))]
+
+
+NEW_PATTERN = ("a call whose pattern (H_upper.indptr, H_upper.indices) differs from the one analysed must be "
+               "analysed again (a new qdldl.Solver): qdldl's update assumes the analysed pattern and silently "
+               "gives a wrong factorization otherwise; compare the pattern itself, not only the number of entries")
+
+
 def _alternating(call):
     out = []
     for k in range(len(call.args[0][3])):
@@ -216,6 +271,8 @@ CHECKS = [
     check(SPARSE, "later solves with new values, same pattern", 2, _sparse_calls(3), _judge_sparse(_successive),
           needs=QDLDL),
     check(SPARSE, "one symbolic analysis for the pattern", 1, _sparse_calls(3), _judge_reuse, needs=QDLDL),
+    check(SPARSE, "a changed pattern is analysed again", 2, _pattern_calls,
+          _judge_sparse(_changing, NEW_PATTERN, {"ValueError": NEW_PATTERN}), needs=QDLDL),
     check(SPARSE, "two solvers, two patterns, used alternately", 1, _alternating_calls,
           _judge_sparse(_alternating, SHARED_STATE, {"ValueError": SHARED_STATE}), needs=QDLDL),
 ]

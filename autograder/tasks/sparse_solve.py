@@ -121,3 +121,16 @@ def alternating_solves(first, second, impl):
                                                   f"the {which} solver's call {k + 1}")
         out["solvers_created"] = float(counter.made) if counter is not None else float("nan")
     return out
+
+
+def pattern_solves(shape, patterns, rhs, impl):
+    """One ``SparseCholeskySolver`` solving ``H_k dx = -b_k`` where the pattern changes between calls:
+    ``patterns[k]`` is ``(indices, indptr, data)`` of the k-th upper triangle (CSC). Returns ``dx0,
+    dx1, ...`` and ``solvers_created`` (NaN when they could not be counted)."""
+    out = {}
+    with _sparse_solve_counted(impl) as (module, counter):
+        solver = module.SparseCholeskySolver()
+        for k, ((indices, indptr, data), b) in enumerate(zip(patterns, rhs)):
+            out[f"dx{k}"] = _solve_once(solver, shape, indices, indptr, data, b, f"call {k + 1}")
+        out["solvers_created"] = float(counter.made) if counter is not None else float("nan")
+    return out
