@@ -16,6 +16,10 @@ from course.core.errors import DatasetError
 from course.core.impl import default_impl
 from course.core.jsonio import write_json
 
+#: ``--information``: the readers' repairs of an information matrix that is not positive definite
+#: (``course.solver.information.MODES``, written out here: the command line imports no numpy)
+INFORMATION = ("strict", "nearest-psd", "isotropic")
+
 
 def _names(text):
     return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
@@ -62,6 +66,12 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--plot", metavar="FILE",
                          help="write a PNG: chi2 per iteration (curve) or the graph before and after (pose graphs)")
     compare.add_argument("--max-iterations", type=int, default=100, help="for every solver (default 100)")
+    compare.add_argument("--information", default="strict", choices=INFORMATION,
+                         help="pose graphs: an edge whose information matrix is not positive definite is refused "
+                              "(strict, the default: the error names file, line and eigenvalues), or repaired: "
+                              "nearest-psd (the nearest matrix whose eigenvalues are at least 1e-9 times its "
+                              "largest) or isotropic (SE-Sync's scaled identity per block, translation and "
+                              "rotation); only such edges are touched, and every row says how many were")
     compare.set_defaults(func=cmd_compare)
 
     listing = sub.add_parser("datasets", help="list the named datasets, their sizes and where each comes from")
@@ -333,16 +343,20 @@ def cmd_compare(args) -> int:
     methods, backends = _names(args.methods), _names(args.backends)
     init = {}
     if runner.kind in ("posegraph", "posegraph3d"):
-        init = {"init": args.init}
+        init = {"init": args.init, "information": args.information}
     elif args.init != "file":
         raise ValueError(f"--init {args.init}: only pose graphs have an initialisation; "
                          f"{args.dataset} starts from its own given start (use --init file)")
+    elif args.information != "strict":
+        raise ValueError(f"--information {args.information}: only pose graphs have information matrices to repair; "
+                         f"{args.dataset} is not one (leave --information out)")
     progress = _progress(runner.kind, methods, backends, args.dataset)
     runs = runner.run(args.dataset, impl=impl, methods=methods, backends=backends, repeat=args.repeat,
                       max_iterations=args.max_iterations, progress=progress, **init)
     progress.close()
     where = f"impl {impl}; init {args.init}" if init else f"impl {impl}"
-    print(compare.format_table(runs, title=f"{args.dataset} ({where})"))
+    notes = list(dict.fromkeys(r.note for r in runs if r.note))
+    print(compare.format_table(runs, title=f"{args.dataset} ({where}{''.join(f'; {n}' for n in notes)})"))
     if runner.kind == "posegraph3d":
         print(NOTE_3D)
     if runner.kind == "posegraph":
@@ -362,7 +376,8 @@ def cmd_compare(args) -> int:
             from course.problems.posegraph import dataset as datasets
 
             best = min(_ran(runs), key=lambda r: (r.backend != "ours", r.final_chi2))
-            plot.pose_graph_before_after(_start(datasets.load_dataset(args.dataset), args.init, impl), best, args.plot)
+            graph = datasets.load_dataset(args.dataset, information=args.information)
+            plot.pose_graph_before_after(_start(graph, args.init, impl), best, args.plot)
         else:
             plot.chi2_per_iteration(_ran(runs), args.plot, title=f"{args.dataset}: chi2 per iteration")
         print(f"wrote {args.plot}")
