@@ -70,26 +70,47 @@ def run(dataset: str, impl=None, methods=None, backends=None, **options) -> list
 def curve_plan(methods=None, backends=None) -> list:
     """The ``(backend, method)`` pairs to run on the curve, filtered, in table order.
 
-    ``methods`` and ``backends`` are iterables of names (None = all); a method name
-    selects it in every backend that has it (``dogleg`` is ours and Ceres').
+    ``methods`` and ``backends`` are iterables of names (None = the default: every back end,
+    every peer method and our ``DEFAULT_METHODS``); a method name selects it in every backend
+    that has it (``dogleg`` is ours and Ceres'). See ``plan_for``.
     """
-    return filter_pairs(registry.pairs("curve"), methods, backends, "the curve")
+    return plan_for("curve", methods, backends)
 
 
-def filter_pairs(pairs, methods, backends, what: str) -> list:
-    """``pairs`` whose backend is in ``backends`` and method in ``methods`` (None = all).
+#: what ``plan_for``'s errors call each kind of problem
+WHAT = {"curve": "the curve", "posegraph": "pose graphs", "posegraph3d": "3D pose graphs", "bal": "bundle adjustment"}
+
+
+def plan_for(kind: str, methods=None, backends=None) -> list:
+    """The ``(backend, method)`` pairs to run on problems of ``kind``, filtered, in table order.
+
+    Every method ``registry.pairs(kind, every=True)`` lists is offered: every strategy of our
+    minimizer (``course.core.method_names.OUR_METHODS``) and the peers'. ``methods=None`` runs
+    the default (``registry.pairs(kind)``: ours but ``lm-scaled-nielsen``, which runs when
+    named); ``ValueError`` on an unknown name, listing the valid ones for ``kind``.
+    """
+    return filter_pairs(registry.pairs(kind, every=True), methods, backends, WHAT[kind], default=registry.pairs(kind))
+
+
+def filter_pairs(pairs, methods, backends, what: str, default=None) -> list:
+    """``pairs`` whose backend is in ``backends`` and method in ``methods`` (None = all, or the
+    pairs of ``default`` when it is given and ``methods`` is None).
 
     A method name selects it in every backend that has it; unknown names raise
-    ``ValueError`` listing the valid ones for ``what``.
+    ``ValueError`` listing the valid ones for ``what``, in table order.
     """
+    offered = pairs
+    if methods is None and default is not None:
+        pairs = default
     for names, index, kind in ((backends, 0, "backend"), (methods, 1, "method")):
         if names is None:
             continue
         names = list(names)
-        valid = sorted({p[index] for p in pairs})
+        valid = list(dict.fromkeys(p[index] for p in offered))
         unknown = [n for n in names if n not in valid]
         if unknown:
-            raise ValueError(f"unknown {kind}(s) {unknown} for {what}; choose from {valid}")
+            see = " (`python -m course compare --help` says what each is)" if kind == "method" else ""
+            raise ValueError(f"unknown {kind}(s) {', '.join(unknown)} for {what}; choose from {', '.join(valid)}{see}")
         pairs = [p for p in pairs if p[index] in names]
     if not pairs:
         raise ValueError(f"no (backend, method) pair left for backends={backends} and methods={methods}")
@@ -180,7 +201,7 @@ def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_i
     Args:
         impl: ``solutions``, ``exercises`` or a path (whose pieces our solvers use);
             None: this tree's own (see the module docstring).
-        methods, backends: filters, see ``curve_plan`` (None = everything).
+        methods, backends: filters, see ``curve_plan`` (None = the default).
         data: a ``CurveData``; default ``course.problems.curve.problem.generate()``.
         repeat: solve each pair ``repeat`` times and keep the median-time run.
         max_iterations: for every solver (step attempts; scipy: ``max_nfev - 1``).
@@ -224,7 +245,7 @@ def _curve_runner(dataset, impl=None, methods=None, backends=None, **options):
 
 def posegraph_plan(methods=None, backends=None) -> list:
     """The ``(backend, method)`` pairs to run on a pose graph, filtered, in table order."""
-    return filter_pairs(registry.pairs("posegraph"), methods, backends, "pose graphs")
+    return plan_for("posegraph", methods, backends)
 
 
 def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
@@ -313,7 +334,7 @@ def format_ate(runs) -> str:
 
 def bal_plan(methods=None, backends=None) -> list:
     """The ``(backend, method)`` pairs to run on a BAL problem, filtered, in table order."""
-    return filter_pairs(registry.pairs("bal"), methods, backends, "bundle adjustment")
+    return plan_for("bal", methods, backends)
 
 
 def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
@@ -379,7 +400,7 @@ def _bal_runner(dataset, impl=None, methods=None, backends=None, **options):
 
 def posegraph3d_plan(methods=None, backends=None) -> list:
     """The ``(backend, method)`` pairs to run on a 3D pose graph, filtered, in table order."""
-    return filter_pairs(registry.pairs("posegraph3d"), methods, backends, "3D pose graphs")
+    return plan_for("posegraph3d", methods, backends)
 
 
 def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
