@@ -1,6 +1,7 @@
 """``python -m course ...``: demo, compare, release; exit codes and outputs."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -110,3 +111,104 @@ def test_vio_prints_the_table_and_writes_json(tmp_path, capsys):
 def test_vio_with_unwritten_exercises_says_which_todo(capsys):
     assert main(["vio", "vio-sim:2:0", "--no-peers", "--impl", "exercises"]) == 1
     assert "TODO imu_preintegration.preintegrate" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- every strategy, where the user picks one
+
+KINDS = {"curve": "curve", "posegraph": "manhattan:30", "bal": "bal-synthetic:4:30:1", "posegraph3d": None}
+
+
+def test_every_strategy_of_the_minimizer_is_known_described_and_offered_for_every_family():
+    from course.app import compare
+    from course.backends import registry
+    from course.core.method_names import DEFAULT_METHODS, OUR_METHODS
+    from course.solver import ALL_METHODS, METHODS
+    from course.solver.strategies import make_strategy
+
+    assert ALL_METHODS == tuple(OUR_METHODS) and METHODS == DEFAULT_METHODS
+    for method in ALL_METHODS:  # what the minimizer knows: make_strategy builds each
+        assert make_strategy(method).factorizations == 0
+    with pytest.raises(ValueError, match="lm-scaled-nielsen"):
+        make_strategy("newton")
+    assert set(registry.KINDS) == set(KINDS) == set(registry.PEERS)
+    for kind in registry.KINDS:
+        offered = registry.pairs(kind, every=True)
+        assert [m for b, m in offered if b == "ours"] == list(ALL_METHODS)
+        for method in ALL_METHODS:
+            assert compare.plan_for(kind, methods=[method], backends=["ours"]) == [("ours", method)]
+        for backend, method in offered:
+            assert registry.describe(kind, backend, method)
+        default = compare.plan_for(kind)  # no --methods: the chapters' methods, the scaled one on request
+        assert [m for b, m in default if b == "ours"] == list(DEFAULT_METHODS)
+        assert default == registry.pairs(kind)
+
+
+@pytest.mark.parametrize("command", ["compare", "demo"])
+def test_help_lists_every_method_with_what_it_is(command, capsys):
+    from course.backends import registry
+    from course.core.method_names import OUR_METHODS
+
+    with pytest.raises(SystemExit) as exc:
+        main([command, "--help"])
+    assert exc.value.code == 0
+    lines = capsys.readouterr().out.splitlines()
+    for method, what in OUR_METHODS.items():
+        assert any(line.split() == [method, *what.split()] for line in lines), method
+    for kind in registry.KINDS:
+        for backend, method in registry.pairs(kind):
+            if backend != "ours":
+                what = registry.describe(kind, backend, method)
+                assert any(line.split() == [backend, method, *what.split()] for line in lines), (kind, backend, method)
+    assert "lm-scaled-nielsen, run only when named" in " ".join(lines)
+
+
+@pytest.mark.parametrize("dataset, valid, invalid", [
+    ("curve", ["gauss-newton", "lm-scaled-nielsen", "dogleg", "levenberg-marquardt", "lm", "trf"], ["levenberg"]),
+    ("bal-synthetic:4:30:1", ["lm-type3", "lm-scaled-nielsen", "levenberg-marquardt", "trf"], ["lm", "levenberg"]),
+    ("manhattan:30", ["lm-scaled-nielsen", "levenberg"], ["trf"]),
+])
+def test_an_unknown_method_is_refused_with_the_valid_ones_for_its_family(dataset, valid, invalid, capsys):
+    assert main(["compare", dataset, "--methods", "lm-type3,newton"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown method(s) newton for" in err and "--help" in err
+    offered = err.split("choose from ", 1)[1].split(" (")[0].split(", ")
+    assert set(valid) <= set(offered) and not set(invalid) & set(offered), offered
+
+
+def _graph3d(tmp_path):
+    """A 3D chain of three poses and a loop closure, the start moved off the measurements."""
+    info = " ".join(["1 0 0 0 0 0", "1 0 0 0 0", "1 0 0 0", "4 0 0", "4 0", "4"])
+    lines = ["VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1", "VERTEX_SE3:QUAT 1 1.1 0.1 0 0 0 0.05 1",
+             "VERTEX_SE3:QUAT 2 2.2 -0.1 0.1 0 0.05 0 1",
+             f"EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 {info}", f"EDGE_SE3:QUAT 1 2 1 0 0 0 0 0 1 {info}",
+             f"EDGE_SE3:QUAT 0 2 2 0 0 0 0 0 1 {info}"]
+    path = tmp_path / "chain3d.g2o"
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+def test_compare_runs_lm_scaled_nielsen_on_every_family(kind, tmp_path, capsys):
+    dataset = KINDS[kind] or _graph3d(tmp_path)
+    out = tmp_path / "runs.json"
+    assert main(["compare", dataset, "--methods", "lm-scaled-nielsen", "--backends", "ours", "--json", str(out)]) == 0
+    assert re.search(r"^ours +lm-scaled-nielsen +\d+ ", capsys.readouterr().out, flags=re.M)
+    (run,) = json.loads(out.read_text())["runs"]
+    assert run["method"] == "lm-scaled-nielsen" and run["final_chi2"] < run["initial_chi2"]
+
+
+def test_compare_on_a_small_bal_problem_with_lm_scaled_nielsen_beside_the_peers(capsys):
+    """The BAL comparison with the scaled damping and every peer method (the peers missing here are rows)."""
+    assert main(["compare", "bal-synthetic:4:30:1", "--methods", "lm-scaled-nielsen,lm-type3,trf",
+                 "--max-iterations", "30"]) == 0
+    table = capsys.readouterr().out
+    assert re.search(r"^ours +lm-scaled-nielsen +\d+ ", table, flags=re.M)
+    assert re.search(r"^ours +lm-type3 +\d+ ", table, flags=re.M) and re.search(r"^scipy +trf ", table, flags=re.M)
+
+
+def test_demo_offers_lm_scaled_nielsen_too(tmp_path, capsys):
+    assert main(["demo", "--curve-only", "--methods", "lm-scaled-nielsen", "--backends", "ours", "--repeat", "1",
+                 "--out", str(tmp_path / "out")]) == 0
+    assert re.search(r"^ours +lm-scaled-nielsen +\d+ ", capsys.readouterr().out, flags=re.M)
+    (run,) = json.loads((tmp_path / "out" / "curve.json").read_text())["runs"]
+    assert run["method"] == "lm-scaled-nielsen" and run["final_chi2"] < run["initial_chi2"]

@@ -10,11 +10,37 @@ import sys
 from pathlib import Path
 
 from course.app.starts import INITIALISERS, PEER_INITIALISERS
+from course.backends import registry
 from course.core.backend_names import BACKENDS
 from course.core.data import data_dir
 from course.core.errors import DatasetError
 from course.core.impl import default_impl
 from course.core.jsonio import write_json
+from course.core.method_names import DEFAULT_METHODS, OUR_METHODS
+
+#: ``--information``: the readers' repairs of an information matrix that is not positive definite
+#: (``course.solver.information.MODES``, written out here: the command line imports no numpy)
+INFORMATION = ("strict", "nearest-psd", "isotropic")
+
+
+def methods_epilog() -> str:
+    """``--help``'s list of every method, one line each: ours (every strategy of the minimizer, on
+    every problem) and the peers' per kind of problem; the table ``--methods`` is checked against
+    (``course.backends.registry``)."""
+    on_request = [m for m in OUR_METHODS if m not in DEFAULT_METHODS]
+    lines = ["methods (--methods NAME,...; a name selects it in every back end that has it; without --methods, "
+             f"all of them but {', '.join(on_request)}, run only when named):",
+             "  ours, on every problem:"]
+    width = max(map(len, OUR_METHODS))
+    lines += [f"    {name:{width}}  {what}" for name, what in OUR_METHODS.items()]
+    lines.append("  the peers', per problem:")
+    for kind, title in registry.KINDS.items():
+        lines.append(f"    {title}:")
+        peers = [(backend, method) for backend, method in registry.pairs(kind) if backend != registry.OURS]
+        width = max(len(f"{backend} {method}") for backend, method in peers)
+        lines += [f"      {f'{backend} {method}':{width}}  {registry.describe(kind, backend, method)}"
+                  for backend, method in peers]
+    return "\n".join(lines)
 
 
 def _names(text):
@@ -25,7 +51,10 @@ def _add_run_arguments(parser):
     parser.add_argument("--impl", default=None,
                         help="solutions, exercises or a directory laid out like exercises/ "
                              "(default: solutions when present, else exercises)")
-    parser.add_argument("--methods", default=None, help="comma-separated method names (default: all)")
+    parser.add_argument("--methods", default=None,
+                        help="comma-separated method names (default: all but "
+                             f"{', '.join(m for m in OUR_METHODS if m not in DEFAULT_METHODS)}; "
+                             "the list below says what each is)")
     parser.add_argument("--backends", default=None,
                         help=f"comma-separated back ends among {', '.join(BACKENDS)} (default: all)")
     parser.add_argument("--repeat", type=int, default=1,
@@ -45,7 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    demo = sub.add_parser("demo", help="chapter 1: every method and peer on generated curve data, with plots")
+    demo = sub.add_parser("demo", help="chapter 1: every method and peer on generated curve data, with plots",
+                          epilog=methods_epilog() + "\n(demo: --methods and --backends select on the curve)",
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
     _add_run_arguments(demo)
     demo.add_argument("--out", default="out", help="folder for the PNG plots and the JSON (default: out)")
     demo.add_argument("--points", type=int, default=100, help="number of samples (default 100)")
@@ -53,7 +84,8 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--curve-only", action="store_true", help="skip the pose graphs (w10000, intel)")
     demo.set_defaults(func=cmd_demo, repeat=3)
 
-    compare = sub.add_parser("compare", help="one dataset through our methods and the peers")
+    compare = sub.add_parser("compare", help="one dataset through our methods and the peers", epilog=methods_epilog(),
+                             formatter_class=argparse.RawDescriptionHelpFormatter)
     compare.add_argument("dataset", help="'curve' (generated data), a named pose graph "
                          "(see `python -m course datasets`), manhattan:N, or a TORO/g2o file; "
                          "a BAL problem: ladybug-49, dubrovnik-3-7, bal-synthetic:CAMS:POINTS[:seed] or a BAL file")
@@ -62,6 +94,12 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--plot", metavar="FILE",
                          help="write a PNG: chi2 per iteration (curve) or the graph before and after (pose graphs)")
     compare.add_argument("--max-iterations", type=int, default=100, help="for every solver (default 100)")
+    compare.add_argument("--information", default="strict", choices=INFORMATION,
+                         help="pose graphs: an edge whose information matrix is not positive definite is refused "
+                              "(strict, the default: the error names file, line and eigenvalues), or repaired: "
+                              "nearest-psd (the nearest matrix whose eigenvalues are at least 1e-9 times its "
+                              "largest) or isotropic (SE-Sync's scaled identity per block, translation and "
+                              "rotation); only such edges are touched, and every row says how many were")
     compare.set_defaults(func=cmd_compare)
 
     listing = sub.add_parser("datasets", help="list the named datasets, their sizes and where each comes from")
@@ -333,16 +371,20 @@ def cmd_compare(args) -> int:
     methods, backends = _names(args.methods), _names(args.backends)
     init = {}
     if runner.kind in ("posegraph", "posegraph3d"):
-        init = {"init": args.init}
+        init = {"init": args.init, "information": args.information}
     elif args.init != "file":
         raise ValueError(f"--init {args.init}: only pose graphs have an initialisation; "
                          f"{args.dataset} starts from its own given start (use --init file)")
+    elif args.information != "strict":
+        raise ValueError(f"--information {args.information}: only pose graphs have information matrices to repair; "
+                         f"{args.dataset} is not one (leave --information out)")
     progress = _progress(runner.kind, methods, backends, args.dataset)
     runs = runner.run(args.dataset, impl=impl, methods=methods, backends=backends, repeat=args.repeat,
                       max_iterations=args.max_iterations, progress=progress, **init)
     progress.close()
     where = f"impl {impl}; init {args.init}" if init else f"impl {impl}"
-    print(compare.format_table(runs, title=f"{args.dataset} ({where})"))
+    notes = list(dict.fromkeys(r.note for r in runs if r.note))
+    print(compare.format_table(runs, title=f"{args.dataset} ({where}{''.join(f'; {n}' for n in notes)})"))
     if runner.kind == "posegraph3d":
         print(NOTE_3D)
     if runner.kind == "posegraph":
@@ -362,7 +404,8 @@ def cmd_compare(args) -> int:
             from course.problems.posegraph import dataset as datasets
 
             best = min(_ran(runs), key=lambda r: (r.backend != "ours", r.final_chi2))
-            plot.pose_graph_before_after(_start(datasets.load_dataset(args.dataset), args.init, impl), best, args.plot)
+            graph = datasets.load_dataset(args.dataset, information=args.information)
+            plot.pose_graph_before_after(_start(graph, args.init, impl), best, args.plot)
         else:
             plot.chi2_per_iteration(_ran(runs), args.plot, title=f"{args.dataset}: chi2 per iteration")
         print(f"wrote {args.plot}")

@@ -7,10 +7,11 @@ accepts the name: ``curve`` (chapter 1, generated data), ``bal`` (chapter 4: ``l
 named datasets such as ``intel`` or ``m3500``, ``manhattan:N`` and file paths).
 
 A runner is called as ``runner(dataset, impl=..., methods=..., backends=..., repeat=...,
-max_iterations=...)``
-(``python -m course compare`` passes exactly these, and ``init`` to pose graphs; ``repeat`` =
-solves per pair, the median-time run kept) and returns ``list[RunResult]`` with ``final_chi2`` evaluated by
-our own error, whatever the back end.
+max_iterations=...)`` (``python -m course compare`` passes exactly these, and to pose graphs
+``init`` and ``information``, the reader's repair of information matrices that are not positive
+definite, ``course.solver.information``; ``repeat`` = solves per pair, the median-time run kept)
+and returns ``list[RunResult]`` with ``final_chi2`` evaluated by our own error, whatever the
+back end; where the reader repaired edges, every result says how many (``RunResult.note``).
 
 ``impl=None`` means this tree's own implementation: ``solutions`` where ``solutions/``
 exists, else ``exercises`` (a student tree). ``unimplemented="row"`` (the demo's choice)
@@ -69,26 +70,47 @@ def run(dataset: str, impl=None, methods=None, backends=None, **options) -> list
 def curve_plan(methods=None, backends=None) -> list:
     """The ``(backend, method)`` pairs to run on the curve, filtered, in table order.
 
-    ``methods`` and ``backends`` are iterables of names (None = all); a method name
-    selects it in every backend that has it (``dogleg`` is ours and Ceres').
+    ``methods`` and ``backends`` are iterables of names (None = the default: every back end,
+    every peer method and our ``DEFAULT_METHODS``); a method name selects it in every backend
+    that has it (``dogleg`` is ours and Ceres'). See ``plan_for``.
     """
-    return filter_pairs(registry.pairs("curve"), methods, backends, "the curve")
+    return plan_for("curve", methods, backends)
 
 
-def filter_pairs(pairs, methods, backends, what: str) -> list:
-    """``pairs`` whose backend is in ``backends`` and method in ``methods`` (None = all).
+#: what ``plan_for``'s errors call each kind of problem
+WHAT = {"curve": "the curve", "posegraph": "pose graphs", "posegraph3d": "3D pose graphs", "bal": "bundle adjustment"}
+
+
+def plan_for(kind: str, methods=None, backends=None) -> list:
+    """The ``(backend, method)`` pairs to run on problems of ``kind``, filtered, in table order.
+
+    Every method ``registry.pairs(kind, every=True)`` lists is offered: every strategy of our
+    minimizer (``course.core.method_names.OUR_METHODS``) and the peers'. ``methods=None`` runs
+    the default (``registry.pairs(kind)``: ours but ``lm-scaled-nielsen``, which runs when
+    named); ``ValueError`` on an unknown name, listing the valid ones for ``kind``.
+    """
+    return filter_pairs(registry.pairs(kind, every=True), methods, backends, WHAT[kind], default=registry.pairs(kind))
+
+
+def filter_pairs(pairs, methods, backends, what: str, default=None) -> list:
+    """``pairs`` whose backend is in ``backends`` and method in ``methods`` (None = all, or the
+    pairs of ``default`` when it is given and ``methods`` is None).
 
     A method name selects it in every backend that has it; unknown names raise
-    ``ValueError`` listing the valid ones for ``what``.
+    ``ValueError`` listing the valid ones for ``what``, in table order.
     """
+    offered = pairs
+    if methods is None and default is not None:
+        pairs = default
     for names, index, kind in ((backends, 0, "backend"), (methods, 1, "method")):
         if names is None:
             continue
         names = list(names)
-        valid = sorted({p[index] for p in pairs})
+        valid = list(dict.fromkeys(p[index] for p in offered))
         unknown = [n for n in names if n not in valid]
         if unknown:
-            raise ValueError(f"unknown {kind}(s) {unknown} for {what}; choose from {valid}")
+            see = " (`python -m course compare --help` says what each is)" if kind == "method" else ""
+            raise ValueError(f"unknown {kind}(s) {', '.join(unknown)} for {what}; choose from {', '.join(valid)}{see}")
         pairs = [p for p in pairs if p[index] in names]
     if not pairs:
         raise ValueError(f"no (backend, method) pair left for backends={backends} and methods={methods}")
@@ -136,6 +158,14 @@ def _start_or_rows(initialise, graph, init, impl, plan, unimplemented):
         return rows
 
 
+def _with_repairs(results, graph) -> list:
+    """``results``, each marked with how many of ``graph``'s edges had their information repaired
+    by the reader (``graph.repaired``, ``graph.information_repair``)."""
+    for result in results:
+        result.repaired_edges, result.information_repair = graph.num_repaired, graph.information_repair
+    return results
+
+
 def _median_run(solve, repeat: int) -> RunResult:
     """Run ``solve()`` ``repeat`` times and keep the run with the median time."""
     runs = [solve() for _ in range(max(int(repeat), 1))]
@@ -171,7 +201,7 @@ def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_i
     Args:
         impl: ``solutions``, ``exercises`` or a path (whose pieces our solvers use);
             None: this tree's own (see the module docstring).
-        methods, backends: filters, see ``curve_plan`` (None = everything).
+        methods, backends: filters, see ``curve_plan`` (None = the default).
         data: a ``CurveData``; default ``course.problems.curve.problem.generate()``.
         repeat: solve each pair ``repeat`` times and keep the median-time run.
         max_iterations: for every solver (step attempts; scipy: ``max_nfev - 1``).
@@ -215,7 +245,7 @@ def _curve_runner(dataset, impl=None, methods=None, backends=None, **options):
 
 def posegraph_plan(methods=None, backends=None) -> list:
     """The ``(backend, method)`` pairs to run on a pose graph, filtered, in table order."""
-    return filter_pairs(registry.pairs("posegraph"), methods, backends, "pose graphs")
+    return plan_for("posegraph", methods, backends)
 
 
 def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
@@ -241,7 +271,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
     check_method(init)
     started = _start_or_rows(initialise, graph, init, impl, plan, unimplemented)
     if isinstance(started, list):
-        return started
+        return _with_repairs(started, graph)
     graph, init_seconds = started
 
     def problem():
@@ -267,7 +297,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
         if graph.ground_truth is not None and not result.not_run:
             result.ate = absolute_trajectory_error(result.params, graph.ground_truth)
         result.init, result.init_seconds = init, init_seconds
-    return results
+    return _with_repairs(results, graph)
 
 
 def is_posegraph_name(name: str) -> bool:
@@ -277,10 +307,10 @@ def is_posegraph_name(name: str) -> bool:
         or Path(name + "-v.dat").exists()
 
 
-def _posegraph_runner(dataset, impl=None, methods=None, backends=None, **options):
+def _posegraph_runner(dataset, impl=None, methods=None, backends=None, information="strict", **options):
     from course.problems.posegraph import dataset as datasets
 
-    return run_posegraph(datasets.load_dataset(dataset), impl=impl, methods=methods,
+    return run_posegraph(datasets.load_dataset(dataset, information=information), impl=impl, methods=methods,
                          backends=backends, **options)
 
 
@@ -304,7 +334,7 @@ def format_ate(runs) -> str:
 
 def bal_plan(methods=None, backends=None) -> list:
     """The ``(backend, method)`` pairs to run on a BAL problem, filtered, in table order."""
-    return filter_pairs(registry.pairs("bal"), methods, backends, "bundle adjustment")
+    return plan_for("bal", methods, backends)
 
 
 def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
@@ -370,7 +400,7 @@ def _bal_runner(dataset, impl=None, methods=None, backends=None, **options):
 
 def posegraph3d_plan(methods=None, backends=None) -> list:
     """The ``(backend, method)`` pairs to run on a 3D pose graph, filtered, in table order."""
-    return filter_pairs(registry.pairs("posegraph3d"), methods, backends, "3D pose graphs")
+    return plan_for("posegraph3d", methods, backends)
 
 
 def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
@@ -392,7 +422,7 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
     plan = posegraph3d_plan(methods, backends)
     started = _start_or_rows(initialise, graph, init, impl, plan, unimplemented)
     if isinstance(started, list):
-        return started
+        return _with_repairs(started, graph)
     graph, init_seconds = started
 
     def ours(method, callback):
@@ -405,7 +435,7 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
     results = _run_pairs(plan, ours, peer, repeat, unimplemented, progress)
     for result in results:
         result.init, result.init_seconds = init, init_seconds
-    return results
+    return _with_repairs(results, graph)
 
 
 #: the tags a 3D graph file starts with
@@ -429,10 +459,11 @@ def is_posegraph3d_name(name: str) -> bool:
     return False
 
 
-def _posegraph3d_runner(dataset, impl=None, methods=None, backends=None, **options):
+def _posegraph3d_runner(dataset, impl=None, methods=None, backends=None, information="strict", **options):
     from course.problems.posegraph3d import dataset as datasets
 
-    return run_posegraph3d(datasets.load_dataset(dataset), impl=impl, methods=methods, backends=backends, **options)
+    return run_posegraph3d(datasets.load_dataset(dataset, information=information), impl=impl, methods=methods,
+                           backends=backends, **options)
 
 
 # ---------------------------------------------------------------- the dataset kinds, in the order tried
@@ -484,13 +515,18 @@ def format_table(runs, title: str = "") -> str:
     and per-iteration time (milliseconds), and the parameters when they are few (the curve).
     A run that did not run (``not_run``) is a row with its backend, method and the reason.
     Runs started from an initialisation (``RunResult.init`` other than ``file``) get a note
-    line under the table naming it and its time."""
+    line under the table naming it and its time. Where a run's data had edges repaired
+    (``RunResult.note``), a last column ``note`` says so on every row (after the reason on a
+    row that did not run)."""
     header = ["backend", "method", "iters", "initial chi2", "final chi2", "total ms", "ms/iter"]
     ran = [r for r in runs if not r.not_run]
     params = [_params_text(r.params) for r in ran]
     show_params = bool(ran) and all(p is not None for p in params)
     if show_params:
         header.append("params")
+    show_notes = any(r.note for r in runs)
+    if show_notes:
+        header.append("note")
     rows = []
     for r, p in zip(ran, params):
         row = [
@@ -504,6 +540,8 @@ def format_table(runs, title: str = "") -> str:
         ]
         if show_params:
             row.append(p)
+        if show_notes:
+            row.append(r.note)
         rows.append(row)
     widths = [max(len(h), *(len(row[k]) for row in rows)) if rows else len(h) for k, h in enumerate(header)]
     skipped = [[r.backend, r.method] for r in runs if r.not_run]
@@ -517,8 +555,9 @@ def format_table(runs, title: str = "") -> str:
 
     lines, done = {}, iter(rows)
     for k, r in enumerate(runs):  # table order: ran and not-run rows where the plan put them
+        note = f"; {r.note}" if r.note else ""
         lines[k] = line(next(done)) if not r.not_run else \
-            f"{r.backend.ljust(widths[0])}  {r.method.ljust(widths[1])}  {r.not_run}"
+            f"{r.backend.ljust(widths[0])}  {r.method.ljust(widths[1])}  {r.not_run}{note}"
     out = [title] if title else []
     out += [line(header), line(["-" * w for w in widths])]
     out += [lines[k] for k in range(len(runs))]

@@ -44,6 +44,9 @@ class RunResult:
     ``init``: where the solve started (``course.app.starts.INITIALISERS``: ``file``,
     ``tree``, ``chordal``); ``init_seconds``: the initialisation's own time, not in
     ``seconds`` (0.0 for the file's poses); ``total_seconds`` is the time to solution.
+    ``repaired_edges``: how many edges' information the reader repaired (a pose graph read with
+    ``information="nearest-psd"`` or ``"isotropic"``, ``course.solver.information``), and
+    ``information_repair`` how; ``note`` says it in words.
     """
 
     backend: str
@@ -60,6 +63,8 @@ class RunResult:
     ate: dict | None = None
     init: str = "file"
     init_seconds: float = 0.0
+    repaired_edges: int = 0
+    information_repair: str = ""
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
@@ -74,6 +79,12 @@ class RunResult:
     @property
     def seconds_per_iteration(self) -> float:
         return self.seconds / max(self.iterations, 1)
+
+    @property
+    def note(self) -> str:
+        """What the run's data had done to it: ``"1 edge's information repaired (nearest-psd)"``,
+        or ""."""
+        return repair_note(self.repaired_edges, self.information_repair)
 
     @property
     def total_seconds(self) -> float:
@@ -97,11 +108,22 @@ class RunResult:
         }
         if self.ate is not None:
             out["ate"] = self.ate
+        if self.repaired_edges:
+            out.update(repaired_edges=int(self.repaired_edges), information_repair=self.information_repair,
+                       note=self.note)
         if self.not_run:  # JSON has no NaN
             out.update(not_run=self.not_run, initial_chi2=None, final_chi2=None)
         if with_params:
             out["params"] = np.asarray(self.params).tolist()
         return out
+
+
+def repair_note(count: int, mode: str) -> str:
+    """``"1 edge's information repaired (nearest-psd)"``, ``"3 edges' ..."``; "" for none."""
+    if not count:
+        return ""
+    whose = "1 edge's" if count == 1 else f"{count} edges'"
+    return f"{whose} information repaired ({mode})"
 
 
 def _finite_or_none(record: dict) -> dict:

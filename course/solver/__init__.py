@@ -2,6 +2,6 @@
 
 from course.solver.minimizer import Problem, StopReason, minimize
 from course.solver.options import SolverOptions
-from course.solver.strategies import METHODS
+from course.solver.strategies import ALL_METHODS, METHODS
 
-__all__ = ["METHODS", "Problem", "SolverOptions", "StopReason", "minimize"]
+__all__ = ["ALL_METHODS", "METHODS", "Problem", "SolverOptions", "StopReason", "minimize"]

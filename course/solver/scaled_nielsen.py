@@ -14,7 +14,8 @@ minimum against type 3's 81 (``python -m course benchmark``, :mod:`course.app.be
 
 from course.solver.damping import DampingState, DampingStrategy
 
-#: the method name the minimizer knows this rule by (not among Gavin's three of the comparisons)
+#: the method name the minimizer knows this rule by: every comparison offers it (``--methods``),
+#: none runs it unless named (``course.core.method_names.DEFAULT_METHODS``)
 SCALED_NIELSEN = "lm-scaled-nielsen"
 
 

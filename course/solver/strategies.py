@@ -26,11 +26,16 @@ import numpy as np
 
 from course.core import impl as impl_loader
 from course.core.errors import CourseError, NonFiniteError, SingularSystemError
+from course.core.method_names import OUR_METHODS
 from course.solver.scaled_nielsen import SCALED_NIELSEN, ScaledNielsen
 
 GAUSS_NEWTON, DOGLEG = "gauss-newton", "dogleg"
 LM_METHODS = ("lm-type1", "lm-type2", "lm-type3")
+#: what a comparison runs when no method is named (``course.core.method_names.DEFAULT_METHODS``)
 METHODS = (GAUSS_NEWTON, *LM_METHODS, DOGLEG)
+#: every strategy :func:`make_strategy` knows, in table order, each described in
+#: ``course.core.method_names.OUR_METHODS``
+ALL_METHODS = tuple(OUR_METHODS)
 
 #: the dogleg's regularization when H cannot be factorized (Ceres' dogleg strategy)
 MU_MIN, MU_MAX = 1e-8, 1.0
@@ -244,8 +249,9 @@ def _short(h, x, options) -> bool:
 
 
 def make_strategy(method: str, impl="solutions", options=None):
-    """A fresh strategy for ``method`` (one of :data:`METHODS`, or ``lm-scaled-nielsen``: Gavin's
-    types 1 and 3 put together, :mod:`course.solver.scaled_nielsen`) from ``impl``'s pieces."""
+    """A fresh strategy for ``method`` (one of :data:`ALL_METHODS`: :data:`METHODS`, and
+    ``lm-scaled-nielsen``, Gavin's types 1 and 3 put together, :mod:`course.solver.scaled_nielsen`)
+    from ``impl``'s pieces."""
     if method == GAUSS_NEWTON:
         return GaussNewtonStrategy()
     if method == DOGLEG:
@@ -259,4 +265,4 @@ def make_strategy(method: str, impl="solutions", options=None):
     if method == SCALED_NIELSEN:
         rules = impl_loader.load(impl).module("damping").STRATEGIES
         return LevenbergMarquardtStrategy(ScaledNielsen(rules["lm-type1"](), rules["lm-type3"]()))
-    raise ValueError(f"unknown method {method!r}; choose one of {METHODS}")
+    raise ValueError(f"unknown method {method!r}; choose one of {', '.join(ALL_METHODS)}")

@@ -31,6 +31,7 @@ from course.core.data import DatasetInfo, locate, origin
 from course.core.errors import DatasetError
 from course.geometry import se2 as geometry
 from course.problems.posegraph.graph import PoseGraph
+from course.solver.information import HINT, NoInformationError, check_mode, eigenvalues_text, not_definite, repair
 
 log = logging.getLogger(__name__)
 
@@ -101,7 +102,7 @@ class _Records:
             self.vertex_tokens.append(parts[2:])
             self.vertex_where.append(where)
 
-    def graph(self, name: str, source: str) -> PoseGraph:
+    def graph(self, name: str, source: str, information: str = "strict") -> PoseGraph:
         if not self.vertex_ids:
             raise DatasetError(f"{source}: no vertices (empty graph)")
         poses = _floats(self.vertex_tokens, self.vertex_where,
@@ -121,7 +122,7 @@ class _Records:
             block = np.zeros((np.sum(tags == tag), 3, 3))
             block[:, rows, cols] = block[:, cols, rows] = values[tags == tag, 3:]
             info[tags == tag] = block
-        _check_spd(info, self.edge_where, self.edge_tags)
+        info, repaired = _checked_information(info, self.edge_where, self.edge_tags, information)
         fixed = []
         for vid, where in zip(self.fixed, self.fixed_where):
             if vid not in index:
@@ -133,7 +134,7 @@ class _Records:
         return PoseGraph(
             poses, edges[:, 0], edges[:, 1], values[:, :3], info,
             fixed=np.array(fixed or [0]), ids=np.array(self.vertex_ids, dtype=np.int64),
-            name=name, source=source,
+            name=name, source=source, repaired=repaired, information_repair=information,
         )
 
 
@@ -177,17 +178,26 @@ def _floats(rows, where, names, width) -> np.ndarray:
     raise AssertionError("unreachable")
 
 
-def _check_spd(info, where, tags):
-    """Fail on the first (M, 3, 3) information matrix that is not positive definite."""
-    if len(info) == 0:
-        return
-    bad = np.flatnonzero(np.linalg.eigvalsh(info)[:, 0] <= 0.0)
-    if len(bad):
-        k = bad[0]
+#: the blocks (translation, rotation) that ``information="isotropic"`` makes scaled identities
+_BLOCKS = ((0, 1), (2,))
+
+
+def _checked_information(info, where, tags, mode):
+    """``(info, repaired)``: the (M, 3, 3) information matrices with those that are not positive
+    definite refused (``strict``: the first one's file, line and eigenvalues) or repaired
+    (:func:`course.solver.information.repair`), and the (M,) mask of the repaired ones."""
+    bad = not_definite(info)
+    if mode == "strict" and bad.any():
+        k = int(np.flatnonzero(bad)[0])
         order = " ".join(_FIELDS[tags[k]][5:])
-        eig = np.linalg.eigvalsh(info[k])
         _fail(where[k], f"information matrix is not symmetric positive definite "
-                        f"(eigenvalues {eig}; {tags[k]} order is {order}): {info[k].tolist()}")
+                        f"(eigenvalues {eigenvalues_text(info[k])}; {tags[k]} order is {order}): {info[k].tolist()}; "
+                        f"{HINT}")
+    try:
+        return repair(info, mode, _BLOCKS)
+    except NoInformationError as exc:
+        _fail(where[exc.index], str(exc))
+        raise AssertionError("unreachable") from exc
 
 
 def _toro_pair(path: Path) -> tuple[Path, Path] | None:
@@ -201,7 +211,7 @@ def _toro_pair(path: Path) -> tuple[Path, Path] | None:
     return None
 
 
-def read_graph(path, name: str | None = None) -> PoseGraph:
+def read_graph(path, name: str | None = None, information: str = "strict") -> PoseGraph:
     """Read a TORO or g2o 2D pose graph.
 
     ``path`` is a single file (the tags decide the format: ``VERTEX2``/``EDGE2`` are
@@ -209,7 +219,16 @@ def read_graph(path, name: str | None = None) -> PoseGraph:
     ``X-v.dat``, ``X-e.dat`` or the prefix ``X``. Fixed vertices are the ``FIX`` ids,
     else index 0. ``EQUIV`` lines are skipped and their count is logged at INFO level.
     Raises ``DatasetError`` naming the file and line of the first problem.
+
+    ``information`` (:mod:`course.solver.information`): ``strict`` refuses an edge whose
+    information is not positive definite (its eigenvalues and the tag's field order in the
+    message: a TORO file written in g2o's order shows this way); ``nearest-psd`` replaces its
+    matrix by the nearest one whose eigenvalues are at least 1e-9 times its largest,
+    ``isotropic`` by SE-Sync's ``diag(tau, tau, kappa)`` (``tau = 2 / tr(Omega_xy^-1)``, kappa
+    the rotation's entry). Both repair those edges alone; the graph's ``repaired`` marks them and
+    its ``information_repair`` names the option.
     """
+    check_mode(information)
     path = Path(path)
     records = _Records()
     pair = _toro_pair(path)
@@ -220,7 +239,7 @@ def read_graph(path, name: str | None = None) -> PoseGraph:
     else:
         records.read(path)
         stem, source = path.stem, str(path)
-    return records.graph(name or stem, source)
+    return records.graph(name or stem, source, information)
 
 
 # ---------------------------------------------------------------------------------------
@@ -372,10 +391,13 @@ def list_datasets() -> list[DatasetInfo]:
     return out
 
 
-def load_dataset(name: str) -> PoseGraph:
-    """Load a named dataset (see ``list_datasets``), ``manhattan:N[:seed]``, or a file path."""
+def load_dataset(name: str, information: str = "strict") -> PoseGraph:
+    """Load a named dataset (see ``list_datasets``), ``manhattan:N[:seed]``, or a file path;
+    ``information`` (the repair of an information matrix that is not positive definite) as in
+    :func:`read_graph` (the generator's are all definite)."""
+    check_mode(information)
     if name in _NAMED:
-        return read_graph(_locate(name), name=name)
+        return read_graph(_locate(name), name=name, information=information)
     if name.startswith("manhattan:"):
         parts = name.split(":")[1:]
         try:
@@ -387,6 +409,6 @@ def load_dataset(name: str) -> PoseGraph:
                                "manhattan:N:seed") from None
         return manhattan(*numbers)
     if Path(name).is_file() or _toro_pair(Path(name)):
-        return read_graph(name)
+        return read_graph(name, information=information)
     known = ", ".join([*_NAMED, "manhattan:N[:seed]"])
     raise DatasetError(f"unknown dataset {name!r} and no such file; known names: {known}")

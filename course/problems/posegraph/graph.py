@@ -4,6 +4,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from course.core.trace import repair_note
 from course.geometry import se2 as geometry
 
 
@@ -22,6 +23,10 @@ class PoseGraph:
         ids: (N,) int the file's vertex ids.
         name: short name; source: where it came from (path or generator).
         ground_truth: (N, 3) true poses when known (synthetic graphs), else None.
+        repaired: (M,) bool, the edges whose information the reader repaired (not positive
+            definite in the file), all False by default.
+        information_repair: how (``course.solver.information.MODES``: ``strict``, the
+            default, repairs nothing).
     """
 
     poses: np.ndarray
@@ -34,6 +39,8 @@ class PoseGraph:
     name: str = "graph"
     source: str = ""
     ground_truth: np.ndarray | None = None
+    repaired: np.ndarray | None = None
+    information_repair: str = "strict"
 
     def __post_init__(self):
         self.poses = np.ascontiguousarray(self.poses, dtype=float)
@@ -44,6 +51,18 @@ class PoseGraph:
         self.fixed = np.asarray(self.fixed, dtype=np.int64).reshape(-1)
         if self.ids is None:
             self.ids = np.arange(len(self.poses))
+        self.repaired = np.zeros(len(self.edges_i), dtype=bool) if self.repaired is None \
+            else np.asarray(self.repaired, dtype=bool).reshape(-1)
+
+    @property
+    def num_repaired(self) -> int:
+        """How many edges' information the reader repaired."""
+        return 0 if self.repaired is None else int(np.count_nonzero(self.repaired))
+
+    @property
+    def repair_note(self) -> str:
+        """``"3 edges' information repaired (nearest-psd)"``, or "" when none was."""
+        return repair_note(self.num_repaired, self.information_repair)
 
     @property
     def num_poses(self) -> int:
@@ -66,5 +85,5 @@ class PoseGraph:
         """A copy of this graph whose initial estimate is ``poses``."""
         return PoseGraph(
             poses.copy(), self.edges_i, self.edges_j, self.measurements, self.information,
-            self.fixed, self.ids, self.name, self.source, self.ground_truth,
+            self.fixed, self.ids, self.name, self.source, self.ground_truth, self.repaired, self.information_repair,
         )

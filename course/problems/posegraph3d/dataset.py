@@ -36,6 +36,7 @@ from course.core.data import DatasetInfo, locate, origin
 from course.core.errors import DatasetError
 from course.geometry import quaternion, se3
 from course.problems.posegraph3d.graph import PoseGraph3D
+from course.solver.information import HINT, NoInformationError, check_mode, eigenvalues_text, not_definite, repair
 
 _POSE_QUAT = ("x", "y", "z", "qx", "qy", "qz", "qw")
 _POSE_EULER = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -92,14 +93,23 @@ def _rotations(values: np.ndarray, quat: np.ndarray, where: list, path) -> np.nd
     return R
 
 
-def read_graph(path, name: str | None = None) -> PoseGraph3D:
+def read_graph(path, name: str | None = None, information: str = "strict") -> PoseGraph3D:
     """Read a g2o SE(3) or ``.graph`` 3D pose graph (formats in the module docstring).
 
     Fixed vertices are the ``FIX`` ids, else the first. Raises ``DatasetError`` naming the
     file, line and field of the first problem: an unknown tag, a wrong field count, a
     number that is not one, a duplicate vertex, an edge to a missing vertex, a zero
-    quaternion, an information matrix that is not positive definite.
+    quaternion, an information matrix that is not positive definite (with its eigenvalues,
+    in the file's units).
+
+    ``information`` (:mod:`course.solver.information`): ``strict`` refuses an edge
+    whose information is not positive definite; ``nearest-psd`` replaces its matrix by the
+    nearest one whose eigenvalues are at least 1e-9 times its largest, ``isotropic`` by
+    SE-Sync's scaled identity per block (translation, rotation). Both repair those edges
+    alone, in the file's units, before the conversion to our error; the graph's ``repaired``
+    marks them and its ``information_repair`` names the option.
     """
+    check_mode(information)
     path = Path(path)
     if not path.is_file():
         raise DatasetError(f"{path}: {'is not a file' if path.exists() else 'does not exist'}")
@@ -162,21 +172,17 @@ def read_graph(path, name: str | None = None) -> PoseGraph3D:
                       edge_lines, 7)
     R_z = _rotations(values, edge_quat, edge_lines, path)
     given = np.array([info is not None for info in edge_info], dtype=bool)
-    information = np.tile(np.eye(6), (len(edge_ids), 1, 1))
+    matrices = np.tile(np.eye(6), (len(edge_ids), 1, 1))
+    repaired = np.zeros(len(edge_ids), dtype=bool)
     if given.any():
+        given_lines = [n for n, g in zip(edge_lines, given) if g]
         upper = _numbers([info for info in edge_info if info is not None], [_INFO] * int(given.sum()), path,
-                         [n for n, g in zip(edge_lines, given) if g], 21)
+                         given_lines, 21)
         M = np.zeros((len(upper), 6, 6))
         M[:, _UPPER[0], _UPPER[1]] = upper
         M = M + np.triu(M, 1).transpose(0, 2, 1)
-        information[given] = M / np.outer(se3.G2O_SCALE, se3.G2O_SCALE)
-    if len(information):
-        bad = np.flatnonzero(np.linalg.eigvalsh(information)[:, 0] <= 0.0)
-        if len(bad):
-            k = int(bad[0])
-            _fail(path, edge_lines[k], "information matrix is not symmetric positive definite (fields I11..I66, "
-                                       f"upper triangle row by row): eigenvalues "
-                                       f"{np.linalg.eigvalsh(information[k] * np.outer(se3.G2O_SCALE, se3.G2O_SCALE))}")
+        M, repaired[given] = _checked_information(M, information, path, given_lines)
+        matrices[given] = M / np.outer(se3.G2O_SCALE, se3.G2O_SCALE)
     if vertex_values:
         vertex_quat = np.array(vertex_flags, dtype=bool)
         pose_values = _numbers(vertex_values, [_POSE_QUAT if q else _POSE_EULER for q in vertex_quat], path,
@@ -190,9 +196,30 @@ def read_graph(path, name: str | None = None) -> PoseGraph3D:
             _fail(path, lineno, f"FIX refers to missing vertex id {vid}")
         if index[vid] not in fixed_index:
             fixed_index.append(index[vid])
-    return PoseGraph3D(t, R, edges[:, 0], edges[:, 1], values[:, :3], R_z, information,
+    return PoseGraph3D(t, R, edges[:, 0], edges[:, 1], values[:, :3], R_z, matrices,
                        fixed=np.array(fixed_index or [0]), ids=np.array(vertex_ids, dtype=np.int64),
-                       name=name or path.stem, source=str(path))
+                       name=name or path.stem, source=str(path), repaired=repaired, information_repair=information)
+
+
+#: the blocks (translation, rotation) that ``information="isotropic"`` makes scaled identities
+_BLOCKS = ((0, 1, 2), (3, 4, 5))
+
+
+def _checked_information(M, mode, path, lines):
+    """``(M, repaired)``: the (K, 6, 6) information matrices as the file gives them, with those that
+    are not positive definite refused (``strict``: the first one's file, line and eigenvalues) or
+    repaired (:func:`course.solver.information.repair`, in the file's units), and the mask of
+    the repaired ones."""
+    bad = not_definite(M)
+    if mode == "strict" and bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        _fail(path, lines[k], "information matrix is not symmetric positive definite (fields I11..I66, upper "
+                              f"triangle row by row): eigenvalues {eigenvalues_text(M[k])}; {HINT}")
+    try:
+        return repair(M, mode, _BLOCKS)
+    except NoInformationError as exc:
+        _fail(path, lines[exc.index], str(exc))
+        raise AssertionError("unreachable") from exc
 
 
 def compose_spanning_tree(num_poses, edges_i, edges_j, t_z, R_z):
@@ -289,13 +316,14 @@ def list_datasets() -> list[DatasetInfo]:
     return out
 
 
-def load_dataset(name: str) -> PoseGraph3D:
-    """A named 3D graph (``dataset_names``) or a file path."""
+def load_dataset(name: str, information: str = "strict") -> PoseGraph3D:
+    """A named 3D graph (``dataset_names``) or a file path; ``information`` (the repair of an
+    information matrix that is not positive definite) as in :func:`read_graph`."""
     if name in _NAMED:
         where, rel, *_ = _NAMED[name]
-        graph = read_graph(locate(f"dataset {name!r}", where, rel), name=name)
+        graph = read_graph(locate(f"dataset {name!r}", where, rel), name=name, information=information)
         graph.ground_truth = ground_truth(name)
         return graph
     if Path(name).is_file():
-        return read_graph(name)
+        return read_graph(name, information=information)
     raise DatasetError(f"unknown 3D dataset {name!r} and no such file; known names: {', '.join(_NAMED)}")

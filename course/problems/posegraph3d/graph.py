@@ -4,6 +4,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from course.core.trace import repair_note
 from course.geometry import se3
 
 
@@ -24,6 +25,10 @@ class PoseGraph3D:
         name, source: short name; where it came from (path or generator).
         ground_truth: ``(t, R)`` of the true poses when known (synthetic graphs), else None.
         outliers: (M,) bool, the edges a generator replaced by wrong ones (else None).
+        repaired: (M,) bool, the edges whose information the reader repaired (not positive
+            definite in the file), all False by default.
+        information_repair: how (``course.solver.information.MODES``: ``strict``, the
+            default, repairs nothing).
     """
 
     t: np.ndarray
@@ -39,6 +44,8 @@ class PoseGraph3D:
     source: str = ""
     ground_truth: tuple | None = None
     outliers: np.ndarray | None = None
+    repaired: np.ndarray | None = None
+    information_repair: str = "strict"
 
     def __post_init__(self):
         self.t = np.ascontiguousarray(self.t, dtype=float).reshape(-1, 3)
@@ -51,6 +58,18 @@ class PoseGraph3D:
         self.fixed = np.asarray(self.fixed, dtype=np.int64).reshape(-1)
         if self.ids is None:
             self.ids = np.arange(len(self.t))
+        self.repaired = np.zeros(len(self.edges_i), dtype=bool) if self.repaired is None \
+            else np.asarray(self.repaired, dtype=bool).reshape(-1)
+
+    @property
+    def num_repaired(self) -> int:
+        """How many edges' information the reader repaired."""
+        return 0 if self.repaired is None else int(np.count_nonzero(self.repaired))
+
+    @property
+    def repair_note(self) -> str:
+        """``"3 edges' information repaired (nearest-psd)"``, or "" when none was."""
+        return repair_note(self.num_repaired, self.information_repair)
 
     @property
     def num_poses(self) -> int:
@@ -78,11 +97,12 @@ class PoseGraph3D:
         """A copy of this graph whose initial estimate is ``(t, R)``."""
         return PoseGraph3D(np.array(t), np.array(R), self.edges_i, self.edges_j, self.t_z, self.R_z,
                            self.information, self.fixed, self.ids, self.name, self.source, self.ground_truth,
-                           self.outliers)
+                           self.outliers, self.repaired, self.information_repair)
 
     def with_edges(self, keep) -> "PoseGraph3D":
         """A copy with only the edges ``keep`` (a boolean mask (M,) or indices)."""
         keep = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep)
         return PoseGraph3D(self.t, self.R, self.edges_i[keep], self.edges_j[keep], self.t_z[keep],
                            self.R_z[keep], self.information[keep], self.fixed, self.ids, self.name,
-                           self.source, self.ground_truth, None if self.outliers is None else self.outliers[keep])
+                           self.source, self.ground_truth, None if self.outliers is None else self.outliers[keep],
+                           None if self.repaired is None else self.repaired[keep], self.information_repair)

@@ -41,4 +41,5 @@ def with_wrong_loop_closures(graph: PoseGraph3D, share: float, seed: int = 0) ->
     outliers = np.zeros(graph.num_edges, dtype=bool)
     outliers[wrong] = True
     return PoseGraph3D(graph.t, graph.R, ei, ej, t_z, R_z, graph.information, graph.fixed, graph.ids,
-                       f"{graph.name}+{share:.0%} wrong", graph.source, graph.ground_truth, outliers)
+                       f"{graph.name}+{share:.0%} wrong", graph.source, graph.ground_truth, outliers, graph.repaired,
+                       graph.information_repair)
