@@ -153,6 +153,22 @@ BUGS = {
     "normal_equations_squeezed": V(
         "gauss_newton.py", [], "return Jw.T @ J, Jw.T @ r", "return np.squeeze(Jw.T @ J), np.squeeze(Jw.T @ r)",
         {NORMAL + "non-uniform weights"}, "H lost its axes for a single parameter"),
+    # type 1's clamps copied where the other types have none
+    "type2_rejected_lambda_clamped": V(
+        "damping.py", ["class GavinType2", "def update"], "lam=state.lam + abs(dchi2) / (2.0 * alpha)",
+        "lam=min(state.lam + abs(dchi2) / (2.0 * alpha), LAMBDA_MAX)",
+        {T2 + "update (rejected step)"}, "type 2's rejected update has no upper bound"),
+    "type3_accepted_lambda_clamped": V(
+        "damping.py", ["class GavinType3", "def update"],
+        "lam=state.lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)",
+        "lam=max(state.lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LAMBDA_MIN)",
+        {T3 + "update (accepted step, nu reset)"}, "type 3 (Nielsen) has no bound on lambda"),
+    # alpha read as a fraction of the step, clipped to [0.1, 1]
+    "type2_alpha_clipped_to_one": V(
+        "damping.py", ["class GavinType2", "def step_scale"],
+        "return max(gh / ((chi2_full_step - chi2) / 2.0 + 2.0 * gh), ALPHA_MIN)",
+        "return min(max(gh / ((chi2_full_step - chi2) / 2.0 + 2.0 * gh), ALPHA_MIN), 1.0)",
+        {T2 + "step_scale"}, "alpha is bounded below (0.1) only, not above"),
 }
 
 # Hostile or broken code: each costs its own check(s) and nothing else.
