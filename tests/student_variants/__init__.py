@@ -296,6 +296,21 @@ BUGS_CHAPTERS_2_3 = {
         "        return -self.make(H_upper, upper=True).solve(np.asarray(b, dtype=float))\n        # END SOLUTION\n"
         "\n    from qdldl import Solver as make  # a class attribute, bound at import; a new analysis per call\n",
         {SPARSE + "one symbolic analysis for the pattern"}, "3 qdldl.Solver objects were made for 3 solves"),
+    # wrong only where theta_j - theta_i - theta_ij is exactly pi: atan2 gives +pi, outside [-pi, pi)
+    "edge_wrap_by_arctan2": V(
+        "pose_graph_edge.py", [], "e[2] = (x_j[2] - x_i[2] - z_ij[2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[2] = np.arctan2(np.sin(x_j[2] - x_i[2] - z_ij[2]), np.cos(x_j[2] - x_i[2] - z_ij[2]))",
+        {EDGE + "e_theta wrapped to [-pi, pi)"}, "so pi wraps to -pi"),
+    "ceres_wrap_by_atan2": V(
+        "ceres_edge_cost.py", ["def _wrap"], "return (angle + math.pi) % (2.0 * math.pi) - math.pi",
+        "return math.atan2(math.sin(angle), math.cos(angle))",
+        {CERES + "residuals r = U e"}, "so pi wraps to -pi"),
+    # wrong only where U is not upper triangular: the entries below its diagonal are skipped as zeros
+    "ceres_upper_triangle_only": V(
+        "ceres_edge_cost.py", ["def Evaluate"],
+        "            u10 * e0 + u11 * e1 + u12 * e2,\n            u20 * e0 + u21 * e1 + u22 * e2,",
+        "            u11 * e1 + u12 * e2,\n            u22 * e2,",
+        {CERES + "residuals r = U e"}, "only U's upper triangle is used"),
     "ceres_no_whitening": V(
         "ceres_edge_cost.py", ["def Evaluate"], "residuals[:] = (", "residuals[:] = (e0, e1, e2)\n        _unused = (",
         {CERES + "residuals r = U e"}, "r is the unwhitened error e"),
