@@ -57,7 +57,7 @@ def _fresh_edge(rng, low, high, note):
             return x_i, x_j, z, note.format(raw=raw, z=z[2], above=raw - np.pi)
 
 
-def _exact_edge(rng, target):
+def exact_edge(rng, target):
     """An edge whose raw angle error is exactly ``target`` (+-pi) in whatever order the angles are added:
     theta_i and theta_ij are multiples of 1/16 of the same sign whose sum s keeps theta_j = target + s
     between 2 and 4 in magnitude (one binade, so every partial sum is exact); every angle in [-pi, pi)."""
@@ -91,7 +91,7 @@ def edges(seed=None):
         rng = np.random.default_rng([seed, 201])
         cases = [_fresh_edge(rng, *case) for case in _ANGLE_CASES]
     exact = np.random.default_rng(11 if seed is None else [seed, 202])
-    cases += [_exact_edge(exact, np.pi), _exact_edge(exact, -np.pi)]
+    cases += [exact_edge(exact, np.pi), exact_edge(exact, -np.pi)]
     for _ in range(2):  # two random edges
         x_i, x_j, z = (np.round(np.append(rng.uniform(-5, 5, 2), rng.uniform(-np.pi, np.pi)), 3) for _ in range(3))
         cases.append((tuple(x_i), tuple(x_j), tuple(z), "random"))

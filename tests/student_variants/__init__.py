@@ -260,6 +260,10 @@ BUGS_CHAPTERS_2_3 = {
         "pose_graph_assembly.py", [], "b[si] += A.T @ omega @ e\n        b[sj] += B.T @ omega @ e",
         "b[si] -= A.T @ omega @ e\n        b[sj] -= B.T @ omega @ e",
         {ASSEMBLY + "b and chi2", PG_E2E + "gauss-newton"}, "b has the opposite sign"),
+    # wrong only where two edges join the same poses: the later edge overwrites the block
+    "assembly_off_diagonal_assigned": V(
+        "pose_graph_assembly.py", [], "H[si, sj] += A.T @ omega @ B", "H[si, sj] = A.T @ omega @ B",
+        {ASSEMBLY + "H blocks of the free poses"}, "on a 3-pose graph with parallel edges"),
     "dense_solve_no_minus": V(
         "sparse_solve.py", [], "return -scipy.linalg.cho_solve(", "return scipy.linalg.cho_solve(",
         {DENSE + "dx solves H dx = -b"}, "dx has the opposite sign"),
@@ -339,6 +343,19 @@ BUGS_CHAPTERS_2_3 = {
         "dogleg.py", ["def update_radius"], "return max(radius, 3.0 * step_norm)", "return 3.0 * step_norm",
         {DL_RADIUS + "good step (rho > 0.75)"}, "a short good step must not shrink the trust region"),
     # wrong on one edge only: feedback says which kind it is (Call.groups)
+    # wrong only at the smallest size: squeezed (M, 3) arrays lose their edge axis for one edge
+    "fast_edges_squeezed_poses": V(
+        "pose_graph_fast.py", [], "xi, xj = poses[edges_i], poses[edges_j]",
+        "xi, xj = np.squeeze(poses[edges_i]), np.squeeze(poses[edges_j])",
+        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges (optional)"},
+        "on the single edge of a 2-pose graph (M = 1)"),
+    "fast_edges_wrap_by_arctan2": V(
+        "pose_graph_fast.py", [],
+        "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[:, 2] = np.arctan2(np.sin(xj[:, 2] - xi[:, 2] - measurements[:, 2]), "
+        "np.cos(xj[:, 2] - xi[:, 2] - measurements[:, 2]))",
+        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges (optional)"},
+        "so pi wraps to -pi"),
     "fast_edges_angle_not_wrapped": V(
         "pose_graph_fast.py", [],
         "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
