@@ -324,6 +324,17 @@ BUGS_CHAPTERS_2_3 = {
         {DL_STEP + "dogleg case (|a| < radius < |h_gn|)",
          DL_STEP + "stable beta (Cauchy point almost on the boundary)"},
         "so the case is dogleg"),
+    # wrong only at the ties the contract gives to a case: strict comparisons
+    "dogleg_gauss_newton_strict": V(
+        "dogleg.py", ["def dogleg_step", "# BEGIN SOLUTION"], "if np.linalg.norm(h_gn) <= radius:",
+        "if np.linalg.norm(h_gn) < radius:",
+        {DL_STEP + "Gauss-Newton case (|h_gn| <= radius)"}, "<= radius = 1.75, so the case is Gauss-Newton"),
+    "dogleg_steepest_descent_strict": V(
+        "dogleg.py", ["def dogleg_step", "# BEGIN SOLUTION"], "if a_norm >= radius:", "if a_norm > radius:",
+        {DL_STEP + "steepest-descent case (|a| >= radius)"}, ">= radius, so the case is steepest descent"),
+    "radius_grows_at_rho_075": V(
+        "dogleg.py", ["def update_radius"], "if rho > 0.75:", "if rho >= 0.75:",
+        {DL_RADIUS + "in between (0.25 <= rho <= 0.75)"}, "rho = 0.75 is not > 0.75"),
     "dogleg_beta_wrong_root": V(
         "dogleg.py", ["def dogleg_step", "# BEGIN SOLUTION"], "(radius**2 - a_norm**2) / (d + c)",
         "(radius**2 - a_norm**2) / (c - d)",
