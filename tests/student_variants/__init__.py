@@ -445,6 +445,15 @@ BUGS_INITIALISATION = {
     "translations_anchor_at_the_origin": V(
         "initialisation.py", _TRANSLATE, "    n = num_poses\n", "    n = num_poses\n    anchor_xy = np.zeros(2)\n",
         {TRANSLATIONS}, "not at the origin"),
+    # wrong only where two edges leave the anchor for the same pose: fancy-index += adds one of them
+    "rotations_anchor_terms_by_fancy_index": V(
+        "initialisation.py", _CHORDAL, "np.add.at(rhs, uj[from_anchor], w[from_anchor] * a[from_anchor] * z_anchor)",
+        "rhs[uj[from_anchor]] += w[from_anchor] * a[from_anchor] * z_anchor",
+        {ROTATIONS}, "on a 3-pose graph with two edges from pose 0 to pose 1"),
+    # wrong only on diagonal but anisotropic translation information: the shortcut for a I taken for any diagonal
+    "translations_shortcut_on_any_diagonal": V(
+        "initialisation.py", _TRANSLATE, "if not np.any(o01) and np.array_equal(o00, o11):", "if not np.any(o01):",
+        {TRANSLATIONS}, "diagonal anisotropic information"),
 }
 
 # correct but not the reference's way: they keep full marks
