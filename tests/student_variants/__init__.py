@@ -321,7 +321,8 @@ BUGS_CHAPTERS_2_3 = {
     "dogleg_case_boundaries_swapped": V(
         "dogleg.py", ["def dogleg_step", "# BEGIN SOLUTION"],
         "if np.linalg.norm(h_gn) <= radius:", "if alpha * np.linalg.norm(g) <= radius:",
-        {DL_STEP + "dogleg case (|a| < radius < |h_gn|)",
+        # and at the tie |a| = radius, where it takes the Gauss-Newton step for steepest descent
+        {DL_STEP + "dogleg case (|a| < radius < |h_gn|)", DL_STEP + "steepest-descent case (|a| >= radius)",
          DL_STEP + "stable beta (Cauchy point almost on the boundary)"},
         "so the case is dogleg"),
     # wrong only at the ties the contract gives to a case: strict comparisons
