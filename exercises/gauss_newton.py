@@ -1,4 +1,10 @@
-"""Chapter 1 exercise: the normal equations and the (damped) Gauss-Newton step."""
+"""Chapter 1 exercise: the normal equations and the (damped) Gauss-Newton step.
+
+Inputs at the edges of the contract (each is a check input):
+- normal_equations with a single residual (m = 1): H has rank one
+- normal_equations with a single parameter (n = 1): H is (1, 1) and b (1,)
+- solve_step with a single unknown (n = 1), damped and undamped: h is (1,)
+"""
 
 import numpy as np
 
@@ -7,7 +13,8 @@ def normal_equations(J, r, w):
     """The Gauss-Newton normal equations.
 
     Args:
-        J: (m, n) Jacobian ``dr/dp``; r: (m,) residuals; w: (m,) weights (W = diag(w)).
+        J: (m, n) Jacobian ``dr/dp``; r: (m,) residuals; w: (m,) weights (W = diag(w));
+        m, n >= 1 (one residual or one parameter included).
 
     Returns:
         H: (n, n) ``J^T W J``; b: (n,) ``J^T W r``.
@@ -21,7 +28,7 @@ def solve_step(H, b, damping=None):
     """Solve ``(H + diag(damping)) h = -b`` for the step h.
 
     Args:
-        H: (n, n) symmetric positive (semi)definite; b: (n,);
+        H: (n, n) symmetric positive (semi)definite, n >= 1; b: (n,);
         damping: (n,) diagonal added to H, or None for the plain Gauss-Newton step.
 
     Returns:

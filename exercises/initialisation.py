@@ -15,7 +15,21 @@ computed here. Two initialisers, both plain numpy/scipy arrays in and out:
 Conventions as in ``pose_graph_edge``: a pose is ``(x, y, theta)``, the measurement
 ``z_ij = (t_ij, theta_ij)`` is pose j seen from pose i, angles are wrapped to [-pi, pi).
 One pose, the anchor, is held at a given pose (the gauge); the anchor's output row is
-exactly that pose.
+exactly that pose. A graph may be one pose with no edge (N = 1, M = 0), and two edges may
+join the same two poses.
+
+Inputs at the edges of the contract (each is a check input):
+- spanning_tree_poses: a single pose with no edge (N = 1, M = 0)
+- chordal_rotations: a single pose with no edge (N = 1, M = 0)
+- chordal_translations: a single pose with no edge (N = 1, M = 0)
+- spanning_tree_poses: two poses joined by one edge written from pose 1 to pose 0 (M = 1)
+- chordal_rotations: two poses joined by one edge written from pose 1 to pose 0 (M = 1)
+- chordal_translations: two poses joined by one edge written from pose 1 to pose 0 (M = 1)
+- spanning_tree_poses: a spanning tree with a branch (a vertex with two children)
+- chordal_rotations: two edges between the anchor and the same pose
+- chordal_translations: two edges between the anchor and the same pose
+- chordal_translations: translation information diagonal but anisotropic
+- chordal_translations: translation information a multiple of the identity
 """
 
 import numpy as np

@@ -1,4 +1,13 @@
-"""Chapter 2 exercise: assemble H and b over all edges, one edge at a time."""
+"""Chapter 2 exercise: assemble H and b over all edges, one edge at a time.
+
+Inputs at the edges of the contract (each is a check input):
+- a 2-pose graph with a single edge (M = 1), the first pose fixed
+- an edge from a later to an earlier pose (i > j)
+- two edges between the same two poses (their blocks add up)
+- information diagonal but anisotropic
+- information full (not diagonal)
+- a fixed pose other than the first
+"""
 
 import numpy as np
 
@@ -20,7 +29,8 @@ def assemble_normal_equations(poses, edges_i, edges_j, measurements, information
     entries of b, and put the identity on its diagonal block, so that its step is 0.
 
     Args:
-        poses: (N, 3); edges_i, edges_j: (M,) int; measurements: (M, 3);
-        information: (M, 3, 3); fixed: (K,) int indices of fixed poses.
+        poses: (N, 3), N >= 2; edges_i, edges_j: (M,) int, M >= 1, i != j, in either order, two
+        edges may join the same poses; measurements: (M, 3); information: (M, 3, 3) symmetric
+        positive definite; fixed: (K,) int indices of fixed poses.
     """
     raise NotImplementedError("TODO pose_graph_assembly.assemble_normal_equations: not implemented yet")

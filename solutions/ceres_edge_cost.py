@@ -3,6 +3,11 @@
 Ceres calls ``Evaluate`` with the two poses and fills flat, row-major buffers in place:
 ``residuals`` (3,), and ``jacobians[k]`` (9,) for parameter block k unless it is None.
 Return True on success. See ``pose_graph_edge`` for the error and its Jacobians.
+
+Inputs at the edges of the contract (each is a check input):
+- raw angle error theta_j - theta_i - theta_ij exactly pi: r uses e_theta = -pi
+- information diagonal but anisotropic (U diagonal, unequal entries)
+- U not triangular (a symmetric square root of Omega)
 """
 
 import math
@@ -34,7 +39,7 @@ class SE2EdgeCost(pyceres.CostFunction):
     Args:
         measurement: (3,) ``z_ij = (dx, dy, dtheta)``, pose j in the frame of pose i.
         sqrt_information: (3, 3) ``U`` with ``U^T U = Omega_ij`` (any square root works;
-            the back end passes the upper Cholesky factor).
+            the back end passes the upper Cholesky factor, the checks others too).
     """
 
     def __init__(self, measurement, sqrt_information):

@@ -1,4 +1,8 @@
-"""Chapter 1 exercise: the curve-fitting model ``y = exp(a x^2 + b x + c)``."""
+"""Chapter 1 exercise: the curve-fitting model ``y = exp(a x^2 + b x + c)``.
+
+Inputs at the edges of the contract (each is a check input):
+- a single data point (m = 1): r has shape (1,) and J shape (1, 3)
+"""
 
 import numpy as np
 
@@ -11,7 +15,7 @@ def residuals_and_jacobian(params, x, y):
 
     Args:
         params: (3,) the parameters ``a, b, c``.
-        x, y: (m,) sample positions and measured values.
+        x, y: (m,) sample positions and measured values, m >= 1 (m = 1 included).
 
     Returns:
         r: (m,) residuals; J: (m, 3) Jacobian ``dr/dparams``.

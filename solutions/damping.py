@@ -4,6 +4,17 @@ Source: H. P. Gavin, "The Levenberg-Marquardt algorithm for nonlinear least squa
 curve-fitting problems" (Duke University), section 4.1.1, eqs. 12-16, and the
 defaults of its ``lm.m``. Notation in ``course/solver/damping.py``: ``b = J^T W r`` is minus
 Gavin's ``J^T W (y - y_hat)``, and the damped system is ``(H + diag(d)) h = -b``.
+
+Only type 1 clamps lambda to [1e-7, 1e7]; type 2 bounds it below only, type 3 not at all.
+
+Inputs at the edges of the contract (each is a check input):
+- type 1: lambda at 1e-7 and the step accepted: it stays 1e-7
+- type 1: lambda at 1e7 and the step rejected: it stays 1e7
+- type 2: a rejected step takes lambda past 1e7 (type 2 has no upper bound)
+- type 2: alpha above 1 (chi2 fell by more than 2 g^T h; no upper bound)
+- type 2: alpha's denominator negative (chi2 fell by more than 4 g^T h): alpha = 0.1
+- type 3: an accepted step takes lambda below 1e-7 (type 3 has no lower bound)
+- type 3: a rejected step takes lambda past 1e7 (type 3 has no upper bound)
 """
 
 import numpy as np
@@ -103,7 +114,8 @@ class GavinType2(DampingStrategy):
         # END SOLUTION
 
     def update(self, state, rho, accepted, alpha=1.0, dchi2=0.0):
-        """Accepted: ``max(lambda / (1 + alpha), 1e-7)``; rejected: ``lambda + |dchi2| / (2 alpha)``."""
+        """Accepted: ``max(lambda / (1 + alpha), 1e-7)``; rejected: ``lambda + |dchi2| / (2 alpha)`` (no upper
+        bound)."""
         # BEGIN SOLUTION
         if accepted:
             return DampingState(lam=max(state.lam / (1.0 + alpha), LAMBDA_MIN), nu=state.nu)
@@ -142,7 +154,8 @@ class GavinType3(DampingStrategy):
         # END SOLUTION
 
     def update(self, state, rho, accepted, alpha=1.0, dchi2=0.0):
-        """Accepted: ``lambda max(1/3, 1 - (2 rho - 1)^3)``, ``nu = 2``; rejected: ``lambda nu``, ``nu = 2 nu``."""
+        """Accepted: ``lambda max(1/3, 1 - (2 rho - 1)^3)``, ``nu = 2``; rejected: ``lambda nu``, ``nu = 2 nu``;
+        lambda unclamped."""
         # BEGIN SOLUTION
         if accepted:
             return DampingState(lam=state.lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), nu=2.0)

@@ -4,6 +4,14 @@ Source: K. Madsen, H. B. Nielsen, O. Tingleff, "Methods for non-linear least squ
 problems" (2004), section 3.3 and algorithm 3.21; the stable root for beta as in
 Ceres Solver's dogleg strategy. Notation: ``F = chi2 / 2``, gradient ``g = b = J^T W r``,
 ``H = J^T W J``, quadratic model ``L(h) = F + g^T h + h^T H h / 2``.
+
+Inputs at the edges of the contract (each is a check input):
+- a Gauss-Newton step inside the region (|h_gn| < radius)
+- |h_gn| exactly equal to the radius: the Gauss-Newton step
+- a Cauchy point beyond the radius (|a| > radius): steepest descent to the boundary
+- |a| exactly equal to the radius (|h_gn| beyond it): steepest descent, not dogleg
+- rho exactly 0.25: the radius stays
+- rho exactly 0.75: the radius stays
 """
 
 import numpy as np
@@ -40,8 +48,9 @@ def dogleg_step(g, h_gn, alpha, radius):
     Madsen et al. write ``F(x)`` where this uses ``-g^T h_gn / 2 = L(0) - L(h_gn)``:
     the two agree only when the linearized residual vanishes; this is exact.
 
-    Args: g (n,), h_gn (n,) the Gauss-Newton step (``H h_gn = -g``), alpha from
-    ``cauchy_point``, radius > 0.
+    Args: g (n,), g != 0, h_gn (n,) the Gauss-Newton step (``H h_gn = -g``), alpha from
+    ``cauchy_point``, radius > 0. The ties belong to the cases above: ``|h_gn| = radius`` is
+    Gauss-Newton, ``|a| = radius < |h_gn|`` steepest descent.
     Returns: ``(h (n,), predicted_decrease (float, in F = chi2/2 units), case)``.
     """
     # BEGIN SOLUTION

@@ -1,4 +1,9 @@
-"""Chapter 2 exercise: the error of one 2D pose-graph edge and its Jacobians."""
+"""Chapter 2 exercise: the error of one 2D pose-graph edge and its Jacobians.
+
+Inputs at the edges of the contract (each is a check input):
+- raw angle error theta_j - theta_i - theta_ij exactly pi: e_theta = -pi
+- raw angle error exactly -pi: e_theta = -pi
+"""
 
 import numpy as np
 
@@ -10,7 +15,7 @@ def edge_error_and_jacobians(x_i, x_j, z_ij):
     from pose i. With ``t = (x, y)`` and ``R(theta)`` the 2D rotation::
 
         e_t     = R_ij^T (R_i^T (t_j - t_i) - t_ij)
-        e_theta = wrap(theta_j - theta_i - theta_ij)      wrapped to [-pi, pi)
+        e_theta = wrap(theta_j - theta_i - theta_ij)      wrapped to [-pi, pi): pi wraps to -pi
 
         A_ij = [[-R_ij^T R_i^T,  R_ij^T dR_i^T/dtheta_i (t_j - t_i)],
                 [ 0    0,        -1                               ]]

@@ -2,6 +2,14 @@
 
 The reference solver uses this module; an implementation that leaves it unwritten
 falls back to the per-edge loop of ``pose_graph_assembly`` (fine for small graphs).
+
+Inputs at the edges of the contract (each is a check input):
+- edge_errors_and_jacobians on a single edge (M = 1)
+- a raw angle error theta_j - theta_i - theta_ij exactly pi: e_theta = -pi
+- SparseAssembler on a single edge (M = 1)
+- SparseAssembler with two edges between the same two poses
+- SparseAssembler with information diagonal but anisotropic
+- SparseAssembler with an edge from a later to an earlier pose (entries mirrored above the diagonal)
 """
 
 import numpy as np
@@ -15,6 +23,7 @@ def edge_errors_and_jacobians(poses, edges_i, edges_j, measurements):
 
     Same formulas as ``pose_graph_edge.edge_error_and_jacobians``, with no Python
     loop over edges. Note ``R_ij^T R_i^T = R(theta_i + theta_ij)^T``.
+    M >= 1: keep the (M, ...) shapes for a single edge too.
     """
     # BEGIN SOLUTION
     xi, xj = poses[edges_i], poses[edges_j]

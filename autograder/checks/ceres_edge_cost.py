@@ -2,8 +2,10 @@
 computes them, and ``Evaluate`` with no Jacobian or one block constant.
 
 Public inputs: four of the edges of the edge checks (generic, angle error beyond pi, the
-measured angle near pi, just above pi), each with a full square-root information matrix;
-hidden inputs: the same kinds of edges from the hidden seed, and other matrices.
+measured angle near pi, just above pi), each with a full square-root information matrix, and
+at the edges: the raw angle error exactly pi (full U), a diagonal anisotropic U, and a
+symmetric square root U = Omega^(1/2) (not triangular); hidden inputs: the same kinds of edges
+from the hidden seed, and other matrices.
 """
 
 from functools import cache
@@ -12,6 +14,7 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.common import check, failed, values
+from autograder.checks.edges import Edge
 from autograder.checks.pose_graph_edge import edges
 from autograder.feedback import call_fields, compare
 
@@ -33,6 +36,17 @@ def _ceres_inputs(seed=None):
         omega = L @ L.T + np.diag((3.0, 3.0, 6.0))
         U = np.linalg.cholesky(omega).T
         out.append((z, U, x_i, x_j, where + ", full U"))
+    x_i, x_j, z, where = edges(seed)[6]  # theta_j - theta_i - theta_ij exactly pi
+    L = rng.normal(size=(3, 3)) * (4.0, 4.0, 8.0)
+    out.append((z, np.linalg.cholesky(L @ L.T + np.diag((3.0, 3.0, 6.0))).T, x_i, x_j, where + ", full U"))
+    x_i, x_j, z, where = edges(seed)[0]
+    diagonal = np.round(np.sort(rng.uniform(0.5, 8.0, 3)) * (1.0, 2.0, 4.0), 3)  # unequal by construction
+    out.append((z, np.diag(diagonal), x_i, x_j, where + f", U = diag{tuple(diagonal.tolist())}"))
+    x_i, x_j, z, where = edges(seed)[2]
+    L = rng.normal(size=(3, 3)) * (4.0, 4.0, 8.0)
+    values_, vectors = np.linalg.eigh(L @ L.T + np.diag((3.0, 3.0, 6.0)))
+    out.append((z, (vectors * np.sqrt(values_)) @ vectors.T, x_i, x_j,
+                where + ", U = Omega^(1/2), symmetric (not triangular)"))
     return out
 
 
@@ -93,3 +107,22 @@ CHECKS = [
     check(CERES, "jacobians None or one block constant", 1, _ceres_calls("ceres_partial_jacobians"),
           _judge_partial_jacobians, needs=NEEDS),
 ]
+
+
+def _raw_angle_error(call):
+    z, _, x_i, x_j = call.args
+    return x_j[2] - x_i[2] - z[2]
+
+
+def _edge(name, holds):
+    return Edge(name, "@autograder.tasks.ceres_edge_cost:ceres_cost", holds)
+
+
+EDGES = (
+    _edge("raw angle error theta_j - theta_i - theta_ij exactly pi: r uses e_theta = -pi",
+          lambda call: _raw_angle_error(call) == np.pi),
+    _edge("information diagonal but anisotropic (U diagonal, unequal entries)",
+          lambda call: not np.any(call.args[1] - np.diag(np.diag(call.args[1]))) and np.ptp(np.diag(call.args[1])) > 0),
+    _edge("U not triangular (a symmetric square root of Omega)",
+          lambda call: bool(np.any(np.tril(call.args[1], -1)) and np.any(np.triu(call.args[1], 1)))),
+)

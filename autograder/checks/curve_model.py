@@ -2,13 +2,14 @@
 differences of the student's own r.
 
 Public inputs: the default data (100 points) at the start, the truth and another point,
-and a 20-point data set; hidden inputs: data of another size, truth and noise seed, at
-random parameters in the same ranges.
+a 20-point data set, and a single point of it (m = 1); hidden inputs: data of another size,
+truth and noise seed, at random parameters in the same ranges, and one point of the small set.
 """
 
 import numpy as np
 
 from autograder.checks import Call, Check, Verdict
+from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare, fmt, values
 
 MODULES = ("curve_model",)
@@ -24,7 +25,8 @@ COLUMN_HINTS = (
 
 
 def _curve_points(seed=None):
-    """(x, y, params, where): the start, the truth, another point, and a small data set."""
+    """(x, y, params, where): the start, the truth, another point, a small data set, and a single
+    point of it (m = 1)."""
     from course.problems.curve.problem import generate
 
     if seed is None:
@@ -40,12 +42,15 @@ def _curve_points(seed=None):
         points = [(0.0, 0.0, 0.0), truth, tuple(np.round(rng.uniform(-1.0, 1.0, 3), 3))]
         last = tuple(np.round(rng.uniform(0.2, 1.5, 3), 3))
 
-    def where(p, data):
+    def where(p, x):
         text = f"at params ({', '.join(f'{v:g}' for v in p)})"
-        return text if data is big else f"{text} on {len(data.x)} points"
+        return text if x is big.x else f"{text} on {len(x)} point{'s' if len(x) > 1 else ''}"
 
-    out = [(big.x, big.y, np.array(p, dtype=float), where(p, big)) for p in points]
-    out.append((small.x, small.y, np.array(last, dtype=float), where(last, small)))
+    out = [(big.x, big.y, np.array(p, dtype=float), where(p, big.x)) for p in points]
+    out.append((small.x, small.y, np.array(last, dtype=float), where(last, small.x)))
+    k = len(small.x) // 2  # a single point (m = 1), away from x = 0
+    one = small.x[k:k + 1].copy()
+    out.append((one, small.y[k:k + 1].copy(), np.array(last, dtype=float), where(last, one) + f" (x = {one[0]:g})"))
     return out
 
 
@@ -180,3 +185,8 @@ CHECKS = [
     _check("J values", 3, _curve_calls, _judge_jacobian),
     _check("J vs finite differences of r", 3, _fd_calls, _judge_finite_differences),
 ]
+
+EDGES = (
+    Edge("a single data point (m = 1): r has shape (1,) and J shape (1, 3)",
+         "curve_model:residuals_and_jacobian", lambda call: len(call.args[1]) == 1),
+)

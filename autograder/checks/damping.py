@@ -3,14 +3,17 @@
 search, and the accept/reject update, each graded alone on given inputs.
 
 Public inputs: two small systems (see ``checks.gauss_newton.systems``) and update cases
-in each branch (accepted, rejected, clamped); hidden inputs: other systems, and the same
-cases with lambda, nu and rho moved within their branch.
+in each branch (accepted, rejected, clamped), the edges among them: type 1's lambda already at
+a bound, types 2 and 3 taking lambda past 1e7 or below 1e-7 (they have no bound there), and
+type 2's alpha above 1 or with a negative denominator; hidden inputs: other systems, and the
+same cases with lambda, nu and rho moved within their branch.
 """
 
 import numpy as np
 
 from autograder.checks import Call
 from autograder.checks.common import check
+from autograder.checks.edges import Edge
 from autograder.checks.gauss_newton import systems
 from autograder.feedback import fmt, values
 
@@ -93,7 +96,8 @@ def _update_calls(cls, cases, key):
             lam, nu = state[0], (state[1] if len(state) > 1 else 2.0)
             alpha, dchi2 = (rest + [1.0, 0.0][len(rest):])[:2]
             if rng is not None:
-                lam = float(np.round(lam * rng.uniform(0.6, 1.0 if lam < 1e-6 else 1.4), 12))  # clamps stay clamped
+                high = 1.0 if lam < 1e-6 or lam >= 1e7 else 1.4  # clamps stay clamped, bounds not passed
+                lam = float(np.round(lam * rng.uniform(0.6, high), 12))
                 rho = float(np.round(rho + rng.uniform(-0.02, 0.02), 4)) if 0.26 < rho < 0.99 else rho
                 alpha = float(np.round(alpha * rng.uniform(0.8, 1.0), 4))
                 dchi2 = float(np.round(dchi2 * rng.uniform(0.7, 1.3), 4))
@@ -110,7 +114,9 @@ def _alpha_calls(seed=None):
     chi2 = 50.0 if seed is None else float(np.round(np.random.default_rng([seed, 304]).uniform(20, 200), 3))
     calls = []
     for change, what in ((gh, "chi2 rose by g^T h"), (-1.5 * gh, "chi2 fell by 1.5 g^T h"),
-                         (1e6 * gh, "chi2 rose a lot (alpha hits its lower bound)")):
+                         (1e6 * gh, "chi2 rose a lot (alpha hits its lower bound)"),
+                         (-3.0 * gh, "chi2 fell by 3 g^T h (alpha = 2, above 1)"),
+                         (-6.0 * gh, "chi2 fell by 6 g^T h (the denominator is negative)")):
         calls.append(Call(_target("GavinType2", "step_scale"), (h, b, chi2, chi2 + change),
                           where=f"for chi2 = {chi2:g}, chi2(p + h) = {chi2 + change:.6g} ({what})"))
     return calls
@@ -126,12 +132,15 @@ UPDATE_HINTS = {
 UPDATE_CASES = {
     1: [("update (accepted step)", 1, [((0.05,), 0.7, True), ((2.0,), 0.3, True)]),
         ("update (rejected step)", 1, [((0.05,), -0.4, False), ((3.0,), 0.05, False)]),
-        ("update (lambda clamped to [1e-7, 1e7])", 1, [((5e-7,), 0.9, True), ((2e6,), -1.0, False)])],
+        ("update (lambda clamped to [1e-7, 1e7])", 1, [((5e-7,), 0.9, True), ((2e6,), -1.0, False),
+                                                       ((1e-7,), 0.8, True), ((1e7,), -0.5, False)])],
     2: [("update (accepted step)", 1, [((0.5,), 0.6, True, 0.4, -3.0), ((1.5e-7,), 0.9, True, 1.0, -2.0)]),
-        ("update (rejected step)", 1, [((0.5,), -0.3, False, 0.25, 3.0), ((2.0,), 0.05, False, 0.3, -0.2)])],
+        ("update (rejected step)", 1, [((0.5,), -0.3, False, 0.25, 3.0), ((2.0,), 0.05, False, 0.3, -0.2),
+                                       ((5e6,), -0.5, False, 0.5, 2e7)])],
     3: [("update (accepted step, nu reset)", 2, [((0.4, 8.0), 0.5, True), ((0.4, 4.0), 0.95, True),
-                                                ((0.4, 16.0), 0.3, True)]),
-        ("update (rejected step, nu doubled)", 1, [((0.4, 4.0), -0.2, False), ((0.1, 2.0), 0.05, False)])],
+                                                ((0.4, 16.0), 0.3, True), ((2e-7, 4.0), 0.95, True)]),
+        ("update (rejected step, nu doubled)", 1, [((0.4, 4.0), -0.2, False), ((0.1, 2.0), 0.05, False),
+                                                   ((6e6, 4.0), -0.3, False)])],
 }
 
 
@@ -163,3 +172,43 @@ def _type_checks(kind):
 
 
 CHECKS = [*_type_checks(1), *_type_checks(2), *_type_checks(3)]
+
+
+LAMBDA_MIN, LAMBDA_MAX = 1e-7, 1e7
+
+
+def _update_edge(kind, accepted, holds):
+    """An edge of type ``kind``'s update: a call in the branch ``accepted`` whose inputs pass ``holds(lam, nu,
+    rho, alpha, dchi2)``."""
+
+    def on_edge(call):
+        state, rho, taken = call.args
+        return bool(taken) == accepted and holds(state.lam, state.nu, rho, call.kwargs["alpha"], call.kwargs["dchi2"])
+
+    return on_edge
+
+
+def _alpha_parts(call):
+    """(g^T h, the denominator of alpha) of a step_scale call."""
+    h, b, chi2, full = call.args
+    gh = float(-b @ h)
+    return gh, (full - chi2) / 2.0 + 2.0 * gh
+
+
+EDGES = (
+    Edge("type 1: lambda at 1e-7 and the step accepted: it stays 1e-7", _target("GavinType1", "update"),
+         _update_edge(1, True, lambda lam, *_: lam == LAMBDA_MIN)),
+    Edge("type 1: lambda at 1e7 and the step rejected: it stays 1e7", _target("GavinType1", "update"),
+         _update_edge(1, False, lambda lam, *_: lam == LAMBDA_MAX)),
+    Edge("type 2: a rejected step takes lambda past 1e7 (type 2 has no upper bound)", _target("GavinType2", "update"),
+         _update_edge(2, False, lambda lam, nu, rho, alpha, dchi2: lam + abs(dchi2) / (2 * alpha) > LAMBDA_MAX)),
+    Edge("type 2: alpha above 1 (chi2 fell by more than 2 g^T h; no upper bound)", _target("GavinType2", "step_scale"),
+         lambda call: 0 < _alpha_parts(call)[1] < _alpha_parts(call)[0]),
+    Edge("type 2: alpha's denominator negative (chi2 fell by more than 4 g^T h): alpha = 0.1",
+         _target("GavinType2", "step_scale"), lambda call: _alpha_parts(call)[1] < 0),
+    Edge("type 3: an accepted step takes lambda below 1e-7 (type 3 has no lower bound)",
+         _target("GavinType3", "update"),
+         _update_edge(3, True, lambda lam, nu, rho, *_: lam * max(1 / 3, 1 - (2 * rho - 1) ** 3) < LAMBDA_MIN)),
+    Edge("type 3: a rejected step takes lambda past 1e7 (type 3 has no upper bound)", _target("GavinType3", "update"),
+         _update_edge(3, False, lambda lam, nu, *_: lam * nu > LAMBDA_MAX)),
+)

@@ -13,14 +13,17 @@ the reference run, and check from the trace that no rejected step was followed b
 factorization before the retry.
 
 Public inputs: two seeded quadratic models, fixed radii, the curve's default data and
-``manhattan(100, seed=0)``; hidden inputs: other models and sizes, radii elsewhere in
-the same case, another noise seed and another Manhattan graph.
+``manhattan(100, seed=0)``; at the edges, a radius exactly |h_gn| and one exactly |a| (lengths
+exact in any order of summation: integer vectors of integer length, alpha a power of two);
+hidden inputs: other models and sizes, radii elsewhere in the same case, another noise seed
+and another Manhattan graph, and the ties scaled by powers of two with the axes permuted.
 """
 
 import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.common import check
+from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare, fmt, values
 
 MODULES = ("dogleg",)
@@ -81,6 +84,24 @@ RADIUS_FACTORS = {"gauss-newton": ((1.2, 10.0), (1.5, 10.0)), "steepest-descent"
                   "dogleg": ((0.1, 0.9), (0.3, 0.8))}
 
 
+def _tie_call(case, seed=None):
+    """A radius exactly |h_gn| (``case`` "gauss-newton") or exactly |a| = alpha |g| ("steepest-descent"):
+    g = -(1, 2, 2) (|g| = 3), alpha = 1/2 (|a| = 3/2) and h_gn = (2, 3, 6) / 4 or / 2 (|h_gn| = 7/4 or 7/2),
+    every length exact whatever the order of the sums; -g^T h_gn >= alpha |g|^2, so an H > 0 with
+    H h_gn = -g and alpha = |g|^2 / g^T H g exists. Hidden: lengths scaled by powers of two, axes permuted."""
+    g, alpha = -np.array([1.0, 2.0, 2.0]), 0.5
+    h_gn = np.array([2.0, 3.0, 6.0]) / (4.0 if case == "gauss-newton" else 2.0)
+    if seed is not None:
+        rng = np.random.default_rng([seed, 507, CASES.index(case)])
+        order, p, q = rng.permutation(3), int(rng.integers(-3, 4)), int(rng.integers(-3, 4))
+        g, h_gn, alpha = g[order] * 2.0**p, h_gn[order] * 2.0**q, alpha * 2.0 ** (q - p)
+    a_norm, gn_norm = alpha * float(np.linalg.norm(g)), float(np.linalg.norm(h_gn))
+    radius, how = (gn_norm, "radius = |h_gn| exactly") if case == "gauss-newton" else (a_norm, "radius = |a| exactly")
+    where = (f"for g = {fmt(g)}, h_gn = {fmt(h_gn)}, alpha = {alpha:g}: |a| = alpha |g| = {a_norm:g}, "
+             f"|h_gn| = {gn_norm:g}, radius = {radius:g} ({how})")
+    return _step_call(g, h_gn, alpha, radius, where)
+
+
 def _case_calls(case):
     def build(seed=None):
         (low, high), public = RADIUS_FACTORS[case]
@@ -100,6 +121,8 @@ def _case_calls(case):
                 where = (f"for g of size {len(g)}, |a| = alpha |g| = {a_norm:.6g}, |h_gn| = {gn_norm:.6g}, "
                          f"radius = {radius:.6g} ({how})")
                 calls.append(_step_call(g, h_gn, alpha, radius, where))
+        if case != "dogleg":  # the tie that still belongs to this case
+            calls.append(_tie_call(case, seed))
         return calls
 
     return build
@@ -295,3 +318,26 @@ CHECKS = [
     check(END, "curve", 2, _end_calls("curve"), _judge_end("curve")),
     check(END, "pose graph", 2, _end_calls("pose graph"), _judge_end("pose graph")),
 ]
+
+
+STEP_TASK = "@autograder.tasks.dogleg:dogleg_step"
+
+
+def _step_lengths(call):
+    """(|a|, radius, |h_gn|) of a dogleg_step call."""
+    g, h_gn, alpha, radius = call.args
+    return alpha * float(np.linalg.norm(g)), radius, float(np.linalg.norm(h_gn))
+
+
+EDGES = (
+    Edge("a Gauss-Newton step inside the region (|h_gn| < radius)", STEP_TASK,
+         lambda call: _step_lengths(call)[2] < _step_lengths(call)[1]),
+    Edge("|h_gn| exactly equal to the radius: the Gauss-Newton step", STEP_TASK,
+         lambda call: _step_lengths(call)[2] == _step_lengths(call)[1]),
+    Edge("a Cauchy point beyond the radius (|a| > radius): steepest descent to the boundary", STEP_TASK,
+         lambda call: _step_lengths(call)[0] > _step_lengths(call)[1] < _step_lengths(call)[2]),
+    Edge("|a| exactly equal to the radius (|h_gn| beyond it): steepest descent, not dogleg", STEP_TASK,
+         lambda call: _step_lengths(call)[0] == _step_lengths(call)[1] < _step_lengths(call)[2]),
+    Edge("rho exactly 0.25: the radius stays", "dogleg:update_radius", lambda call: call.args[1] == 0.25),
+    Edge("rho exactly 0.75: the radius stays", "dogleg:update_radius", lambda call: call.args[1] == 0.75),
+)

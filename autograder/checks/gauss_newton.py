@@ -2,13 +2,16 @@
 
 Public inputs: two seeded least-squares problems (unit and non-uniform weights) and two
 small symmetric positive definite systems with a non-uniform diagonal (so lambda I and
-lambda diag(H) differ); hidden inputs: the same kinds from other seeds and sizes.
+lambda diag(H) differ); at the edges, a single residual (m = 1) and a single parameter
+(n = 1) with non-uniform weights, and a 1x1 system; hidden inputs: the same kinds from
+other seeds and sizes.
 """
 
 import numpy as np
 
 from autograder.checks import Call
 from autograder.checks.common import check
+from autograder.checks.edges import Edge
 from autograder.feedback import fmt, values
 
 MODULES = ("gauss_newton",)
@@ -49,6 +52,9 @@ def _normal_calls(weights):
         else:
             rng = np.random.default_rng([seed, 202])
             cases = [(rng, int(rng.integers(8, 20)), 3), (rng, int(rng.integers(20, 40)), int(rng.integers(4, 7)))]
+        if weights != "unit":  # the smallest sizes: one residual, one parameter
+            cases += [(np.random.default_rng(5 if seed is None else [seed, 204]), 1, 3),
+                      (np.random.default_rng(6 if seed is None else [seed, 205]), 9, 1)]
         calls = []
         for rng, m, n in cases:
             J, r, w = _least_squares_inputs(rng, m, n, weights)
@@ -63,7 +69,9 @@ def _step_calls(damped):
     def build(seed=None):
         calls = []
         rng = np.random.default_rng(7 if seed is None else [seed, 203])
-        for H, b in systems(seed):
+        one = np.random.default_rng(8 if seed is None else [seed, 206])
+        single = (np.array([[float(np.round(one.uniform(0.5, 4.0), 3))]]), np.round(one.normal(size=1) * 3.0, 3))
+        for H, b in [*systems(seed), single]:  # and a 1x1 system (n = 1)
             n = len(b)
             if damped:
                 d = rng.uniform(0.3, 2.0, size=n) * np.diag(H)
@@ -91,3 +99,17 @@ CHECKS = [
                       "H + diag(damping) is symmetric positive definite here; H + damping (a vector) "
                       "adds it to every row: use H + np.diag(damping)")})),
 ]
+
+
+def _normal_size(call):
+    return call.args[0].shape
+
+
+EDGES = (
+    Edge("normal_equations with a single residual (m = 1): H has rank one", "gauss_newton:normal_equations",
+         lambda call: _normal_size(call)[0] == 1),
+    Edge("normal_equations with a single parameter (n = 1): H is (1, 1) and b (1,)", "gauss_newton:normal_equations",
+         lambda call: _normal_size(call)[1] == 1),
+    Edge("solve_step with a single unknown (n = 1), damped and undamped: h is (1,)", "gauss_newton:solve_step",
+         lambda call: len(call.args[1]) == 1),
+)

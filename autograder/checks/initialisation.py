@@ -6,8 +6,11 @@ an earlier pose, angles that cross +-pi) with noisy measurements, full informati
 matrices and varied rotation weights, anchored at pose 0 and at pose 4, and a second
 graph whose edges are listed out of order or whose translation information blocks are
 multiples of the identity; hidden inputs: other graphs of the same kinds from the hidden
-seed. Angles are compared modulo 2 pi. The tree's graphs have one breadth-first tree only
-(every vertex one edge to the depth before it), so any breadth-first search is right.
+seed. At the edges: a single pose with no edge (N = 1, M = 0), two poses joined by one edge
+written from pose 1 to pose 0, and (rotations, translations) a 3-pose graph with two edges
+from the anchor to the same pose and diagonal anisotropic information. Angles are compared
+modulo 2 pi. The tree's graphs have one breadth-first tree only (every vertex one edge to
+the depth before it), so any breadth-first search is right.
 """
 
 from functools import cache
@@ -16,6 +19,7 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.common import check, failed, wrap
+from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare
 
 MODULES = ("initialisation",)
@@ -119,6 +123,32 @@ def graph(seed=None, variant="loop"):
             "truth": truth, "text": text}
 
 
+@cache
+def small(seed=None, variant="pair"):
+    """The smallest graphs: "single" (one pose, no edge), "pair" (two poses, one edge from pose 1 to pose 0,
+    full information) and "parallel" (three poses, two edges from pose 0 to pose 1, diagonal anisotropic
+    information), as :func:`graph`."""
+    tag = {"single": 5, "pair": 6, "parallel": 7}[variant]
+    rng = np.random.default_rng([41, tag] if seed is None else [seed, 241, tag])
+    pairs = {"single": [], "pair": [(1, 0)], "parallel": [(0, 1), (1, 2), (0, 1), (2, 0)]}[variant]
+    n = {"single": 1, "pair": 2, "parallel": 3}[variant]
+    truth = _loop(rng, max(n, 2))[:n]
+    ei, ej = (np.array([p[k] for p in pairs], dtype=np.int64) for k in (0, 1))
+    z = _between(truth[ei], truth[ej]) + rng.normal(size=(len(pairs), 3)) * (0.15, 0.15, 0.08)
+    z[:, 2] = wrap(z[:, 2])
+    if variant == "parallel":  # translation weights unequal by construction
+        d = np.sort(rng.uniform(2.0, 40.0, (len(pairs), 2)), axis=1) * (1.0, 3.0)
+        info = np.array([np.diag((a, b, w)) for (a, b), w in zip(d, rng.uniform(10.0, 400.0, len(pairs)))])
+    else:
+        info = _information(rng, len(pairs)).reshape(len(pairs), 3, 3)
+    text = {"single": "a single pose with no edge",
+            "pair": "a 2-pose graph with one edge, from pose 1 to pose 0",
+            "parallel": "a 3-pose graph with two edges from pose 0 to pose 1, diagonal anisotropic information",
+            }[variant]
+    return {"num_poses": n, "edges_i": ei, "edges_j": ej, "measurements": z.reshape(len(pairs), 3),
+            "information": info, "truth": truth, "text": text}
+
+
 def _anchor(g, k):
     """Anchor ``k`` at its true pose moved by a fixed offset (not the origin, heading near pi)."""
     pose = g["truth"][k] + (0.7, -1.1, 0.0)
@@ -128,8 +158,8 @@ def _anchor(g, k):
 
 def _tree_calls(seed=None):
     calls = []
-    for variant, anchor in (("tree", 0), ("tree", 4), ("shuffled", 0)):
-        g = graph(seed, variant)
+    for variant, anchor in (("tree", 0), ("tree", 4), ("shuffled", 0), ("single", 0), ("pair", 0)):
+        g = graph(seed, variant) if variant in ("tree", "shuffled") else small(seed, variant)
         pose = _anchor(g, anchor)
         args = (g["num_poses"], g["edges_i"], g["edges_j"], g["measurements"], pose)
         calls.append(Call(f"initialisation:{TREE.split('.')[1]}", args, {"anchor": anchor},
@@ -139,8 +169,8 @@ def _tree_calls(seed=None):
 
 def _rotation_calls(seed=None):
     calls = []
-    for variant, anchor in (("loop", 0), ("loop", 4), ("shuffled", 2)):
-        g = graph(seed, variant)
+    for variant, anchor in (("loop", 0), ("loop", 4), ("shuffled", 2), ("single", 0), ("pair", 0), ("parallel", 0)):
+        g = graph(seed, variant) if variant in ("loop", "shuffled") else small(seed, variant)
         theta = float(_anchor(g, anchor)[2])
         args = (g["num_poses"], g["edges_i"], g["edges_j"], g["measurements"], g["information"], theta)
         calls.append(Call(f"initialisation:{ROTATIONS.split('.')[1]}", args, {"anchor": anchor},
@@ -150,8 +180,8 @@ def _rotation_calls(seed=None):
 
 def _translation_calls(seed=None):
     calls = []
-    for variant, anchor in (("loop", 0), ("loop", 5), ("isotropic", 0)):
-        g = graph(seed, variant)
+    for variant, anchor in (("loop", 0), ("loop", 5), ("isotropic", 0), ("single", 0), ("pair", 0), ("parallel", 0)):
+        g = graph(seed, variant) if variant in ("loop", "isotropic") else small(seed, variant)
         rng = np.random.default_rng([7, anchor] if seed is None else [seed, 243, anchor])
         theta = wrap(g["truth"][:, 2] + rng.normal(0, 0.05, g["num_poses"]))  # given, not computed here
         xy = _anchor(g, anchor)[:2]
@@ -217,3 +247,57 @@ CHECKS = [
                  cause="minimize sum_k r^T W r with r = t_j - t_i - R(theta_i) t_ij and W = R Omega_tt R^T, "
                        "R = R(theta_i + theta_ij)")),
 ]
+
+
+_TARGETS = tuple(f"initialisation:{name.split('.')[1]}" for name in (TREE, ROTATIONS, TRANSLATIONS))
+
+
+def _edges_of(call):
+    return np.asarray(call.args[1]), np.asarray(call.args[2])
+
+
+def _has_branch(call):
+    """Whether the breadth-first tree from the anchor has a vertex with two children or more."""
+    n, (ei, ej), anchor = call.args[0], _edges_of(call), call.kwargs.get("anchor", 0)
+    depth, frontier, children = {anchor: 0}, [anchor], {}
+    while frontier:
+        nxt = []
+        for u in frontier:
+            for k in range(len(ei)):
+                for a, b in ((ei[k], ej[k]), (ej[k], ei[k])):
+                    if a == u and b not in depth:
+                        depth[int(b)] = depth[u] + 1
+                        children[u] = children.get(u, 0) + 1
+                        nxt.append(int(b))
+        frontier = nxt
+    return len(depth) == n and max(children.values(), default=0) >= 2
+
+
+def _parallel_at_anchor(call):
+    (ei, ej), anchor = _edges_of(call), call.kwargs.get("anchor", 0)
+    ends = [int(j) if i == anchor else int(i) for i, j in zip(ei, ej) if anchor in (i, j)]
+    return len(ends) > len(set(ends))
+
+
+def _translation_diagonal_anisotropic(call):
+    tt = np.asarray(call.args[4])[:, :2, :2]
+    diagonal = not np.any(tt[:, 0, 1]) and not np.any(tt[:, 1, 0])
+    return len(tt) > 0 and diagonal and bool(np.any(tt[:, 0, 0] != tt[:, 1, 1]))
+
+
+def _each(name, holds, targets=_TARGETS):
+    return tuple(Edge(f"{target.split(':')[1]}: {name}", target, holds) for target in targets)
+
+
+EDGES = (
+    *_each("a single pose with no edge (N = 1, M = 0)", lambda call: call.args[0] == 1),
+    *_each("two poses joined by one edge written from pose 1 to pose 0 (M = 1)",
+           lambda call: call.args[0] == 2 and len(call.args[1]) == 1 and call.args[1][0] == 1),
+    Edge("spanning_tree_poses: a spanning tree with a branch (a vertex with two children)", _TARGETS[0], _has_branch),
+    *_each("two edges between the anchor and the same pose", _parallel_at_anchor, _TARGETS[1:]),
+    Edge("chordal_translations: translation information diagonal but anisotropic", _TARGETS[2],
+         _translation_diagonal_anisotropic),
+    Edge("chordal_translations: translation information a multiple of the identity", _TARGETS[2],
+         lambda call: bool(np.all(np.asarray(call.args[4])[:, :2, :2] == np.asarray(call.args[4])[:, :1, :1]
+                                  * np.eye(2))) and len(call.args[1]) > 0),
+)

@@ -5,8 +5,10 @@ free poses, b and chi2, and the rows and columns of the fixed poses.
 
 Public inputs: a 6-pose, 8-edge graph (one edge from a later to an earlier pose, full
 information matrices) with the first pose fixed, with poses 0 and 3 fixed, at other
-poses, and a 2-pose graph with a single edge; hidden inputs: another random graph of the
-same size (its own later-to-earlier edge and second fixed pose) and another one-edge graph.
+poses, a 2-pose graph with a single edge, and a 3-pose graph with parallel edges (two from
+pose 1 to pose 2, one back) and diagonal anisotropic information; hidden inputs: another
+random graph of the same size (its own later-to-earlier edge and second fixed pose), another
+one-edge graph and another graph with parallel edges.
 
 Also the graphs the sparse-solve and vectorized checks use (:func:`small_graph`).
 """
@@ -17,6 +19,7 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.common import check, failed, wrap
+from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare
 
 MODULES = ("pose_graph_assembly",)
@@ -78,6 +81,16 @@ def one_edge_graph(seed=None):
     return _graph_from(rng, [(0, 1)], 2, None)
 
 
+@cache
+def parallel_graph(seed=None):
+    """Three poses, parallel edges (1 -> 2 twice, 2 -> 1 once), diagonal anisotropic information."""
+    rng = np.random.default_rng(19 if seed is None else [seed, 214])
+    graph = _graph_from(rng, [(0, 1), (1, 2), (1, 2), (2, 1), (0, 2)], 3, None)
+    diagonal = np.sort(rng.uniform(1.0, 20.0, (5, 3)), axis=1) * (1.0, 3.0, 9.0)  # unequal by construction
+    graph["information"] = np.array([np.diag(d) for d in diagonal])
+    return graph
+
+
 def graph_at(graph, poses, fixed):
     return {"poses": poses, "edges_i": graph["edges_i"], "edges_j": graph["edges_j"],
             "measurements": graph["measurements"], "information": graph["information"],
@@ -116,6 +129,10 @@ def _assembly_calls(seed=None):
     one = one_edge_graph(seed)
     calls.append(_assembly_call(graph_at(one, one["poses"], [0]),
                                 "on a 2-pose graph with a single edge, from pose 0 to pose 1 (first pose fixed)"))
+    par = parallel_graph(seed)
+    calls.append(_assembly_call(graph_at(par, par["poses"], [0]),
+                                "on a 3-pose graph with parallel edges (1 -> 2 twice, 2 -> 1 once) and diagonal "
+                                "anisotropic information (first pose fixed)"))
     return calls
 
 
@@ -232,3 +249,26 @@ CHECKS = [
     check(ASSEMBLY, "b and chi2", 2, _calls, _judge_assembly("b")),
     check(ASSEMBLY, "fixed poses (first pose, and poses 0 and 3)", 2, _calls, _judge_assembly("fixed")),
 ]
+
+
+TARGET = "@autograder.tasks.pose_graph_assembly:assemble_with_reference_edges"
+
+
+def _off_diagonal(information):
+    return information - information * np.eye(3)
+
+
+EDGES = (
+    Edge("a 2-pose graph with a single edge (M = 1), the first pose fixed", TARGET,
+         lambda call: len(call.args[1]) == 1 and len(call.args[0]) == 2),
+    Edge("an edge from a later to an earlier pose (i > j)", TARGET,
+         lambda call: bool(np.any(call.args[1] > call.args[2]))),
+    Edge("two edges between the same two poses (their blocks add up)", TARGET,
+         lambda call: len({frozenset((int(i), int(j))) for i, j in zip(*call.args[1:3])}) < len(call.args[1])),
+    Edge("information diagonal but anisotropic", TARGET,
+         lambda call: not np.any(_off_diagonal(call.args[4]))
+         and bool(np.any(np.ptp(np.diagonal(call.args[4], axis1=1, axis2=2), axis=1) > 0))),
+    Edge("information full (not diagonal)", TARGET,
+         lambda call: bool(np.all(np.any(_off_diagonal(call.args[4]), axis=(1, 2))))),
+    Edge("a fixed pose other than the first", TARGET, lambda call: bool(np.any(np.asarray(call.args[5]) != 0))),
+)

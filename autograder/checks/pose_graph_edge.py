@@ -2,8 +2,9 @@
 A, B, and A, B against central differences of the student's own e.
 
 Public inputs: generic edges, raw angle errors beyond +-pi and near its ends, a measured
-angle near pi, and two seeded random edges; hidden inputs: fresh edges of each kind
-(the same angle cases, other poses and measurements).
+angle near pi, raw angle errors of exactly pi and -pi (both wrap to -pi), and two seeded
+random edges; hidden inputs: fresh edges of each kind (the same angle cases, other poses
+and measurements).
 
 The edges (:func:`edges`) are also those of the Ceres cost's checks.
 """
@@ -14,6 +15,7 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.common import check, failed, values, wrap
+from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare, fmt
 
 MODULES = ("pose_graph_edge",)
@@ -55,6 +57,20 @@ def _fresh_edge(rng, low, high, note):
             return x_i, x_j, z, note.format(raw=raw, z=z[2], above=raw - np.pi)
 
 
+def exact_edge(rng, target):
+    """An edge whose raw angle error is exactly ``target`` (+-pi) in whatever order the angles are added:
+    theta_i and theta_ij are multiples of 1/16 of the same sign whose sum s keeps theta_j = target + s
+    between 2 and 4 in magnitude (one binade, so every partial sum is exact); every angle in [-pi, pi)."""
+    sign = 1.0 if target > 0 else -1.0
+    k = int(rng.integers(2, 17))  # |s| = k / 16
+    k_i = int(rng.integers(1, k))  # theta_i and theta_ij both between 0 and s
+    theta_i, theta_ij = -sign * k_i / 16.0, -sign * (k - k_i) / 16.0
+    x_i = np.append(np.round(rng.uniform(-5, 5, 2), 3), theta_i)
+    x_j = np.append(np.round(x_i[:2] + rng.uniform(-3, 3, 2), 3), target - sign * k / 16.0)
+    z = np.append(np.round(rng.uniform(-2.5, 2.5, 2), 3), theta_ij)
+    return x_i, x_j, z, f"theta_j - theta_i - theta_ij = {'-' if target < 0 else ''}pi exactly"
+
+
 @cache
 def edges(seed=None):
     """(x_i, x_j, z_ij, where): generic edges, raw angle errors outside [-pi, pi) and near its ends,
@@ -74,6 +90,8 @@ def edges(seed=None):
     else:
         rng = np.random.default_rng([seed, 201])
         cases = [_fresh_edge(rng, *case) for case in _ANGLE_CASES]
+    exact = np.random.default_rng(11 if seed is None else [seed, 202])
+    cases += [exact_edge(exact, np.pi), exact_edge(exact, -np.pi)]
     for _ in range(2):  # two random edges
         x_i, x_j, z = (np.round(np.append(rng.uniform(-5, 5, 2), rng.uniform(-np.pi, np.pi)), 3) for _ in range(3))
         cases.append((tuple(x_i), tuple(x_j), tuple(z), "random"))
@@ -155,6 +173,9 @@ def _judge_e(part):
                 return Verdict(0.0, f"e has shape {got['e'].shape}, expected (3,) {call.where}")
             split = {"e_t": (got["e"][:2], want["e"][:2]), "e_theta": (got["e"][2], want["e"][2])}
             actual, expected = split[part]
+            if part == "e_theta" and abs(float(expected)) == np.pi and np.isfinite(actual) \
+                    and -np.pi <= float(actual) < np.pi and abs(float(wrap(actual - expected))) <= 1e-12:
+                continue  # at the end of the range: -pi, or pi less a rounding (the angles added in another order)
             text = compare(actual, expected, label, 1e-9, 1e-12, call.where, ctx.known(index).get(part, ()), hint)
             if text:
                 return Verdict(0.0, text)
@@ -252,3 +273,16 @@ CHECKS = [
     check(EDGE, "B values", 2, _edge_calls, values(("B",), 1e-9, 1e-12, "B = [[R_ij^T R_i^T, 0], [0, 0, 1]]")),
     check(EDGE, "A, B vs finite differences of e", 2, _fd_calls, _judge_fd),
 ]
+
+
+def _raw_angle_error(call):
+    x_i, x_j, z = call.args[:3]
+    return x_j[2] - x_i[2] - z[2]
+
+
+EDGES = (
+    Edge("raw angle error theta_j - theta_i - theta_ij exactly pi: e_theta = -pi",
+         "pose_graph_edge:edge_error_and_jacobians", lambda call: _raw_angle_error(call) == np.pi),
+    Edge("raw angle error exactly -pi: e_theta = -pi", "pose_graph_edge:edge_error_and_jacobians",
+         lambda call: _raw_angle_error(call) == -np.pi),
+)

@@ -9,11 +9,15 @@ from autograder.checks.curve_model import COLUMN_HINTS, NAME
 def r_mistakes(call, ref):
     p, x, y = call.args
     a, b, c = p
-    return {"r": [
+    known = [
         (-ref["r"], "r has the opposite sign: r = y_hat - y (model minus measurement)"),
         (ref["r"] + y, "r is y_hat: subtract the measurement, r = y_hat - y"),
         (np.exp(a * x + b * x**2 + c) - y, "a and b are swapped: y_hat = exp(a x^2 + b x + c)"),
-    ]}
+    ]
+    if len(x) == 1:
+        known.append((np.asarray(ref["r"]).reshape(()), "r lost its axis on a single data point (np.squeeze or "
+                                                        "float()?): r has shape (m,) for every m, m = 1 too"))
+    return {"r": known}
 
 
 def column_mistakes(call, ref):

@@ -93,6 +93,9 @@ def update_mistakes(kind):
                 add((lam + dchi2 / (2 * alpha), "use |dchi2|: on a rejected step chi2 may still have decreased a little"))
                 add((lam + abs(dchi2) * 2 * alpha, "divide |dchi2| by 2 alpha, don't multiply"))
                 add((lam + abs(dchi2) / alpha, "the factor 1/2 is missing: lambda + |dchi2| / (2 alpha)"))
+                if lam + abs(dchi2) / (2 * alpha) > 1e7:
+                    add((1e7, "lambda is clamped at 1e7, but type 2's rejected update has no upper bound: "
+                              "lambda + |dchi2| / (2 alpha) (the clamp to [1e-7, 1e7] is type 1's)"))
         else:
             if accepted:
                 factor = 1.0 - (2.0 * rho - 1.0) ** 3
@@ -100,11 +103,17 @@ def update_mistakes(kind):
                 known["nu"].append((np.array(2 * nu), "an accepted step resets nu to 2; doubling is for rejected steps"))
                 add((lam * factor, "the factor is max(1/3, 1 - (2 rho - 1)^3): lambda shrinks by at most 3"))
                 add((lam * min(1 / 3, factor), "max(1/3, 1 - (2 rho - 1)^3), not min"))
+                if lam * max(1 / 3, factor) < 1e-7:
+                    add((1e-7, "lambda is clamped at 1e-7, but type 3 (Nielsen) has no bound on lambda: "
+                               "lambda max(1/3, 1 - (2 rho - 1)^3), unclamped"))
             else:
                 known["nu"].append((np.array(nu), "nu is not doubled on a rejected step: nu = 2 nu"))
                 known["nu"].append((np.array(2.0), "a rejected step doubles nu (nu = 2 nu); the reset to 2 is for accepted steps"))
                 add((lam * 2.0, f"multiply lambda by nu (here {nu:g}), not by 2"))
                 add((lam * 2 * nu, "multiply lambda by the old nu, then double nu"))
+                if lam * nu > 1e7:
+                    add((1e7, "lambda is clamped at 1e7, but type 3 (Nielsen) has no bound on lambda: lambda nu, "
+                              "unclamped"))
         return known
 
     return mistakes
@@ -115,6 +124,9 @@ def alpha_mistakes(call, ref):
     gh = float(-b @ h)
     raw = gh / ((full - chi2) / 2 + 2 * gh)
     known = [(raw, "alpha is not bounded below: return max(alpha, ALPHA_MIN) with ALPHA_MIN = 0.1")]
+    if raw > 1.0:
+        known.append((1.0, "alpha is bounded below (0.1) only, not above: where chi2 fell by more than 2 g^T h the "
+                           "line search's alpha exceeds 1"))
     for value, why in (
         ((-gh) / ((full - chi2) / 2 - 2 * gh), "g = -b: b = J^T W r is minus Gavin's J^T W (y - y_hat)"),
         (gh / ((full - chi2) + 2 * gh), "the chi2 change is halved in the denominator: (chi2(p+h) - chi2(p)) / 2"),

@@ -8,11 +8,16 @@ from autograder.checks.gauss_newton import NORMAL, STEP
 
 def normal_mistakes(call, ref):
     J, r, w = call.args
+    squeezed = []
+    if J.shape[1] == 1:
+        squeezed = [(np.squeeze(ref["H"]), "H lost its axes for a single parameter (np.squeeze or float()?): H is "
+                                           "(n, n) and b (n,) for every n, n = 1 too")]
     return {
         "H": [
             (J.T @ J, "H ignores the weights: H = J^T W J with W = diag(w)"),
             ((J * w[:, None] ** 2).T @ J, "w is applied twice: scale one factor only, H = (w J)^T J"),
             ((J * np.sqrt(w)[:, None]).T @ J, "use w, not sqrt(w), when scaling one factor: H = (w J)^T J"),
+            *squeezed,
         ],
         "b": [
             (J.T @ r, "b ignores the weights: b = J^T W r with W = diag(w)"),

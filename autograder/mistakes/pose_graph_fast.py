@@ -10,7 +10,13 @@ def edge_mistakes(call, ref):
     graph = call.args[0]
     raw = np.array(ref["e"], dtype=float)
     raw[:, 2] = graph["poses"][graph["edges_j"], 2] - graph["poses"][graph["edges_i"], 2] - graph["measurements"][:, 2]
-    return {"e": [(raw, "e[:, 2] is not wrapped to [-pi, pi)"), (-ref["e"], "e has the opposite sign")],
+    at_pi = []
+    if np.any(raw[:, 2] == np.pi):  # where the wrap is -pi, arctan2 gives +pi
+        plus = np.array(ref["e"], dtype=float)
+        plus[raw[:, 2] == np.pi, 2] = np.pi
+        at_pi = [(plus, "e[:, 2] = +pi where theta_j - theta_i - theta_ij is exactly pi: the range is [-pi, pi), so "
+                        "pi wraps to -pi ((angle + pi) % (2 pi) - pi does; arctan2(sin, cos) leaves +pi)")]
+    return {"e": [*at_pi, (raw, "e[:, 2] is not wrapped to [-pi, pi)"), (-ref["e"], "e has the opposite sign")],
             "A": [(-ref["A"], "A has the opposite sign")], "B": [(-ref["B"], "B has the opposite sign")]}
 
 

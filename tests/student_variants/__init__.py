@@ -146,6 +146,29 @@ BUGS = {
     "type3_nu_not_doubled": V(
         "damping.py", ["class GavinType3", "def update"], "nu=2.0 * state.nu)", "nu=state.nu)",
         {T3 + "update (rejected step, nu doubled)"}, "nu is not doubled"),
+    # wrong only at the edges of the contracts (the inputs listed in each module's docstring)
+    "curve_squeezed_outputs": V(
+        "curve_model.py", [], "return r, J", "return np.squeeze(r), np.squeeze(J)",
+        {CURVE + "shapes", CURVE + "r values", CURVE + "J values"}, "r lost its axis on a single data point"),
+    "normal_equations_squeezed": V(
+        "gauss_newton.py", [], "return Jw.T @ J, Jw.T @ r", "return np.squeeze(Jw.T @ J), np.squeeze(Jw.T @ r)",
+        {NORMAL + "non-uniform weights"}, "H lost its axes for a single parameter"),
+    # type 1's clamps copied where the other types have none
+    "type2_rejected_lambda_clamped": V(
+        "damping.py", ["class GavinType2", "def update"], "lam=state.lam + abs(dchi2) / (2.0 * alpha)",
+        "lam=min(state.lam + abs(dchi2) / (2.0 * alpha), LAMBDA_MAX)",
+        {T2 + "update (rejected step)"}, "type 2's rejected update has no upper bound"),
+    "type3_accepted_lambda_clamped": V(
+        "damping.py", ["class GavinType3", "def update"],
+        "lam=state.lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)",
+        "lam=max(state.lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LAMBDA_MIN)",
+        {T3 + "update (accepted step, nu reset)"}, "type 3 (Nielsen) has no bound on lambda"),
+    # alpha read as a fraction of the step, clipped to [0.1, 1]
+    "type2_alpha_clipped_to_one": V(
+        "damping.py", ["class GavinType2", "def step_scale"],
+        "return max(gh / ((chi2_full_step - chi2) / 2.0 + 2.0 * gh), ALPHA_MIN)",
+        "return min(max(gh / ((chi2_full_step - chi2) / 2.0 + 2.0 * gh), ALPHA_MIN), 1.0)",
+        {T2 + "step_scale"}, "alpha is bounded below (0.1) only, not above"),
 }
 
 # Hostile or broken code: each costs its own check(s) and nothing else.
@@ -237,6 +260,10 @@ BUGS_CHAPTERS_2_3 = {
         "pose_graph_assembly.py", [], "b[si] += A.T @ omega @ e\n        b[sj] += B.T @ omega @ e",
         "b[si] -= A.T @ omega @ e\n        b[sj] -= B.T @ omega @ e",
         {ASSEMBLY + "b and chi2", PG_E2E + "gauss-newton"}, "b has the opposite sign"),
+    # wrong only where two edges join the same poses: the later edge overwrites the block
+    "assembly_off_diagonal_assigned": V(
+        "pose_graph_assembly.py", [], "H[si, sj] += A.T @ omega @ B", "H[si, sj] = A.T @ omega @ B",
+        {ASSEMBLY + "H blocks of the free poses"}, "on a 3-pose graph with parallel edges"),
     "dense_solve_no_minus": V(
         "sparse_solve.py", [], "return -scipy.linalg.cho_solve(", "return scipy.linalg.cho_solve(",
         {DENSE + "dx solves H dx = -b"}, "dx has the opposite sign"),
@@ -273,15 +300,42 @@ BUGS_CHAPTERS_2_3 = {
         "        return -self.make(H_upper, upper=True).solve(np.asarray(b, dtype=float))\n        # END SOLUTION\n"
         "\n    from qdldl import Solver as make  # a class attribute, bound at import; a new analysis per call\n",
         {SPARSE + "one symbolic analysis for the pattern"}, "3 qdldl.Solver objects were made for 3 solves"),
+    # wrong only where theta_j - theta_i - theta_ij is exactly pi: atan2 gives +pi, outside [-pi, pi)
+    "edge_wrap_by_arctan2": V(
+        "pose_graph_edge.py", [], "e[2] = (x_j[2] - x_i[2] - z_ij[2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[2] = np.arctan2(np.sin(x_j[2] - x_i[2] - z_ij[2]), np.cos(x_j[2] - x_i[2] - z_ij[2]))",
+        {EDGE + "e_theta wrapped to [-pi, pi)"}, "so pi wraps to -pi"),
+    "ceres_wrap_by_atan2": V(
+        "ceres_edge_cost.py", ["def _wrap"], "return (angle + math.pi) % (2.0 * math.pi) - math.pi",
+        "return math.atan2(math.sin(angle), math.cos(angle))",
+        {CERES + "residuals r = U e"}, "so pi wraps to -pi"),
+    # wrong only where U is not upper triangular: the entries below its diagonal are skipped as zeros
+    "ceres_upper_triangle_only": V(
+        "ceres_edge_cost.py", ["def Evaluate"],
+        "            u10 * e0 + u11 * e1 + u12 * e2,\n            u20 * e0 + u21 * e1 + u22 * e2,",
+        "            u11 * e1 + u12 * e2,\n            u22 * e2,",
+        {CERES + "residuals r = U e"}, "only U's upper triangle is used"),
     "ceres_no_whitening": V(
         "ceres_edge_cost.py", ["def Evaluate"], "residuals[:] = (", "residuals[:] = (e0, e1, e2)\n        _unused = (",
         {CERES + "residuals r = U e"}, "r is the unwhitened error e"),
     "dogleg_case_boundaries_swapped": V(
         "dogleg.py", ["def dogleg_step", "# BEGIN SOLUTION"],
         "if np.linalg.norm(h_gn) <= radius:", "if alpha * np.linalg.norm(g) <= radius:",
-        {DL_STEP + "dogleg case (|a| < radius < |h_gn|)",
+        # and at the tie |a| = radius, where it takes the Gauss-Newton step for steepest descent
+        {DL_STEP + "dogleg case (|a| < radius < |h_gn|)", DL_STEP + "steepest-descent case (|a| >= radius)",
          DL_STEP + "stable beta (Cauchy point almost on the boundary)"},
         "so the case is dogleg"),
+    # wrong only at the ties the contract gives to a case: strict comparisons
+    "dogleg_gauss_newton_strict": V(
+        "dogleg.py", ["def dogleg_step", "# BEGIN SOLUTION"], "if np.linalg.norm(h_gn) <= radius:",
+        "if np.linalg.norm(h_gn) < radius:",
+        {DL_STEP + "Gauss-Newton case (|h_gn| <= radius)"}, "<= radius = 1.75, so the case is Gauss-Newton"),
+    "dogleg_steepest_descent_strict": V(
+        "dogleg.py", ["def dogleg_step", "# BEGIN SOLUTION"], "if a_norm >= radius:", "if a_norm > radius:",
+        {DL_STEP + "steepest-descent case (|a| >= radius)"}, ">= radius, so the case is steepest descent"),
+    "radius_grows_at_rho_075": V(
+        "dogleg.py", ["def update_radius"], "if rho > 0.75:", "if rho >= 0.75:",
+        {DL_RADIUS + "in between (0.25 <= rho <= 0.75)"}, "rho = 0.75 is not > 0.75"),
     "dogleg_beta_wrong_root": V(
         "dogleg.py", ["def dogleg_step", "# BEGIN SOLUTION"], "(radius**2 - a_norm**2) / (d + c)",
         "(radius**2 - a_norm**2) / (c - d)",
@@ -301,6 +355,19 @@ BUGS_CHAPTERS_2_3 = {
         "dogleg.py", ["def update_radius"], "return max(radius, 3.0 * step_norm)", "return 3.0 * step_norm",
         {DL_RADIUS + "good step (rho > 0.75)"}, "a short good step must not shrink the trust region"),
     # wrong on one edge only: feedback says which kind it is (Call.groups)
+    # wrong only at the smallest size: squeezed (M, 3) arrays lose their edge axis for one edge
+    "fast_edges_squeezed_poses": V(
+        "pose_graph_fast.py", [], "xi, xj = poses[edges_i], poses[edges_j]",
+        "xi, xj = np.squeeze(poses[edges_i]), np.squeeze(poses[edges_j])",
+        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges (optional)"},
+        "on the single edge of a 2-pose graph (M = 1)"),
+    "fast_edges_wrap_by_arctan2": V(
+        "pose_graph_fast.py", [],
+        "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[:, 2] = np.arctan2(np.sin(xj[:, 2] - xi[:, 2] - measurements[:, 2]), "
+        "np.cos(xj[:, 2] - xi[:, 2] - measurements[:, 2]))",
+        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges (optional)"},
+        "so pi wraps to -pi"),
     "fast_edges_angle_not_wrapped": V(
         "pose_graph_fast.py", [],
         "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
@@ -379,6 +446,15 @@ BUGS_INITIALISATION = {
     "translations_anchor_at_the_origin": V(
         "initialisation.py", _TRANSLATE, "    n = num_poses\n", "    n = num_poses\n    anchor_xy = np.zeros(2)\n",
         {TRANSLATIONS}, "not at the origin"),
+    # wrong only where two edges leave the anchor for the same pose: fancy-index += adds one of them
+    "rotations_anchor_terms_by_fancy_index": V(
+        "initialisation.py", _CHORDAL, "np.add.at(rhs, uj[from_anchor], w[from_anchor] * a[from_anchor] * z_anchor)",
+        "rhs[uj[from_anchor]] += w[from_anchor] * a[from_anchor] * z_anchor",
+        {ROTATIONS}, "on a 3-pose graph with two edges from pose 0 to pose 1"),
+    # wrong only on diagonal but anisotropic translation information: the shortcut for a I taken for any diagonal
+    "translations_shortcut_on_any_diagonal": V(
+        "initialisation.py", _TRANSLATE, "if not np.any(o01) and np.array_equal(o00, o11):", "if not np.any(o01):",
+        {TRANSLATIONS}, "diagonal anisotropic information"),
 }
 
 # correct but not the reference's way: they keep full marks
