@@ -8,6 +8,7 @@ symmetric square root U = Omega^(1/2) (not triangular); hidden inputs: the same 
 from the hidden seed, and other matrices.
 """
 
+from dataclasses import replace
 from functools import cache
 
 import numpy as np
@@ -126,3 +127,7 @@ EDGES = (
     _edge("U not triangular (a symmetric square root of Omega)",
           lambda call: bool(np.any(np.tril(call.args[1], -1)) and np.any(np.triu(call.args[1], 1)))),
 )
+
+# the edges whose raw angle error is exactly +-pi are written to be exact (angles multiples of 1/16 beside
+# pi itself): moving them by an ulp would change the question (autograder.rounding)
+CHECKS = [replace(c, exact_inputs=True) for c in CHECKS]

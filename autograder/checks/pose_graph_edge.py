@@ -9,6 +9,7 @@ and measurements).
 The edges (:func:`edges`) are also those of the Ceres cost's checks.
 """
 
+from dataclasses import replace
 from functools import cache
 
 import numpy as np
@@ -286,3 +287,7 @@ EDGES = (
     Edge("raw angle error exactly -pi: e_theta = -pi", "pose_graph_edge:edge_error_and_jacobians",
          lambda call: _raw_angle_error(call) == -np.pi),
 )
+
+# the edges whose raw angle error is exactly +-pi are written to be exact (angles multiples of 1/16 beside
+# pi itself): moving them by an ulp would change the question (autograder.rounding)
+CHECKS = [replace(c, exact_inputs=True) for c in CHECKS]

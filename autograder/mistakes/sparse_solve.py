@@ -62,7 +62,9 @@ def alternating_mistakes(call, ref):
 
 def _reused(shape, patterns, rhs, same):
     """The steps of a solver that analyses again only when ``same(old, new)`` is False, qdldl's update
-    taking any other pattern as the analysed one (what it silently does)."""
+    taking another pattern as the analysed one (what it silently does). Only while the other pattern
+    has as many entries as the analysed one: with fewer or more, qdldl reads past its arrays and its
+    answer is whatever memory holds, no known answer (the steps stop there)."""
     import qdldl
     import scipy.sparse as sp
 
@@ -71,6 +73,8 @@ def _reused(shape, patterns, rhs, same):
         H = sp.csc_matrix((np.asarray(data, dtype=float), np.asarray(indices), np.asarray(indptr)), shape=tuple(shape))
         if solver is None or not same(analysed, H):
             solver, analysed = qdldl.Solver(H, upper=True), H
+        elif H.nnz != analysed.nnz:
+            break
         else:
             solver.update(H, upper=True)
         steps.append(-solver.solve(np.asarray(b, dtype=float)))
