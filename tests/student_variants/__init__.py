@@ -1120,6 +1120,10 @@ BUGS_GNC = {
     "gnc_max_iterations_ignored": V(
         "gnc.py", [], "for _ in range(max_iterations):", "for _ in range(1000):", {G_LOOP},
         "stop after max_iterations"),
+    # reached only since the checks pass known_inliers=None: the raw argument as an index sets every weight
+    "gnc_known_inliers_argument_as_index": V(
+        "gnc.py", ["for _ in range(max_iterations)"], "weights[known] = 1.0", "weights[known_inliers] = 1.0",
+        {G_LOOP}, "weights[None] = 1.0 sets every weight to 1"),
     "gnc_no_new_solve": V(
         "gnc.py", ["for _ in range(max_iterations)"], "s = np.asarray(solve(weights), dtype=float)", "pass",
         {G_LOOP}, "solve again after every new set of weights"),
