@@ -651,6 +651,20 @@ BUGS_ROBUST_KERNELS = {
         "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"], "definite = d_rho + 2.0 * dd_rho * s",
         "definite = d_rho + dd_rho * s",
         {RK_NOT_DEFINITE, RK_MIXED}, "(with the factor 2)"),
+    # reached only since the checks put Tukey next to the margin (rho' = 0.64) and one residual alone
+    "weighting_absolute_margin": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"],
+        "definite = d_rho + 2.0 * dd_rho * s > DEFINITE_MARGIN * d_rho", "definite = d_rho + 2.0 * dd_rho * s > 1e-6",
+        {RK_DEFINITE}, "the margin is relative"),
+    "weighting_margin_at_rounding": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"],
+        "definite = d_rho + 2.0 * dd_rho * s > DEFINITE_MARGIN * d_rho",
+        "definite = d_rho + 2.0 * dd_rho * s > 1e-9 * d_rho",
+        {RK_NOT_DEFINITE}, "not a rounding-sized one"),
+    "weighting_squeezed_one_residual": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"],
+        "v = np.matmul(Om, e[:, :, None])[:, :, 0]", "v = np.matmul(Om, e[:, :, None]).squeeze()",
+        {RK_MIXED}, "IndexError"),
 }
 
 
