@@ -8,8 +8,9 @@ residuals (n = 3, one Omega per residual; n = 2, one Omega shared) whose rho', r
 Huber's, Cauchy's and Tukey's at chosen s / a^2, either all where the corrected form
 ``rho' Omega + 2 rho'' (Omega e)(Omega e)^T`` is positive definite (Tukey's just above the margin
 among them), or all where it is not (Tukey's just below the margin among them), or a mix, and one
-residual alone (K = 1). Each kernel also gets one residual alone, on the threshold. Hidden inputs: other scales, other s / a^2 in the same regions (x = 0 and x = 1
-kept), other residuals and information matrices, from the hidden seed.
+residual alone (K = 1). Each kernel also gets one residual alone, on the threshold. Hidden inputs:
+other scales, other s / a^2 in the same regions (x = 0 and x = 1 kept), other residuals and
+information matrices, from the hidden seed (Tukey next to the margin and K = 1 kept).
 """
 
 from functools import cache
@@ -76,10 +77,10 @@ def _kernel_calls(kernel):
 
 #: (kernel, s / a^2) per residual: where the corrected form is positive definite (the first
 #: entry has e = 0), where it is not, and a mix
-_DEFINITE = (("cauchy", 0.0), ("cauchy", 0.05), ("cauchy", 0.5), ("cauchy", 0.9), ("huber", 0.5),
-             ("tukey", 0.05), ("tukey", 0.15))
-_NOT_DEFINITE = (("cauchy", 1.0), ("cauchy", 1.5), ("cauchy", 30.0), ("huber", 1.5), ("huber", 10.0),
-                 ("tukey", 0.25), ("tukey", 0.7), ("tukey", 1.0), ("tukey", 3.0))
+_DEFINITE: tuple = (("cauchy", 0.0), ("cauchy", 0.05), ("cauchy", 0.5), ("cauchy", 0.9), ("huber", 0.5),
+                    ("tukey", 0.05), ("tukey", 0.15))
+_NOT_DEFINITE: tuple = (("cauchy", 1.0), ("cauchy", 1.5), ("cauchy", 30.0), ("huber", 1.5), ("huber", 10.0),
+                        ("tukey", 0.25), ("tukey", 0.7), ("tukey", 1.0), ("tukey", 3.0))
 _MIXED = (("cauchy", 0.3), ("cauchy", 2.0), ("huber", 0.9), ("huber", 4.0), ("tukey", 0.1), ("tukey", 0.5),
           ("cauchy", 0.0))
 
