@@ -513,12 +513,29 @@ BUGS_BUNDLE_ADJUSTMENT = {
     "ba_half_chi2": V(
         "bundle_adjustment.py", [], "float(np.sum(r * r))", "float(0.5 * np.sum(r * r))",
         {BA_G}, "without a factor 1/2"),
+    # reached only since the checks have a camera not rotated at all, one observation alone, a camera that sees
+    # no point and a point seen by none
+    "ba_no_small_angle_branch": V(
+        "bundle_adjustment.py", [], "small = theta < SMALL_ANGLE", "small = theta < 0.0",
+        {BA_R, BA_JC, BA_JP}, "not a finite number"),
+    "ba_camera_count_without_minlength": V(
+        "bundle_adjustment.py", ["def normal_equations"], "np.bincount(ci, minlength=num_cameras)", "np.bincount(ci)",
+        {BA_UVW}, "a camera that sees no point"),
+    "ba_scatter_without_minlength": V(
+        "bundle_adjustment.py", ["def normal_equations"],
+        "minlength=count * size).reshape((count, *blocks.shape[1:]))", ").reshape((-1, *blocks.shape[1:]))",
+        {BA_UVW, BA_G}, "a camera that sees no point"),
+    "ba_gradient_squeezed": V(
+        "bundle_adjustment.py", ["def normal_equations"], "np.matmul(Jc_t, r[:, :, None])[:, :, 0]",
+        "np.matmul(Jc_t, r[:, :, None]).squeeze()", {BA_UVW, BA_G}, "one observation (K = 1)"),
+    # the edge problem's point seen once (and camera that sees none) leaves the undamped block singular: the
+    # student's own error names it
     "schur_point_blocks_undamped": V(
         "bundle_adjustment.py", [], "V[:, np.arange(3), np.arange(3)] += damping_point", "pass",
-        {BA_CAM, BA_PT}, "the damping is added to V as well as U"),
+        {BA_CAM, BA_PT}, "plus damping) is not positive definite"),
     "schur_camera_blocks_undamped": V(
         "bundle_adjustment.py", [], "U[:, np.arange(9), np.arange(9)] += damping_cam", "pass",
-        {BA_CAM, BA_PT}, "the damping D_c is missing"),
+        {BA_CAM, BA_PT}, "add damping"),
     "schur_coupling_added": V(
         "bundle_adjustment.py", [], "S = scipy.linalg.block_diag(*U) - reduction.toarray()",
         "S = scipy.linalg.block_diag(*U) + reduction.toarray()",
@@ -727,6 +744,9 @@ BUGS_GAUGE = {
     "gauge_scale_moves_the_focal_length": V(
         "gauge.py", [], "d_point[6] = points", "d_point[6] = points\n    d_cam[6, :, 6] = cameras[:, 6]",
         {GA_S}, "intrinsics"),
+    # reached only since the checks have a camera not rotated at all: nan in R and J_r^-1
+    "gauge_no_small_angle_branch": V(
+        "gauge.py", [], "small = theta < SMALL_ANGLE", "small = theta < 0.0", {GA_T, GA_R}, "not finite"),
 }
 ALTERNATIVES_GAUGE = {
     "gauge_rotation_about_the_centroid": V(
