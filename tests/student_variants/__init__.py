@@ -794,6 +794,18 @@ BUGS_PARALLEL_ASSEMBLY = {
     "pa_one_thread": V(
         "parallel_assembly.py", PA_IN_ASSEMBLY, "max_workers=workers", "max_workers=1",
         {PA_THREADS}, "one at a time"),
+    # reached only since the checks assemble no observation at all: np.concatenate of no chunk raises
+    "pa_w_of_no_chunk": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY,
+        "W = np.concatenate([part[2] for part in results]) if results else np.zeros((0, 9, 3))",
+        "W = np.concatenate([part[2] for part in results])",
+        {PA_UVW, PA_G}, "need at least one array to concatenate"),
+    "pa_sums_from_the_first_chunk": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY,
+        "    for U_i, V_i, _, g_cam_i, g_point_i, chi2_i in results:",
+        "    U, V, _, g_cam, g_point, chi2 = results[0]\n"
+        "    for U_i, V_i, _, g_cam_i, g_point_i, chi2_i in results[1:]:",
+        {PA_UVW, PA_G}, "IndexError"),
 }
 #: correct but different: executor.map, the larger chunks last, the partial sums added by sum()
 ALTERNATIVES_PARALLEL_ASSEMBLY = {
