@@ -996,6 +996,13 @@ P3_E, P3_A, P3_B = ("pose_graph_3d.edge_errors_and_jacobians: " + t for t in (
 P3_RETRACT = "pose_graph_3d.retract: the retraction T (+) delta"
 P3_ASM = "pose_graph_3d_assembly.SparseAssembler3D: H (upper, CSC), b, chi2 in 6x6 blocks"
 BUGS_POSE_GRAPH_3D = {
+    # reached only since the checks have an edge whose residual rotation is exactly 0: J_r^-1 written without its
+    # small-angle series is nan there (at 1e-9 rad its error is rounding times |phi|^2)
+    "p3_jr_inverse_without_series": V(
+        "pose_graph_3d.py", [], "Jr_inv = right_jacobian_inverse_many(e[:, 3:])",
+        "th = np.linalg.norm(e[:, 3:], axis=1)[:, None, None]\n    W = skew(e[:, 3:])\n"
+        "    Jr_inv = np.eye(3) + 0.5 * W + (1.0 / th**2 - (1.0 + np.cos(th)) / (2.0 * th * np.sin(th))) * (W @ W)",
+        {P3_A, P3_B}, "not a finite number"),
     "p3_translation_unrotated": V(
         "pose_graph_3d.py", [], 'e[:, :3] = np.einsum("mab,mb->ma", RzT, d - t_z)', "e[:, :3] = d - t_z",
         {P3_E}, "rotated into the measurement's frame"),
