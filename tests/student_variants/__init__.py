@@ -1071,6 +1071,10 @@ ALTERNATIVES_POSE_GRAPH_3D = {
         'np.einsum("nab,nbc->nac", R, exp_many(delta[:, 3:]))', set()),
 }
 BUGS_POSE_GRAPH_3D_ASSEMBLY = {
+    # reached only since the checks fix no pose (fixed = []): an empty list is a float array to numpy
+    "p3a_fixed_indices_as_given": V(
+        "pose_graph_3d_assembly.py", [], "6 * np.asarray(fixed, dtype=np.int64)[:, None]",
+        "6 * np.asarray(fixed)[:, None]", {P3_ASM}, "IndexError"),
     "p3a_no_information": V(
         "pose_graph_3d_assembly.py", [], "OA, OB = np.matmul(information, A), np.matmul(information, B)",
         "OA, OB = A, B", {P3_ASM},
