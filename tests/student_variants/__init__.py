@@ -969,6 +969,16 @@ BUGS_IMU_PREINTEGRATION = {
     "ir_accel_bias_correction_sign": V(
         "imu_preintegration.py", IR_IN, "dba = b_a - np.asarray(pre.bias_accel, dtype=float)",
         "dba = np.asarray(pre.bias_accel, dtype=float) - b_a", {IR_V, IR_P}, "not b hat - b_i"),
+    # reached only since the checks preintegrate at a rate exactly 0: J_r without its series is nan there
+    "ip_jr_without_series": V(
+        "imu_preintegration.py", IP_IN, "Jr = right_jacobian(phi)",
+        "th = np.linalg.norm(phi)\n        W = skew(phi)\n"
+        "        Jr = np.eye(3) - (1.0 - np.cos(th)) / th**2 * W + (th - np.sin(th)) / th**3 * (W @ W)",
+        {IP_COV, IP_JR, IP_JVP}, "not a finite number"),
+    # reached only since the checks preintegrate one interval alone: squeezed, its rates are one vector
+    "ip_rates_squeezed": V(
+        "imu_preintegration.py", IP_IN, "rates = (gyro[:-1] + gyro[1:]) / 2.0 - bias_gyro",
+        "rates = np.squeeze((gyro[:-1] + gyro[1:]) / 2.0) - bias_gyro", IP_ALL, "one interval"),
     # reached only since the checks call scheme="euler" (a branch no input reached before)
     "ip_euler_with_the_right_sample": V(
         "imu_preintegration.py", IP_IN + ("else:",), "rates = gyro[:-1] - bias_gyro", "rates = gyro[1:] - bias_gyro",
