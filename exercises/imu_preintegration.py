@@ -53,6 +53,14 @@ so ``J_{k+1} = A_k J_k + B_k`` from ``J_0 = 0``: ``J`` (9, 6) stacks ``dR/dbg`` 
 0-2; ``dR/dba = 0``), ``dv/dbg``, ``dv/dba`` (rows 3-5), ``dp/dbg``, ``dp/dba`` (rows 6-8), such
 that to first order ``Delta R(b + delta b) = Delta R Exp(dR/dbg delta b_g)`` and
 ``Delta v(b + delta b) = Delta v + dv/dbg delta b_g + dv/dba delta b_a`` (p likewise).
+
+Inputs at the edges of the contract (each is a check input):
+- preintegrate: one interval (N = 1, two samples)
+- preintegrate: the rate exactly 0 (gyro samples equal to the gyro bias: Exp and J_r at 0)
+- preintegrate: dt a number, and dt one per interval
+- preintegrate: scheme='euler'
+- imu_factor_residual: the bias at the linearisation point (delta b = 0)
+- imu_factor_residual: a rotation residual within 1e-3 of pi (pi - 1e-4)
 """
 
 from typing import NamedTuple

@@ -43,6 +43,17 @@ observations (starting the threads costs more than the work, and numpy keeps the
 arrays); nothing when another job holds a core. And the assembly is only 15 to 22 % of a
 Levenberg-Marquardt or dogleg step attempt (the Schur solve, the Jacobians and the trial chi2
 stay serial), so a whole iteration cannot gain more than a few percent.
+
+Inputs at the edges of the contract (each is a check input):
+- chunk_bounds: no observations (K = 0: b = [0], no chunk)
+- chunk_bounds: one observation (K = 1)
+- chunk_bounds: more chunks than observations (one observation per chunk)
+- chunk_bounds: as many chunks as observations
+- chunk_bounds: one chunk
+- normal_equations_parallel: more chunks than observations
+- normal_equations_parallel: one worker
+- normal_equations_parallel: one observation on two workers (one chunk; a camera and points seen by none)
+- normal_equations_parallel: no observations (K = 0: zero blocks, W (0, 9, 3), chi2 0)
 """
 
 import concurrent.futures

@@ -13,6 +13,21 @@ of point ``point_index[k]`` by camera ``camera_index[k]`` gives the residual (2,
 
 The unknowns are updated by plain addition (also w), so the Jacobians are derivatives
 with respect to the angle-axis vector itself. No Python loop over observations anywhere.
+K >= 1 observations; a camera that sees no point or a point seen by none is allowed (its blocks of
+U, V and g are zero; the Schur step then needs damping on them).
+
+Inputs at the edges of the contract (each is a check input):
+- reprojection_residuals_and_jacobians: a camera not rotated at all (w = 0 exactly)
+- reprojection_residuals_and_jacobians: a camera rotated by nearly pi (|w| = pi - 1e-3)
+- reprojection_residuals_and_jacobians: one observation (K = 1: one camera, one point)
+- normal_equations: one observation (K = 1)
+- normal_equations: a camera that sees no point, the last (U_c = 0, g_cam_c = 0)
+- normal_equations: a point seen by no camera, the last (V_p = 0, g_point_p = 0)
+- normal_equations: a point seen by one camera (V_p of rank 2)
+- schur_solve: a point seen once, V_p of rank 2 made definite by the damping alone (lambda = 1e-4)
+- schur_solve: a camera that sees no point and a point seen by none (their blocks: the damping alone)
+- schur_solve: the damping already in U and V (no damping arguments)
+- schur_solve: 9C above DENSE_LIMIT (112 cameras: the sparse branch)
 """
 
 import numpy as np

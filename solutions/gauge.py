@@ -10,6 +10,11 @@ or damping removes them.
 The state is ``x = concat(cameras.ravel(), points.ravel())`` (9C + 3P,) as in
 ``bundle_adjustment`` (camera = angle-axis w, t, f, k1, k2; the unknowns are updated by
 addition); a direction is a tangent vector of x.
+
+Inputs at the edges of the contract (each is a check input):
+- a camera not rotated at all (w = 0 exactly)
+- a camera rotated by nearly pi (|w| = pi - 1e-3)
+- one camera and one point (C = P = 1)
 """
 
 import numpy as np

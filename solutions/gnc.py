@@ -21,6 +21,17 @@ Geman-McClure (GM), mu shrinking from ``2 s_max / c2`` by ``factor`` down to 1::
 The outer loop (``gnc``) is problem-agnostic: it sees the problem only through
 ``solve(weights) -> s``, the minimizer of ``sum_k w_k s_k`` (every solve warm-started by the
 caller from the last).
+
+Inputs at the edges of the contract (each is a check input):
+- tls_weights: s = 0 (no division by zero: w = 1)
+- tls_weights: s exactly on the bounds mu/(mu+1) c2 and (mu+1)/mu c2 (w = 1 and 0: continuous)
+- tls_weights: mu far below 1 and far above it (0.05, 20)
+- tls_weights: one edge (M = 1)
+- gm_weights: mu = 1, its lower bound
+- gm_weights: one edge (M = 1)
+- gnc: no s above c2 at the start (the unit weights, no mu)
+- gnc: known_inliers None (no edge known)
+- gnc: max_iterations reached before the weights settle
 """
 
 import numpy as np

@@ -27,6 +27,16 @@ first order.
 
 Given (``course.geometry``): ``so3.skew`` (K, 3) -> (K, 3, 3), ``so3.exp_many``,
 ``so3.log_many`` and ``so3.right_jacobian_inverse_many``, all vectorized over K.
+
+Inputs at the edges of the contract (each is a check input):
+- edge_errors_and_jacobians: one edge (M = 1)
+- edge_errors_and_jacobians: a residual rotation exactly 0 (J_r^-1 at 0)
+- edge_errors_and_jacobians: a residual rotation of 1e-9 rad (the small-angle branch)
+- edge_errors_and_jacobians: a residual rotation within 1e-3 of pi (pi - 1e-4)
+- edge_errors_and_jacobians: edges from the larger pose index to the smaller
+- retract: one pose (N = 1)
+- retract: a zero step
+- retract: a rotation step of 1e-10 rad (the small-angle branch)
 """
 
 import numpy as np

@@ -9,6 +9,13 @@ Edge k (``i -> j``) contributes, with ``J_k = [A_k  B_k]`` (6, 12) and ``Omega_k
 (blocks of 6 rows and columns: pose p's are ``6p .. 6p + 5``, translation then rotation).
 Only H's upper triangle is stored (CSC, diagonal included), as in chapter 2. A fixed pose
 keeps an identity diagonal block and zero rows, columns and b, so its step is zero.
+
+Inputs at the edges of the contract (each is a check input):
+- one edge (M = 1)
+- no pose fixed (fixed = [])
+- information diagonal but anisotropic
+- information full (correlated, positive definite)
+- edges from the larger pose index to the smaller (A^T Omega B stored mirrored)
 """
 
 import numpy as np
@@ -24,6 +31,9 @@ class SparseAssembler3D:
     ``H.data`` of each of the 78 entries of ``J^T Omega J`` (12, 12) that H's upper triangle
     needs (the upper 21 of ``A^T Omega A`` and of ``B^T Omega B``, the 36 of ``A^T Omega B``),
     and the pattern itself. ``assemble`` then costs batched products and one ``np.bincount``.
+
+    Args of ``__init__``: ``num_poses``, ``edges_i``, ``edges_j`` (M,) int, ``fixed`` the indices of the
+    fixed poses (a sequence of ints, possibly empty).
 
     Attribute ``diagonal_positions`` (6N,): where H's diagonal entries sit in ``H.data``
     (the LM loop adds its damping there).

@@ -25,6 +25,7 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.common import check, residual_or_jacobian, values
+from autograder.checks.edges import Edge
 from autograder.expected import FACTOR_PREFIX
 from autograder.feedback import fields_of
 
@@ -74,6 +75,23 @@ def problem(seed=None, large=False):
             seen[0] = p % num_cameras
         pairs += [(int(c), p) for c in sorted(seen)]
     pairs = [pairs[k] for k in rng.permutation(len(pairs))]  # observations in no particular order
+    return _observed(cameras, points, pairs, rng)
+
+
+def _cameras(rng, num_cameras):
+    """Cameras 8 to 12 units behind the origin (every point of N(0, 1.5) in front), distortion that matters."""
+    cameras = np.zeros((num_cameras, 9))
+    cameras[:, :3] = rng.normal(0, 0.3, (num_cameras, 3))
+    cameras[:, 3:5] = rng.normal(0, 0.5, (num_cameras, 2))
+    cameras[:, 5] = -rng.uniform(8.0, 12.0, num_cameras)
+    cameras[:, 6] = rng.uniform(400.0, 600.0, num_cameras)
+    cameras[:, 7] = rng.uniform(-8.0, 8.0, num_cameras)
+    cameras[:, 8] = rng.uniform(-40.0, 40.0, num_cameras)
+    return cameras
+
+
+def _observed(cameras, points, pairs, rng):
+    """The problem with observations ``pairs`` (camera, point): projections plus pixel noise."""
     ci, pi = (np.array(v, dtype=np.int64) for v in zip(*pairs))
     P = _rotate(cameras[ci, :3], points[pi]) + cameras[ci, 3:6]
     p = -P[:, :2] / P[:, 2:]
@@ -82,6 +100,49 @@ def problem(seed=None, large=False):
     observations = predicted + rng.normal(0, 2.0, predicted.shape)
     return {"cameras": cameras, "points": points, "camera_index": ci, "point_index": pi,
             "observations": observations}
+
+
+#: |w| of the edge problem's camera 1: nearly pi
+NEAR_PI = np.pi - 1e-3
+
+
+@cache
+def edge_problem(seed=None, one=False):
+    """The edges of the contract. ``one``: one camera, one point, one observation (K = 1). Else 4
+    cameras and 6 points: camera 0 not rotated at all (w = 0 exactly), camera 1 rotated by pi - 1e-3,
+    camera 3 (the last) sees no point; point 0 is seen by camera 0 alone, point 5 (the last) by none,
+    points 1 to 4 by 2 or 3 of cameras 0 to 2."""
+    rng = np.random.default_rng(63 if seed is None else [seed, 265])
+    if one:
+        cameras = _cameras(rng, 1)
+        return _observed(cameras, rng.normal(0, 1.5, (1, 3)), [(0, 0)], rng)
+    cameras = _cameras(rng, 4)
+    cameras[0, :3] = 0.0
+    axis = rng.normal(size=3)
+    cameras[1, :3] = NEAR_PI * axis / np.linalg.norm(axis)
+    points = rng.normal(0, 1.5, (6, 3))
+    pairs = [(0, 0)]
+    for p in range(1, 5):
+        pairs += [(int(c), p) for c in sorted(rng.choice(3, int(rng.integers(2, 4)), replace=False))]
+    pairs = [pairs[k] for k in rng.permutation(len(pairs))]
+    return _observed(cameras, points, pairs, rng)
+
+
+def _edge_where(g) -> str:
+    if len(g["cameras"]) == 1:
+        return "on one camera, one point and one observation (K = 1)"
+    return ("on a problem of 4 cameras (camera 0 not rotated, w = 0 exactly; camera 1 rotated by pi - 1e-3 rad; "
+            "camera 3 sees no point) and 6 points (point 0 seen by camera 0 alone, point 5 by none), "
+            f"{len(g['camera_index'])} observations")
+
+
+def _edge_groups(g) -> dict:
+    if len(g["cameras"]) == 1:
+        return {}
+    ci = g["camera_index"]
+    return {"seen by camera 0, whose rotation is exactly 0 (the small-angle branch at 0)":
+            tuple(int(k) for k in np.flatnonzero(ci == 0)),
+            "seen by camera 1, rotated by pi - 1e-3 rad": tuple(int(k) for k in np.flatnonzero(ci == 1))}
 
 
 def _where(g) -> str:
@@ -131,16 +192,20 @@ def _residual_calls(seed=None):
                 calls.append(Call(target, (*args, *rest), returns=("r", "J_cam", "J_point"),
                                   where=_where(g) + f", every {what}'s {names[column]} {'+' if sign > 0 else '-'} "
                                                     f"{h:.3g} {DIFFERENCES}"))
+    for e in (edge_problem(seed), edge_problem(seed, one=True)):  # the edges, after the differences' calls
+        calls.append(Call(target, (e["cameras"], e["points"], e["camera_index"], e["point_index"],
+                                   e["observations"]), returns=("r", "J_cam", "J_point"), where=_edge_where(e),
+                          groups=_edge_groups(e)))
     return calls
 
 
 @cache
-def linearized(seed=None, large=False):
-    """The reference residuals and Jacobians of ``problem(seed, large)`` (instructor side: inside a
-    calls builder)."""
+def linearized(seed=None, large=False, edge=None):
+    """The reference residuals and Jacobians of ``problem(seed, large)`` (``edge``: of ``edge_problem(seed,
+    one=edge)``) (instructor side: inside a calls builder)."""
     from autograder import reference
 
-    g = problem(seed, large)
+    g = problem(seed, large) if edge is None else edge_problem(seed, one=edge)
     f = reference.solutions_module("bundle_adjustment").reprojection_residuals_and_jacobians
     return f(g["cameras"], g["points"], g["camera_index"], g["point_index"], g["observations"])
 
@@ -149,9 +214,16 @@ def _normal_calls(seed=None):
     g = problem(seed)
     r, J_cam, J_point = linearized(seed)
     args = (r, J_cam, J_point, g["camera_index"], g["point_index"], len(g["cameras"]), len(g["points"]))
-    return [Call(f"bundle_adjustment:{NORMAL.split('.')[1]}", args, returns=("U", "V", "W", "g_cam", "g_point",
-                                                                            "chi2"),
-                 where=_where(g) + ", at the reference r and Jacobians")]
+    calls = [Call(f"bundle_adjustment:{NORMAL.split('.')[1]}", args, returns=("U", "V", "W", "g_cam", "g_point",
+                                                                             "chi2"),
+                  where=_where(g) + ", at the reference r and Jacobians")]
+    for one in (False, True):
+        e = edge_problem(seed, one=one)
+        args = (*linearized(seed, edge=one), e["camera_index"], e["point_index"], len(e["cameras"]), len(e["points"]))
+        calls.append(Call(f"bundle_adjustment:{NORMAL.split('.')[1]}", args,
+                          returns=("U", "V", "W", "g_cam", "g_point", "chi2"),
+                          where=_edge_where(e) + ", at the reference r and Jacobians"))
+    return calls
 
 
 def _schur_calls(seed=None):
@@ -184,7 +256,22 @@ def _schur_calls(seed=None):
                               returns=("dx_cam", "dx_point"),
                               where=_where(g) + f", reference U, V, W, g; LM damping lambda diag(H), "
                                                 f"lambda = {lam:.3g}"))
+    # the edges: a point seen once (V_p of rank 2, definite through the damping alone), a camera that sees no
+    # point and a point seen by none (their blocks are the damping alone: lambda max(diag(H), 1e-6))
+    e = edge_problem(seed)
+    U, V, W, g_cam, g_point, _ = normal(*linearized(seed, edge=False), e["camera_index"], e["point_index"],
+                                        len(e["cameras"]), len(e["points"]))
+    dc = EDGE_LAMBDA * np.maximum(np.einsum("cii->ci", U), 1e-6)
+    dp = EDGE_LAMBDA * np.maximum(np.einsum("pii->pi", V), 1e-6)
+    calls.append(Call(target, (U, V, W, g_cam, g_point, e["camera_index"], e["point_index"]),
+                      {"damping_cam": dc, "damping_point": dp}, returns=("dx_cam", "dx_point"),
+                      where=_edge_where(e) + f", reference U, V, W, g; damping lambda max(diag(H), 1e-6), "
+                                             f"lambda = {EDGE_LAMBDA:g}"))
     return calls
+
+
+#: the damping of the Schur step's edge problem: V_p of its point seen once is definite through it alone
+EDGE_LAMBDA = 1e-4
 
 
 # ---------------------------------------------------------------- judges
@@ -308,3 +395,57 @@ CHECKS = [
           _values(("dx_point",), 1e-7, 1e-10, _SCHUR_LABELS,
                  "dx_point_p = (V_p + D_p)^-1 (-g_point_p - sum W_k^T dx_cam)")),
 ]
+
+
+# ---------------------------------------------------------------- the edges of the contract
+
+
+def _rotation_norms(call):
+    cameras, ci = np.asarray(call.args[0], float), np.asarray(call.args[2])
+    return np.linalg.norm(cameras[np.unique(ci), :3], axis=1)
+
+
+def _counts(call, which):
+    """How many observations each camera (``which = "camera"``) or point has, in a normal_equations or
+    schur_solve call."""
+    if call.target.endswith("normal_equations"):
+        index, count = (call.args[3], call.args[5]) if which == "camera" else (call.args[4], call.args[6])
+    else:
+        index, count = (call.args[5], len(call.args[0])) if which == "camera" else (call.args[6], len(call.args[1]))
+    return np.bincount(np.asarray(index), minlength=count)
+
+
+_R_TARGET = f"bundle_adjustment:{RESIDUALS.split('.')[1]}"
+_N_TARGET = f"bundle_adjustment:{NORMAL.split('.')[1]}"
+_S_TARGET = f"bundle_adjustment:{SCHUR.split('.')[1]}"
+
+
+def _damped_once(call) -> bool:
+    """A point seen once whose V_p (rank 2) is definite through the damping alone."""
+    once = _counts(call, "point") == 1
+    return bool(np.any(once)) and "damping_point" in call.kwargs and bool(np.all(call.kwargs["damping_point"] > 0))
+
+
+EDGES = (
+    Edge("reprojection_residuals_and_jacobians: a camera not rotated at all (w = 0 exactly)", _R_TARGET,
+         lambda c: bool(np.any(_rotation_norms(c) == 0.0))),
+    Edge("reprojection_residuals_and_jacobians: a camera rotated by nearly pi (|w| = pi - 1e-3)", _R_TARGET,
+         lambda c: bool(np.any(np.abs(_rotation_norms(c) - np.pi) <= 1e-2))),
+    Edge("reprojection_residuals_and_jacobians: one observation (K = 1: one camera, one point)", _R_TARGET,
+         lambda c: len(c.args[2]) == 1),
+    Edge("normal_equations: one observation (K = 1)", _N_TARGET, lambda c: len(c.args[0]) == 1),
+    Edge("normal_equations: a camera that sees no point, the last (U_c = 0, g_cam_c = 0)", _N_TARGET,
+         lambda c: _counts(c, "camera")[-1] == 0),
+    Edge("normal_equations: a point seen by no camera, the last (V_p = 0, g_point_p = 0)", _N_TARGET,
+         lambda c: _counts(c, "point")[-1] == 0),
+    Edge("normal_equations: a point seen by one camera (V_p of rank 2)", _N_TARGET,
+         lambda c: bool(np.any(_counts(c, "point") == 1))),
+    Edge("schur_solve: a point seen once, V_p of rank 2 made definite by the damping alone (lambda = 1e-4)",
+         _S_TARGET, _damped_once),
+    Edge("schur_solve: a camera that sees no point and a point seen by none (their blocks: the damping alone)",
+         _S_TARGET, lambda c: bool(np.any(_counts(c, "camera") == 0) and np.any(_counts(c, "point") == 0))),
+    Edge("schur_solve: the damping already in U and V (no damping arguments)", _S_TARGET,
+         lambda c: "damping_cam" not in c.kwargs),
+    Edge("schur_solve: 9C above DENSE_LIMIT (112 cameras: the sparse branch)", _S_TARGET,
+         lambda c: 9 * len(c.args[0]) > 1000),
+)

@@ -7,15 +7,17 @@ translations, must span the reference's six; the scale column, joined with the r
 six, the reference's seven. So a rotation about another centre (a rotation plus a
 translation), another basis of the same span or a scaled column keep full marks, and a
 slip in one group costs that group's check only. Public inputs: the problem of the ``bundle_adjustment``
-checks (4 cameras, camera 0 rotated by 1e-9 rad, 12 points); hidden: another from the
-hidden seed.
+checks (4 cameras, camera 0 rotated by 1e-9 rad, 12 points), the cameras and points of their edge
+problem (a camera not rotated at all, one rotated by pi - 1e-3 rad) and one camera with one point;
+hidden: others from the hidden seed.
 """
 
 import numpy as np
 
 from autograder.checks import Call, Verdict
-from autograder.checks.bundle_adjustment import problem
+from autograder.checks.bundle_adjustment import NEAR_PI, edge_problem, problem
 from autograder.checks.common import check, failed
+from autograder.checks.edges import Edge
 from autograder.feedback import call_fields
 
 MODULES = ("gauge",)
@@ -34,10 +36,21 @@ GROUPS = {
 
 
 def _calls(seed=None):
+    """The bundle-adjustment checks' problem, then the edges: the cameras and points of their edge problem
+    (camera 0 not rotated at all, camera 1 by pi - 1e-3 rad), and one camera with one point."""
     g = problem(seed)
     where = (f"on a problem of {len(g['cameras'])} cameras (camera 0 rotated by 1e-9 rad) and "
              f"{len(g['points'])} points")
-    return [Call(f"gauge:{DIRECTIONS.split('.')[1]}", (g["cameras"], g["points"]), where=where)]
+    calls = [Call(TARGET, (g["cameras"], g["points"]), where=where)]
+    e, one = edge_problem(seed), edge_problem(seed, one=True)
+    calls.append(Call(TARGET, (e["cameras"], e["points"]),
+                      where=f"on a problem of {len(e['cameras'])} cameras (camera 0 not rotated at all, w = 0 exactly; "
+                            f"camera 1 rotated by pi - 1e-3 rad) and {len(e['points'])} points"))
+    calls.append(Call(TARGET, (one["cameras"], one["points"]), where="on one camera and one point"))
+    return calls
+
+
+TARGET = f"gauge:{DIRECTIONS.split('.')[1]}"
 
 
 def outside(columns, reference) -> float:
@@ -74,8 +87,8 @@ def _judge(group):
             if N.shape != ref.shape:
                 return Verdict(0.0, f"N has shape {N.shape}, expected {ref.shape} (9C + 3P rows, 7 columns) "
                                     f"{call.where}")
-            if not np.all(np.isfinite(N)):
-                return Verdict(0.0, f"N has entries that are not finite {call.where}")
+            if not np.all(np.isfinite(N[:, mine])):  # this group's columns: a slip elsewhere costs its own check
+                return Verdict(0.0, f"{what}: N has entries that are not finite {call.where}")
             if spans(N, ref):
                 continue
             columns = np.column_stack([N[:, mine], ref[:, joined]])
@@ -97,3 +110,15 @@ CHECKS = [
     check(DIRECTIONS, "rotation directions", 3, _calls, _judge("rotations")),
     check(DIRECTIONS, "scale direction", 2, _calls, _judge("scale")),
 ]
+
+
+def _norms(call):
+    return np.linalg.norm(np.asarray(call.args[0], dtype=float)[:, :3], axis=1)
+
+
+EDGES = (
+    Edge("a camera not rotated at all (w = 0 exactly)", TARGET, lambda c: bool(np.any(_norms(c) == 0.0))),
+    Edge("a camera rotated by nearly pi (|w| = pi - 1e-3)", TARGET,
+         lambda c: bool(np.any(np.abs(_norms(c) - NEAR_PI) <= 1e-9))),
+    Edge("one camera and one point (C = P = 1)", TARGET, lambda c: len(c.args[0]) == 1 and len(c.args[1]) == 1),
+)

@@ -16,6 +16,7 @@ import numpy as np
 
 from autograder.checks import Call
 from autograder.checks.common import check, values
+from autograder.checks.edges import Edge
 
 MODULES = ("gnc",)
 TLS = "gnc.tls_weights"
@@ -30,10 +31,21 @@ def _s(seed):
 
 
 def _weight_calls(function, mus):
+    """At each mu, the squared residuals of :func:`_s` (for TLS with that mu's two bounds appended), then
+    one edge (M = 1) at the middle mu."""
     def calls(seed=None):
-        s = _s(seed)
-        return [Call(f"gnc:{function}", (s, mu, C2), where=f"at mu = {mu:g}, c2 = {C2:g}, s from 0 to {s.max():.4g}")
-                for mu in mus]
+        out = []
+        for mu in mus:
+            s = _s(seed)
+            where = f"at mu = {mu:g}, c2 = {C2:g}, s from 0 to {s.max():.4g}"
+            if function == "tls_weights":
+                s = np.concatenate([s, [mu / (mu + 1.0) * C2, (mu + 1.0) / mu * C2]])
+                where += ", the last two exactly on the bounds mu/(mu+1) c2 and (mu+1)/mu c2"
+            out.append(Call(f"gnc:{function}", (s, mu, C2), where=where))
+        one = np.array([_s(seed)[0]])
+        out.append(Call(f"gnc:{function}", (one, mus[1], C2), where=f"at mu = {mus[1]:g}, c2 = {C2:g}, one edge "
+                                                                     f"(s of shape (1,): s = {one[0]:.4g})"))
+        return out
     return calls
 
 
@@ -66,6 +78,9 @@ def _loop_calls(seed=None):
     calls.append(Call("@autograder.tasks.gnc:robust_mean", (p["y"], 1.0, C2, "tls", p["known"]),
                       {"max_iterations": 3}, returns="dict", label=LOOP,
                       where="with the TLS surrogate on a robust mean of 30 values, 8 wrong, max_iterations = 3"))
+    calls.append(Call("@autograder.tasks.gnc:robust_mean", (p["y"], 1.0, C2, "gm", None), returns="dict",
+                      label=LOOP, where="with the GM surrogate on a robust mean of 30 values, 8 wrong, "
+                                        "known_inliers=None (no edge known)"))
     return calls
 
 
@@ -83,3 +98,34 @@ CHECKS = [
          "x": "solve again after every new set of weights", "calls": "one solve to start, then one per mu"},
         {"mus": "mus[{}]", "weights": "weights[{}]", "x": "x", "calls": "solves"}, scalar=True)),
 ]
+
+
+def _tls_on_bounds(call) -> bool:
+    s, mu, c2 = call.args
+    return bool(np.any(s == mu / (mu + 1.0) * c2) and np.any(s == (mu + 1.0) / mu * c2))
+
+
+def _loop_s_max(call) -> float:
+    y = np.asarray(call.args[0], dtype=float)
+    return float(np.max((y - y.mean()) ** 2 / call.args[1]))
+
+
+def _stops_early(call) -> bool:
+    """The TLS loop stopped by max_iterations before its weights settle (the reference takes more rounds)."""
+    return call.args[3] == "tls" and call.kwargs.get("max_iterations", 100) < 5 and _loop_s_max(call) > call.args[2]
+
+
+EDGES = (
+    Edge("tls_weights: s = 0 (no division by zero: w = 1)", "gnc:tls_weights", lambda c: bool(np.any(c.args[0] == 0))),
+    Edge("tls_weights: s exactly on the bounds mu/(mu+1) c2 and (mu+1)/mu c2 (w = 1 and 0: continuous)",
+         "gnc:tls_weights", _tls_on_bounds),
+    Edge("tls_weights: mu far below 1 and far above it (0.05, 20)", "gnc:tls_weights",
+         lambda c: c.args[1] <= 0.05 or c.args[1] >= 20),
+    Edge("tls_weights: one edge (M = 1)", "gnc:tls_weights", lambda c: np.shape(c.args[0]) == (1,)),
+    Edge("gm_weights: mu = 1, its lower bound", "gnc:gm_weights", lambda c: c.args[1] == 1.0),
+    Edge("gm_weights: one edge (M = 1)", "gnc:gm_weights", lambda c: np.shape(c.args[0]) == (1,)),
+    Edge("gnc: no s above c2 at the start (the unit weights, no mu)", "@autograder.tasks.gnc:robust_mean",
+         lambda c: _loop_s_max(c) <= c.args[2]),
+    Edge("gnc: known_inliers None (no edge known)", "@autograder.tasks.gnc:robust_mean", lambda c: c.args[4] is None),
+    Edge("gnc: max_iterations reached before the weights settle", "@autograder.tasks.gnc:robust_mean", _stops_early),
+)

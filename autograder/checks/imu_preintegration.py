@@ -6,7 +6,8 @@ Public inputs: ``preintegrate`` on 60 intervals (0.3 s at 200 Hz) of the simulat
 (``course.problems.vio.sim``, noisy samples, biases near the truth) and on 25 intervals of fast,
 random motion with a ``dt`` per interval; ``imu_factor_residual`` with the reference's
 preintegration of those windows, states near the truth (R_i far from I) or random, the bias
-at the linearisation point or off it. Hidden inputs: other windows, seeds and perturbations
+at the linearisation point or off it, and a rotation residual of pi - 1e-4; ``preintegrate`` also on
+one interval alone and on 5 intervals at a rate exactly 0. Hidden inputs: other windows, seeds and perturbations
 of the same kinds. The midpoint scheme (the default) is graded on both windows, the Euler scheme
 (``scheme="euler"``) on the fast one.
 """
@@ -17,6 +18,7 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.common import check, failed, values
+from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare
 
 MODULES = ("imu_preintegration",)
@@ -68,12 +70,30 @@ def windows(seed=None) -> tuple:
     return sim_window, fast
 
 
+@cache
+def edge_windows(seed=None) -> tuple:
+    """The edges: one interval (N = 1, two samples, dt a number), and 5 intervals whose gyro samples all
+    equal the gyro bias (the rate exactly 0: Exp and J_r at 0)."""
+    rng = np.random.default_rng(85 if seed is None else [seed, 573])
+    gravity_up = np.array([0.0, 0.0, 9.81])
+    one = {"args": (rng.normal(0.0, 1.5, (2, 3)), rng.normal(0.0, 3.0, (2, 3)) + gravity_up, 0.005,
+                    rng.normal(0.0, 0.05, 3), rng.normal(0.0, 0.2, 3), 0.01, 0.1),
+           "where": "on one interval (N = 1: two samples, dt = 0.005)"}
+    bias = rng.normal(0.0, 0.05, 3)
+    still = {"args": (np.tile(bias, (6, 1)), rng.normal(0.0, 3.0, (6, 3)) + gravity_up, rng.uniform(0.004, 0.006, 5),
+                      bias, rng.normal(0.0, 0.2, 3), 0.01, 0.1),
+             "where": "on 5 intervals whose gyro samples all equal the gyro bias (the rate exactly 0)"}
+    return one, still
+
+
 def _pre_calls(seed=None):
     calls = [Call(f"imu_preintegration:{PRE.split('.')[1]}", w["args"], returns=FIELDS, where=w["where"])
              for w in windows(seed)]
     fast = windows(seed)[1]
     return calls + [Call(f"imu_preintegration:{PRE.split('.')[1]}", fast["args"], {"scheme": "euler"}, returns=FIELDS,
-                         where=fast["where"] + ", scheme='euler'")]
+                         where=fast["where"] + ", scheme='euler'")] + [
+        Call(f"imu_preintegration:{PRE.split('.')[1]}", w["args"], returns=FIELDS, where=w["where"])
+        for w in edge_windows(seed)]
 
 
 @cache
@@ -109,7 +129,20 @@ def _res_calls(seed=None):
     calls.append(Call(f"imu_preintegration:{RES.split('.')[1]}",
                       (fast["state_i"], state_j, pre_fast, bias(pre_fast, 1.0), GRAVITY),
                       where=f"{fast['where']}, random states, the bias off the linearisation point"))
+    # R_j = R_i Delta R Exp((pi - 1e-4) u): the rotation residual within 1e-3 of pi (the bias at b hat)
+    axis = rng.normal(size=3)
+    R_i = fast["state_i"][0]
+    R_j = R_i @ pre_fast[0] @ _so3_exp(NEAR_PI * axis / np.linalg.norm(axis))
+    state_j = (R_j, rng.normal(0.0, 2.0, 3), rng.normal(0.0, 5.0, 3))
+    calls.append(Call(f"imu_preintegration:{RES.split('.')[1]}",
+                      (fast["state_i"], state_j, pre_fast, (pre_fast[10], pre_fast[11]), GRAVITY),
+                      where=f"{fast['where']}, the rotation residual pi - 1e-4 rad, the bias at the linearisation "
+                            "point"))
     return calls
+
+
+#: the angle of the rotation residual near pi
+NEAR_PI = np.pi - 1e-4
 
 
 # ---------------------------------------------------------------- judges
@@ -166,3 +199,35 @@ CHECKS = [
     check(RES, "velocity residual r_v", 2, _res_calls, _part("r_v")),
     check(RES, "position residual r_p", 2, _res_calls, _part("r_p")),
 ]
+
+
+def _rates(call):
+    gyro, bias = np.asarray(call.args[0], dtype=float), np.asarray(call.args[3], dtype=float)
+    scheme = call.kwargs.get("scheme", "midpoint")
+    return ((gyro[:-1] + gyro[1:]) / 2.0 if scheme == "midpoint" else gyro[:-1]) - bias
+
+
+def _residual_angle(call) -> float:
+    """The angle of Delta R'^T R_i^T R_j (from the inputs)."""
+    state_i, state_j, pre, (b_g, _), _ = call.args
+    M = (np.asarray(pre[0]) @ _so3_exp(np.asarray(pre[5]) @ (np.asarray(b_g) - np.asarray(pre[10])))).T
+    M = M @ np.asarray(state_i[0]).T @ np.asarray(state_j[0])
+    sin = np.linalg.norm([M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1]]) / 2.0
+    return float(np.arctan2(sin, (np.trace(M) - 1.0) / 2.0))
+
+
+_P_TARGET = f"imu_preintegration:{PRE.split('.')[1]}"
+_R_TARGET = f"imu_preintegration:{RES.split('.')[1]}"
+
+EDGES = (
+    Edge("preintegrate: one interval (N = 1, two samples)", _P_TARGET, lambda c: len(c.args[0]) == 2),
+    Edge("preintegrate: the rate exactly 0 (gyro samples equal to the gyro bias: Exp and J_r at 0)", _P_TARGET,
+         lambda c: bool(np.all(_rates(c) == 0.0))),
+    Edge("preintegrate: dt a number, and dt one per interval", _P_TARGET, lambda c: np.ndim(c.args[2]) == 0),
+    Edge("preintegrate: scheme='euler'", _P_TARGET, lambda c: c.kwargs.get("scheme") == "euler"),
+    Edge("imu_factor_residual: the bias at the linearisation point (delta b = 0)", _R_TARGET,
+         lambda c: bool(np.all(np.asarray(c.args[3][0]) == np.asarray(c.args[2][10]))
+                        and np.all(np.asarray(c.args[3][1]) == np.asarray(c.args[2][11])))),
+    Edge("imu_factor_residual: a rotation residual within 1e-3 of pi (pi - 1e-4)", _R_TARGET,
+         lambda c: _residual_angle(c) > np.pi - 1e-3),
+)

@@ -16,7 +16,8 @@ and, with one worker, that they do not; speed is never judged here (see
 Public inputs: the observation pattern of the bundle-adjustment checks' small problem (4
 cameras, 12 points, 38 observations, shuffled) with Jacobian and residual entries that are
 multiples of 1/2, so that every sum is exact in any order; chunk counts that do not divide
-K, more chunks than observations, one worker and the default (one chunk per worker).
+K, more chunks than observations, one worker and the default (one chunk per worker); and one
+observation on two workers, and none at all (K = 0: zero blocks, W of shape (0, 9, 3)).
 Hidden inputs: the same from the hidden seed's problem, other entries and chunk counts.
 """
 
@@ -27,6 +28,7 @@ import numpy as np
 from autograder.checks import Call, Verdict
 from autograder.checks.bundle_adjustment import problem
 from autograder.checks.common import check, failed
+from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare
 
 MODULES = ("parallel_assembly",)
@@ -83,13 +85,28 @@ def assembly_inputs(seed=None):
 
 
 @cache
-def blocks(seed=None) -> dict:
-    """The reference's per-observation blocks of ``assembly_inputs(seed)`` (instructor side: inside a
-    calls builder): ``normal_equations`` with every observation its own camera and point."""
+def edge_inputs(seed=None, K=1):
+    """The inputs of one observation (camera 1 of 2 sees point 2 of 3: the others see or are seen by nothing)
+    or of none (``K = 0``), entries multiples of 1/2."""
+    rng = np.random.default_rng(409 if seed is None else [seed, 409])
+    r = rng.integers(-128, 129, (K, 2)) / 2.0
+    J_cam, J_point = rng.integers(-8, 9, (K, 2, 9)) / 2.0, rng.integers(-8, 9, (K, 2, 3)) / 2.0
+    index = np.ones(K, dtype=np.int64)
+    return r, J_cam, J_point, index, 2 * index, 2, 3
+
+
+@cache
+def blocks(seed=None, K=None) -> dict:
+    """The reference's per-observation blocks of ``assembly_inputs(seed)`` (``K``: of ``edge_inputs(seed,
+    K)``) (instructor side: inside a calls builder): ``normal_equations`` with every observation its own
+    camera and point."""
     from autograder import reference
 
-    r, J_cam, J_point, _, _, _, _ = assembly_inputs(seed)
+    r, J_cam, J_point, _, _, _, _ = assembly_inputs(seed) if K is None else edge_inputs(seed, K)
     K = len(r)
+    if K == 0:
+        return {"U": np.zeros((0, 9, 9)), "V": np.zeros((0, 3, 3)), "W": np.zeros((0, 9, 3)),
+                "g_cam": np.zeros((0, 9)), "g_point": np.zeros((0, 3)), "chi2": np.zeros(0)}
     own = np.arange(K)
     normal = reference.solutions_module("bundle_adjustment").normal_equations
     U, V, W, g_cam, g_point, _ = normal(r, J_cam, J_point, own, own, K, K)
@@ -102,11 +119,11 @@ def _where(K, C, P, workers, chunks, note=""):
             f"and {P} points (entries multiples of 1/2: every sum is exact)")
 
 
-def _parallel_call(seed, workers, chunks, note=""):
-    args = assembly_inputs(seed)
-    K, C, P = len(args[0]), args[5], args[6]
-    return Call(TASK, (*args, blocks(seed)), {"workers": workers, "chunks": chunks}, returns="dict",
-                where=_where(K, C, P, workers, chunks, note), label=PARALLEL)
+def _parallel_call(seed, workers, chunks, note="", K=None):
+    args = assembly_inputs(seed) if K is None else edge_inputs(seed, K)
+    size, C, P = len(args[0]), args[5], args[6]
+    return Call(TASK, (*args, blocks(seed, K)), {"workers": workers, "chunks": chunks}, returns="dict",
+                where=_where(size, C, P, workers, chunks, note), label=PARALLEL)
 
 
 def _value_cases(seed=None):
@@ -131,7 +148,10 @@ def _value_cases(seed=None):
 
 
 def _value_calls(seed=None):
-    return [_parallel_call(seed, workers, chunks, note) for workers, chunks, note in _value_cases(seed)]
+    """The cases of :func:`_value_cases`, then one observation on two workers and no observation at all."""
+    return [_parallel_call(seed, workers, chunks, note) for workers, chunks, note in _value_cases(seed)] + [
+        _parallel_call(seed, 2, None, "fewer observations than workers; camera 0 sees no point", K=1),
+        _parallel_call(seed, 2, None, "no observation: no chunk", K=0)]
 
 
 def _thread_calls(seed=None):
@@ -265,3 +285,30 @@ CHECKS = [
           exact_inputs=True),
     check(PARALLEL, "chunks run on several threads at once", 1, _thread_calls, _judge_threads),
 ]
+
+
+def _assembly_edge(test):
+    def holds(call):
+        K = len(call.args[0])
+        chunks = call.kwargs["workers"] if call.kwargs["chunks"] is None else call.kwargs["chunks"]
+        return test(K, chunks, call.kwargs["workers"], call)
+    return holds
+
+
+_B_TARGET = f"parallel_assembly:{BOUNDS.split('.')[1]}"
+
+EDGES = (
+    Edge("chunk_bounds: no observations (K = 0: b = [0], no chunk)", _B_TARGET, lambda c: c.args[0] == 0),
+    Edge("chunk_bounds: one observation (K = 1)", _B_TARGET, lambda c: c.args[0] == 1),
+    Edge("chunk_bounds: more chunks than observations (one observation per chunk)", _B_TARGET,
+         lambda c: c.args[1] > c.args[0] > 0),
+    Edge("chunk_bounds: as many chunks as observations", _B_TARGET, lambda c: c.args[1] == c.args[0] > 1),
+    Edge("chunk_bounds: one chunk", _B_TARGET, lambda c: c.args[1] == 1),
+    Edge("normal_equations_parallel: more chunks than observations", TASK,
+         _assembly_edge(lambda K, n, w, c: n > K > 1)),
+    Edge("normal_equations_parallel: one worker", TASK, _assembly_edge(lambda K, n, w, c: w == 1)),
+    Edge("normal_equations_parallel: one observation on two workers (one chunk; a camera and points seen by none)",
+         TASK, _assembly_edge(lambda K, n, w, c: K == 1 and w == 2)),
+    Edge("normal_equations_parallel: no observations (K = 0: zero blocks, W (0, 9, 3), chi2 0)", TASK,
+         _assembly_edge(lambda K, n, w, c: K == 0)),
+)

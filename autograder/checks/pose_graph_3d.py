@@ -3,8 +3,10 @@ retraction, each graded alone.
 
 Public inputs: 6 poses turned far from each other and 11 edges (some written from the
 larger index to the smaller), one edge whose residual rotation is 2.9 rad, one whose residual
-is 1e-9 rad (the small-angle branch); the retraction with steps of about 0.4, one zero and one
-of 1e-10 rad; hidden inputs: the same kind from the hidden seed.
+is 1e-9 rad (the small-angle branch), then one edge alone (M = 1) whose residual rotation is
+exactly 0 and one whose residual rotation is pi - 1e-4; the retraction with steps of about 0.4,
+one zero and one of 1e-10 rad, and on one pose alone; hidden inputs: the same kind from the
+hidden seed.
 
 The edge function is also called on the same edges split apart (every edge its own two
 poses) with every first pose, then every second pose, moved by ``+-h`` along each of the
@@ -19,12 +21,13 @@ import numpy as np
 
 from autograder.checks import Call
 from autograder.checks.common import check, residual_or_jacobian, values
+from autograder.checks.edges import Edge
 from autograder.feedback import fields_of
 from course.geometry import se3
 from course.geometry.so3 import exp_many
 
 MODULES = ("pose_graph_3d",)
-EDGES = "pose_graph_3d.edge_errors_and_jacobians"
+EDGE_ERRORS = "pose_graph_3d.edge_errors_and_jacobians"
 RETRACT = "pose_graph_3d.retract"
 #: what the moved calls' ``where`` ends with (feedback names the first call's causes only)
 DIFFERENCES = "(for central differences of e)"
@@ -95,7 +98,33 @@ def _edge_calls(seed=None):
                 calls.append(Call(target, (t, R, *_args(s)[2:]), returns=("e", "A", "B"),
                                   where=_where(g) + f", every edge's {side} pose moved by {name} "
                                                     f"{'+' if sign > 0 else '-'}{STEP:g} {DIFFERENCES}"))
+    for kind, text in (("zero", "whose residual rotation is exactly 0 (R_i = R_j = R_z = I)"),
+                       ("pi", "whose residual rotation is pi - 1e-4 rad")):
+        calls.append(Call(target, _args(one_edge(seed, kind)), returns=("e", "A", "B"),
+                          where=f"on one edge (M = 1) {text}"))
     return calls
+
+
+#: the residual rotation of the near-pi edge: within 1e-3 of pi, where Log takes the symmetric part
+NEAR_PI = np.pi - 1e-4
+
+
+@cache
+def one_edge(seed=None, kind="zero") -> dict:
+    """Two poses and one edge (M = 1): ``kind = "zero"``, every rotation I (the residual rotation exactly
+    0: J_r^-1 at 0); ``"pi"``, turned poses and a measurement that leaves a residual rotation of pi - 1e-4."""
+    rng = np.random.default_rng(75 if seed is None else [seed, 275])
+    t = rng.normal(0, 2.0, (2, 3))
+    t_z = rng.normal(0, 2.0, (1, 3))
+    if kind == "zero":
+        R = np.tile(np.eye(3), (2, 1, 1))
+        R_z = np.eye(3)[None]
+    else:
+        R = exp_many(rng.normal(0, 1.0, (2, 3)))
+        axis = rng.normal(size=3)
+        residual = exp_many((NEAR_PI * axis / np.linalg.norm(axis))[None])
+        R_z = np.matmul(np.matmul(R[:1].transpose(0, 2, 1), R[1:]), residual.transpose(0, 2, 1))
+    return {"t": t, "R": R, "edges_i": np.array([0]), "edges_j": np.array([1]), "t_z": t_z, "R_z": R_z}
 
 
 def _retract_calls(seed=None):
@@ -104,8 +133,11 @@ def _retract_calls(seed=None):
     delta = rng.normal(0, 0.4, (len(g["t"]), 6))
     delta[0] = 0.0
     delta[1, 3:] = [1e-10, 0.0, 0.0]  # the small-angle case
+    one = rng.normal(0, 0.4, (1, 6))
     return [Call("pose_graph_3d:retract", (g["t"], g["R"], delta), returns=("t", "R"),
-                 where=f"on {len(g['t'])} poses, pose 0's step zero, pose 1's rotation 1e-10 rad")]
+                 where=f"on {len(g['t'])} poses, pose 0's step zero, pose 1's rotation 1e-10 rad"),
+            Call("pose_graph_3d:retract", (g["t"][:1], g["R"][:1], one), returns=("t", "R"),
+                 where="on one pose (N = 1)")]
 
 
 def own_differences(ctx, name: str):
@@ -137,15 +169,47 @@ def _residual_or_jacobian(name, judge):
 _LABELS = {"e": "e[{}]", "A": "A[{}]", "B": "B[{}]", "t": "t[{}]", "R": "R[{}]"}
 
 CHECKS = [
-    check(EDGES, "error e", 2, _edge_calls, values(("e",), 1e-8, 1e-10, "e = [R_z^T (R_i^T (t_j - t_i) - t_z); "
+    check(EDGE_ERRORS, "error e", 2, _edge_calls, values(("e",), 1e-8, 1e-10, "e = [R_z^T (R_i^T (t_j - t_i) - t_z); "
                                                                 "Log(R_z^T R_i^T R_j)]", _LABELS)),
-    check(EDGES, "Jacobian A = de/d delta_i", 3, _edge_calls, _residual_or_jacobian("A", values(
+    check(EDGE_ERRORS, "Jacobian A = de/d delta_i", 3, _edge_calls, _residual_or_jacobian("A", values(
         ("A",), 1e-6, 1e-8, "A = [[-R_z^T, R_z^T [d]x], [0, -J_r^-1(e_phi) R_j^T R_i]] for the right "
                             "perturbation T (Exp(phi), rho)", _LABELS))),
-    check(EDGES, "Jacobian B = de/d delta_j", 2, _edge_calls, _residual_or_jacobian("B", values(
+    check(EDGE_ERRORS, "Jacobian B = de/d delta_j", 2, _edge_calls, _residual_or_jacobian("B", values(
         ("B",), 1e-6, 1e-8, "B = [[R_z^T R_i^T R_j, 0], [0, J_r^-1(e_phi)]] for the right perturbation "
                             "T (Exp(phi), rho)", _LABELS))),
     check(RETRACT, "the retraction T (+) delta", 1, _retract_calls, values(
         ("t", "R"), 1e-10, 1e-12, "T (+) (rho, phi) = (R Exp(phi), t + R rho): the step is in the pose's own frame",
         _LABELS)),
 ]
+
+
+def _residual_angles(call):
+    """The residual rotation angle of each edge of an edge call (from its inputs)."""
+    t, R, ei, ej, t_z, R_z = (np.asarray(a) for a in call.args)
+    D = np.matmul(R_z.transpose(0, 2, 1), np.matmul(R[ei].transpose(0, 2, 1), R[ej]))
+    cos = (np.trace(D, axis1=1, axis2=2) - 1.0) / 2.0
+    sin = np.linalg.norm(np.stack([D[:, 2, 1] - D[:, 1, 2], D[:, 0, 2] - D[:, 2, 0], D[:, 1, 0] - D[:, 0, 1]], axis=1),
+                         axis=1) / 2.0
+    return np.arctan2(sin, cos), D
+
+
+_E_TARGET = "pose_graph_3d:edge_errors_and_jacobians"
+_R_TARGET = "pose_graph_3d:retract"
+
+EDGES = (
+    Edge("edge_errors_and_jacobians: one edge (M = 1)", _E_TARGET, lambda c: len(c.args[2]) == 1),
+    Edge("edge_errors_and_jacobians: a residual rotation exactly 0 (J_r^-1 at 0)", _E_TARGET,
+         lambda c: bool(np.any(np.all(_residual_angles(c)[1] == np.eye(3), axis=(1, 2))))),
+    Edge("edge_errors_and_jacobians: a residual rotation of 1e-9 rad (the small-angle branch)", _E_TARGET,
+         lambda c: bool(np.any((_residual_angles(c)[0] < 1e-6) & (_residual_angles(c)[0] > 0)))
+         if not c.where.endswith(DIFFERENCES) else False),
+    Edge("edge_errors_and_jacobians: a residual rotation within 1e-3 of pi (pi - 1e-4)", _E_TARGET,
+         lambda c: bool(np.any(_residual_angles(c)[0] > np.pi - 1e-3))),
+    Edge("edge_errors_and_jacobians: edges from the larger pose index to the smaller", _E_TARGET,
+         lambda c: bool(np.any(np.asarray(c.args[2]) > np.asarray(c.args[3])))),
+    Edge("retract: one pose (N = 1)", _R_TARGET, lambda c: len(c.args[0]) == 1),
+    Edge("retract: a zero step", _R_TARGET, lambda c: bool(np.any(np.all(np.asarray(c.args[2]) == 0, axis=1)))),
+    Edge("retract: a rotation step of 1e-10 rad (the small-angle branch)", _R_TARGET,
+         lambda c: bool(np.any((np.linalg.norm(np.asarray(c.args[2])[:, 3:], axis=1) < 1e-6)
+                               & (np.linalg.norm(np.asarray(c.args[2])[:, 3:], axis=1) > 0)))),
+)

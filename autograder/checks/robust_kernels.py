@@ -6,9 +6,11 @@ s = a^2 is exactly on the threshold), with squared norms s = x a^2 for x from 0 
 tiny, below, exactly at and just above the threshold to far beyond; for the weighting,
 residuals (n = 3, one Omega per residual; n = 2, one Omega shared) whose rho', rho'' are
 Huber's, Cauchy's and Tukey's at chosen s / a^2, either all where the corrected form
-``rho' Omega + 2 rho'' (Omega e)(Omega e)^T`` is positive definite, or all where it is not,
-or a mix. Hidden inputs: other scales, other s / a^2 in the same regions (x = 0 and x = 1
-kept), other residuals and information matrices, from the hidden seed.
+``rho' Omega + 2 rho'' (Omega e)(Omega e)^T`` is positive definite (Tukey's just above the margin
+among them), or all where it is not (Tukey's just below the margin among them), or a mix, and one
+residual alone (K = 1). Each kernel also gets one residual alone, on the threshold. Hidden inputs:
+other scales, other s / a^2 in the same regions (x = 0 and x = 1 kept), other residuals and
+information matrices, from the hidden seed (Tukey next to the margin and K = 1 kept).
 """
 
 from functools import cache
@@ -17,6 +19,7 @@ import numpy as np
 
 from autograder.checks import Call
 from autograder.checks.common import check, values
+from autograder.checks.edges import Edge
 
 MODULES = ("robust_kernels",)
 HUBER = "robust_kernels.huber"
@@ -57,7 +60,9 @@ def kernel_inputs(kernel, seed=None):
                                 1.0 + rng.uniform(1e-7, 1e-3, 1), rng.uniform(1.05, 3, 1),
                                 10.0 ** rng.uniform(0.5, 2, 2)])
             cases.append((_hidden_scale(rng), x[rng.permutation(len(x))]))
-    return [(x * (a * a), a, f"for s = x a^2 with scale a = {a:g}, x = ({_ratio_text(x)})") for a, x in cases]
+    out = [(x * (a * a), a, f"for s = x a^2 with scale a = {a:g}, x = ({_ratio_text(x)})") for a, x in cases]
+    a = cases[0][0]  # one residual (K = 1), on the threshold
+    return out + [(np.array([a * a]), a, f"for one residual (K = 1), s = a^2 with scale a = {a:g}")]
 
 
 def _kernel_calls(kernel):
@@ -72,12 +77,24 @@ def _kernel_calls(kernel):
 
 #: (kernel, s / a^2) per residual: where the corrected form is positive definite (the first
 #: entry has e = 0), where it is not, and a mix
-_DEFINITE = (("cauchy", 0.0), ("cauchy", 0.05), ("cauchy", 0.5), ("cauchy", 0.9), ("huber", 0.5),
-             ("tukey", 0.05), ("tukey", 0.15))
-_NOT_DEFINITE = (("cauchy", 1.0), ("cauchy", 1.5), ("cauchy", 30.0), ("huber", 1.5), ("huber", 10.0),
-                 ("tukey", 0.25), ("tukey", 0.7), ("tukey", 1.0), ("tukey", 3.0))
+_DEFINITE: tuple = (("cauchy", 0.0), ("cauchy", 0.05), ("cauchy", 0.5), ("cauchy", 0.9), ("huber", 0.5),
+                    ("tukey", 0.05), ("tukey", 0.15))
+_NOT_DEFINITE: tuple = (("cauchy", 1.0), ("cauchy", 1.5), ("cauchy", 30.0), ("huber", 1.5), ("huber", 10.0),
+                        ("tukey", 0.25), ("tukey", 0.7), ("tukey", 1.0), ("tukey", 3.0))
 _MIXED = (("cauchy", 0.3), ("cauchy", 2.0), ("huber", 0.9), ("huber", 4.0), ("tukey", 0.1), ("tukey", 0.5),
           ("cauchy", 0.0))
+
+
+def _margin_ratio(m: float) -> float:
+    """The s / a^2 where Tukey's rho' + 2 rho'' s is ``m`` rho' (``(1 - 5x) / (1 - x) = m``)."""
+    return (1.0 - m) / (5.0 - m)
+
+
+#: Tukey next to the margin DEFINITE_MARGIN = 1e-6 (rho' = 0.64 there): at 1.1e-6 rho' (corrected; below an
+#: absolute 1e-6) and at 0.5e-6 rho' (first-order; above 0), by far more than rounding
+TUKEY_ABOVE, TUKEY_BELOW = ("tukey", _margin_ratio(1.1e-6)), ("tukey", _margin_ratio(0.5e-6))
+_DEFINITE = (*_DEFINITE, TUKEY_ABOVE)
+_NOT_DEFINITE = (*_NOT_DEFINITE, TUKEY_BELOW)
 
 
 def _hidden_cases(rng, kind):
@@ -88,9 +105,9 @@ def _hidden_cases(rng, kind):
              ("huber", float(rng.uniform(1.05, 20.0))), ("tukey", float(rng.uniform(0.22, 0.95))),
              ("tukey", float(rng.uniform(1.05, 5.0)))]
     if kind == "definite":
-        return definite
+        return [*definite, TUKEY_ABOVE]
     if kind == "not":
-        return other
+        return [*other, TUKEY_BELOW]
     return [definite[1], definite[3], other[1], other[3], definite[4], other[4]]
 
 
@@ -114,7 +131,9 @@ def weight_inputs(kind, seed=None):
     else:
         cases = _hidden_cases(rng, kind)
     out = []
-    for n, shared in ((3, False), (2, True)) if kind != "mixed" else ((2, True),):
+    for n, shared in ((3, False), (2, True)) if kind != "mixed" else ((2, True), (3, True)):
+        if n == 3 and kind == "mixed":  # one residual (K = 1) with one Omega (3, 3)
+            cases = cases[:1]
         K = len(cases)
         e = rng.normal(0.0, 2.0, (K, n))
         Omega = _information(rng, 1, n)[0] if shared else _information(rng, K, n)
@@ -181,3 +200,45 @@ CHECKS = [
     check(WEIGHT, "a mix of both, one Omega for all residuals", 1, _weight_calls("mixed"),
           values(("value",), 1e-9, 1e-12, _WEIGHT_CAUSE, _LABELS, atol_scaled=True)),
 ]
+
+
+def _ratios(call) -> np.ndarray:
+    """``(rho' + 2 rho'' s) / rho'`` of each residual of a weighting call (``s = e^T Omega e``)."""
+    e, Omega, d_rho, dd_rho = (np.asarray(v, dtype=float) for v in call.args)
+    Om = np.broadcast_to(Omega, (len(e), e.shape[1], e.shape[1]))
+    s = np.einsum("ka,kab,kb->k", e, Om, e)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (d_rho + 2.0 * dd_rho * s) / d_rho
+
+
+def _kernel_edges(kernel):
+    target = f"robust_kernels:{kernel}"
+
+    def x(call):
+        s, a = call.args
+        return np.asarray(s, dtype=float) / (a * a)
+
+    edges = [Edge(f"{kernel}: s = 0", target, lambda c: bool(np.any(x(c) == 0.0))),
+             Edge(f"{kernel}: one residual (K = 1)", target, lambda c: np.shape(c.args[0]) == (1,))]
+    if kernel != "cauchy":
+        edges += [Edge(f"{kernel}: s exactly at the threshold a^2 (a binary fraction: a^2 exact)", target,
+                       lambda c: bool(np.any(x(c) == 1.0))),
+                  Edge(f"{kernel}: s just above the threshold (a^2 (1 + 2^-20); hidden 1e-7 to 1e-3 above)", target,
+                       lambda c: bool(np.any((x(c) > 1.0) & (x(c) <= 1.0 + 1e-3))))]
+    return edges
+
+
+_WEIGHT_TARGET = f"robust_kernels:{WEIGHT.split('.')[1]}"
+
+EDGES = (
+    *_kernel_edges("huber"), *_kernel_edges("cauchy"), *_kernel_edges("tukey"),
+    Edge("robust_information: one residual (K = 1)", _WEIGHT_TARGET, lambda c: len(c.args[0]) == 1),
+    Edge("robust_information: one Omega (n, n) shared by all residuals", _WEIGHT_TARGET,
+         lambda c: np.ndim(c.args[1]) == 2),
+    Edge("robust_information: exactly on rho' + 2 rho'' s = 0 (Huber's robust branch: first-order)", _WEIGHT_TARGET,
+         lambda c: bool(np.any(np.abs(_ratios(c)) < 1e-12))),
+    Edge("robust_information: just above the margin, rho' + 2 rho'' s = 1.1e-6 rho' (corrected)", _WEIGHT_TARGET,
+         lambda c: bool(np.any(np.abs(_ratios(c) - 1.1e-6) < 1e-8))),
+    Edge("robust_information: just below the margin, rho' + 2 rho'' s = 0.5e-6 rho' (first-order)", _WEIGHT_TARGET,
+         lambda c: bool(np.any(np.abs(_ratios(c) - 0.5e-6) < 1e-8))),
+)

@@ -109,7 +109,7 @@ def residual_mistakes(call, ref):
     return known | factors(call)
 
 
-def normal(call, *, accumulate="add", gradient=1.0, chi2_scale=1.0, coupling="cam_point"):
+def normal(call, *, accumulate="add", gradient=1.0, chi2_scale=1.0, coupling="cam_point", minlength=True):
     r, J_cam, J_point, ci, pi, num_cameras, num_points = call.args
     U, V = np.zeros((num_cameras, 9, 9)), np.zeros((num_points, 3, 3))
     g_cam, g_point = np.zeros((num_cameras, 9)), np.zeros((num_points, 3))
@@ -129,6 +129,9 @@ def normal(call, *, accumulate="add", gradient=1.0, chi2_scale=1.0, coupling="ca
         summed = np.zeros((num_cameras, 9, 3))
         np.add.at(summed, ci, W)
         W = summed[ci]
+    if not minlength:  # np.bincount without minlength: the arrays end at the last camera and point seen
+        U, g_cam = U[:int(np.max(ci)) + 1], g_cam[:int(np.max(ci)) + 1]
+        V, g_point = V[:int(np.max(pi)) + 1], g_point[:int(np.max(pi)) + 1]
     return {"U": U, "V": V, "W": W, "g_cam": g_cam, "g_point": g_point,
             "chi2": chi2_scale * float(np.sum(r * r))}
 
@@ -141,9 +144,12 @@ def normal_mistakes(call, ref):
                                             "H dx = -g)"),
                        ({"chi2_scale": 0.5}, "chi2 = sum r^T r, without a factor 1/2 (the BAL cost is half of it)"),
                        ({"coupling": "per_camera"}, "W_k = J_cam_k^T J_point_k is one block per observation, not "
-                                                    "summed over the camera's observations")):
+                                                    "summed over the camera's observations"),
+                       ({"minlength": False}, "a camera that sees no point (or a point seen by none) keeps its zero "
+                                              "block: np.bincount(..., minlength=...) of num_cameras (num_points) "
+                                              "blocks, not up to the last index seen")):
         for name, value in normal(call, **slip).items():
-            if not np.allclose(value, ref[name], rtol=1e-12, atol=1e-14):
+            if np.shape(value) != np.shape(ref[name]) or not np.allclose(value, ref[name], rtol=1e-12, atol=1e-14):
                 known[name].append((value, text))
     return known
 

@@ -43,7 +43,9 @@ def gm_mistakes(call, ref):
 
 def loop(call, *, slip=None):
     y, sigma2, c2, surrogate, known = call.args
-    y, known = np.asarray(y, float), np.asarray(known, bool)
+    raw = known
+    y = np.asarray(y, float)
+    known = np.zeros(len(y), dtype=bool) if known is None else np.asarray(known, bool)
     calls = [0]
     last = [np.nan]
 
@@ -61,7 +63,9 @@ def loop(call, *, slip=None):
     mus = []
     for _ in range(100 if slip == "unlimited" else call.kwargs.get("max_iterations", 100)):
         weights = tls(s, mu, c2) if surrogate == "tls" else gm(s, mu, c2)
-        if slip != "known":
+        if slip == "raw_known":  # the argument itself: weights[None] = 1 sets every weight
+            weights[raw] = 1.0
+        elif slip != "known":
             weights[known] = 1.0
         if slip != "no_resolve":
             s = solve(weights)
@@ -79,7 +83,9 @@ def loop(call, *, slip=None):
 
 def loop_mistakes(call, ref):
     known = {"mus": [], "weights": [], "x": [], "calls": []}
-    for slip, text in (("unknown_only", "s_max is the largest s of every edge, known inliers included (least "
+    for slip, text in (("raw_known", "known_inliers may be None (no edge known), and weights[None] = 1.0 sets "
+                                     "every weight to 1: index with the mask built from it"),
+                       ("unknown_only", "s_max is the largest s of every edge, known inliers included (least "
                                         "squares spreads a wrong edge's error over its neighbours)"),
                        ("known", "known inliers keep weight 1 whatever their residual"),
                        ("no_resolve", "solve again after every new set of weights (s must come from the new "
@@ -89,6 +95,8 @@ def loop_mistakes(call, ref):
                                            "the unit weights and no mu at once"),
                        ("unlimited", "stop after max_iterations new sets of weights even if they have not "
                                      "settled")):
+        if slip == "raw_known" and call.args[4] is not None:
+            continue
         try:
             out = loop(call, slip=slip)
         except (ValueError, FloatingPointError):

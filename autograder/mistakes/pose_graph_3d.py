@@ -4,7 +4,7 @@ with one slip, and the retraction in the wrong frame or off the manifold."""
 
 import numpy as np
 
-from autograder.checks.pose_graph_3d import DIFFERENCES, EDGES, RETRACT
+from autograder.checks.pose_graph_3d import DIFFERENCES, EDGE_ERRORS, RETRACT
 from course.geometry.so3 import exp_many, log_many, right_jacobian, right_jacobian_inverse_many, skew
 
 
@@ -93,8 +93,8 @@ def retract_mistakes(call, ref):
 
 
 MISTAKES = {
-    f"{EDGES}: error e": edge_mistakes,
-    f"{EDGES}: Jacobian A = de/d delta_i": edge_mistakes,
-    f"{EDGES}: Jacobian B = de/d delta_j": edge_mistakes,
+    f"{EDGE_ERRORS}: error e": edge_mistakes,
+    f"{EDGE_ERRORS}: Jacobian A = de/d delta_i": edge_mistakes,
+    f"{EDGE_ERRORS}: Jacobian B = de/d delta_j": edge_mistakes,
     f"{RETRACT}: the retraction T (+) delta": retract_mistakes,
 }

@@ -109,6 +109,8 @@ def weighting(call, *, rule="definite", factor=2.0, outer="v", sign=1.0, test_fa
         rank_one = np.outer(v, w) if outer == "one_sided" else np.outer(w, w)
         corrected = first + sign * factor * dd_rho[k] * rank_one
         use = {"definite": d_rho[k] + test_factor * dd_rho[k] * s > 1e-6 * d_rho[k],
+               "absolute": d_rho[k] + 2 * dd_rho[k] * s > 1e-6,
+               "tiny_margin": d_rho[k] + 2 * dd_rho[k] * s > 1e-9 * d_rho[k],
                "psd": d_rho[k] + 2 * dd_rho[k] * s >= -1e-12 * d_rho[k],
                "always": True, "never": False, "ceres": dd_rho[k] > 0}[rule]
         out[k] = corrected if use else first
@@ -127,6 +129,10 @@ def weighting_mistakes(call, ref):
                        ({"sign": -1.0}, "the corrected form adds 2 rho'' (Omega e)(Omega e)^T (rho'' < 0 lowers the curvature)"),
                        ({"test_factor": 1.0}, "the corrected form is positive definite where rho' + 2 rho'' s > 0 (with the factor 2), "
                                               "s = e^T Omega e"),
+                       ({"rule": "absolute"}, "the margin is relative: rho' + 2 rho'' s > 1e-6 rho' (an absolute 1e-6 "
+                                              "takes the first-order form where rho' < 1 puts it between the two)"),
+                       ({"rule": "tiny_margin"}, "the margin is 1e-6 rho', not a rounding-sized one: just above 0, the "
+                                                 "corrected form is nearly singular along Omega e; first-order there"),
                        ({"rule": "psd"}, "at rho' + 2 rho'' s = 0 (Huber beyond its threshold) the corrected form is singular: "
                                          "the test is rho' + 2 rho'' s > 1e-6 rho', strict with a margin, first-order there")):
         value = weighting(call, **slip)

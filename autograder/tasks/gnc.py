@@ -6,7 +6,8 @@ from autograder.tasks.common import OutputError
 
 
 def robust_mean(y, sigma2, c2, surrogate, known, impl, max_iterations=None):
-    """The student's ``gnc.gnc`` on the weighted mean of ``y`` (M,): ``solve(w)`` returns
+    """The student's ``gnc.gnc`` on the weighted mean of ``y`` (M,) (``known``: a mask (M,), or None as
+    ``known_inliers``): ``solve(w)`` returns
     ``s_k = (y_k - x)^2 / sigma2`` at ``x = sum w y / sum w`` (``max_iterations``: passed on
     when given, else gnc's default).
 
@@ -25,7 +26,8 @@ def robust_mean(y, sigma2, c2, surrogate, known, impl, max_iterations=None):
         return (y - state["x"]) ** 2 / sigma2
 
     limit = {} if max_iterations is None else {"max_iterations": int(max_iterations)}
-    out = impl.module("gnc").gnc(solve, len(y), c2, surrogate, known_inliers=np.asarray(known, dtype=bool), **limit)
+    known = None if known is None else np.asarray(known, dtype=bool)
+    out = impl.module("gnc").gnc(solve, len(y), c2, surrogate, known_inliers=known, **limit)
     if not isinstance(out, tuple) or len(out) != 2:
         raise OutputError(f"gnc returned {type(out).__name__}, expected a tuple (weights, mus)")
     weights, mus = out

@@ -589,12 +589,29 @@ BUGS_BUNDLE_ADJUSTMENT = {
     "ba_half_chi2": V(
         "bundle_adjustment.py", [], "float(np.sum(r * r))", "float(0.5 * np.sum(r * r))",
         {BA_G}, "without a factor 1/2"),
+    # reached only since the checks have a camera not rotated at all, one observation alone, a camera that sees
+    # no point and a point seen by none
+    "ba_no_small_angle_branch": V(
+        "bundle_adjustment.py", [], "small = theta < SMALL_ANGLE", "small = theta < 0.0",
+        {BA_R, BA_JC, BA_JP}, "not a finite number"),
+    "ba_camera_count_without_minlength": V(
+        "bundle_adjustment.py", ["def normal_equations"], "np.bincount(ci, minlength=num_cameras)", "np.bincount(ci)",
+        {BA_UVW}, "a camera that sees no point"),
+    "ba_scatter_without_minlength": V(
+        "bundle_adjustment.py", ["def normal_equations"],
+        "minlength=count * size).reshape((count, *blocks.shape[1:]))", ").reshape((-1, *blocks.shape[1:]))",
+        {BA_UVW, BA_G}, "a camera that sees no point"),
+    "ba_gradient_squeezed": V(
+        "bundle_adjustment.py", ["def normal_equations"], "np.matmul(Jc_t, r[:, :, None])[:, :, 0]",
+        "np.matmul(Jc_t, r[:, :, None]).squeeze()", {BA_UVW, BA_G}, "one observation (K = 1)"),
+    # the edge problem's point seen once (and camera that sees none) leaves the undamped block singular: the
+    # student's own error names it
     "schur_point_blocks_undamped": V(
         "bundle_adjustment.py", [], "V[:, np.arange(3), np.arange(3)] += damping_point", "pass",
-        {BA_CAM, BA_PT}, "the damping is added to V as well as U"),
+        {BA_CAM, BA_PT}, "plus damping) is not positive definite"),
     "schur_camera_blocks_undamped": V(
         "bundle_adjustment.py", [], "U[:, np.arange(9), np.arange(9)] += damping_cam", "pass",
-        {BA_CAM, BA_PT}, "the damping D_c is missing"),
+        {BA_CAM, BA_PT}, "add damping"),
     "schur_coupling_added": V(
         "bundle_adjustment.py", [], "S = scipy.linalg.block_diag(*U) - reduction.toarray()",
         "S = scipy.linalg.block_diag(*U) + reduction.toarray()",
@@ -727,6 +744,20 @@ BUGS_ROBUST_KERNELS = {
         "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"], "definite = d_rho + 2.0 * dd_rho * s",
         "definite = d_rho + dd_rho * s",
         {RK_NOT_DEFINITE, RK_MIXED}, "(with the factor 2)"),
+    # reached only since the checks put Tukey next to the margin (rho' = 0.64) and one residual alone
+    "weighting_absolute_margin": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"],
+        "definite = d_rho + 2.0 * dd_rho * s > DEFINITE_MARGIN * d_rho", "definite = d_rho + 2.0 * dd_rho * s > 1e-6",
+        {RK_DEFINITE}, "the margin is relative"),
+    "weighting_margin_at_rounding": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"],
+        "definite = d_rho + 2.0 * dd_rho * s > DEFINITE_MARGIN * d_rho",
+        "definite = d_rho + 2.0 * dd_rho * s > 1e-9 * d_rho",
+        {RK_NOT_DEFINITE}, "not a rounding-sized one"),
+    "weighting_squeezed_one_residual": V(
+        "robust_kernels.py", ["def robust_information", "# BEGIN SOLUTION"],
+        "v = np.matmul(Om, e[:, :, None])[:, :, 0]", "v = np.matmul(Om, e[:, :, None]).squeeze()",
+        {RK_MIXED}, "IndexError"),
 }
 
 
@@ -789,6 +820,9 @@ BUGS_GAUGE = {
     "gauge_scale_moves_the_focal_length": V(
         "gauge.py", [], "d_point[6] = points", "d_point[6] = points\n    d_cam[6, :, 6] = cameras[:, 6]",
         {GA_S}, "intrinsics"),
+    # reached only since the checks have a camera not rotated at all: nan in R and J_r^-1
+    "gauge_no_small_angle_branch": V(
+        "gauge.py", [], "small = theta < SMALL_ANGLE", "small = theta < 0.0", {GA_T, GA_R}, "not finite"),
 }
 ALTERNATIVES_GAUGE = {
     "gauge_rotation_about_the_centroid": V(
@@ -836,6 +870,18 @@ BUGS_PARALLEL_ASSEMBLY = {
     "pa_one_thread": V(
         "parallel_assembly.py", PA_IN_ASSEMBLY, "max_workers=workers", "max_workers=1",
         {PA_THREADS}, "one at a time"),
+    # reached only since the checks assemble no observation at all: np.concatenate of no chunk raises
+    "pa_w_of_no_chunk": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY,
+        "W = np.concatenate([part[2] for part in results]) if results else np.zeros((0, 9, 3))",
+        "W = np.concatenate([part[2] for part in results])",
+        {PA_UVW, PA_G}, "need at least one array to concatenate"),
+    "pa_sums_from_the_first_chunk": V(
+        "parallel_assembly.py", PA_IN_ASSEMBLY,
+        "    for U_i, V_i, _, g_cam_i, g_point_i, chi2_i in results:",
+        "    U, V, _, g_cam, g_point, chi2 = results[0]\n"
+        "    for U_i, V_i, _, g_cam_i, g_point_i, chi2_i in results[1:]:",
+        {PA_UVW, PA_G}, "IndexError"),
 }
 #: correct but different: executor.map, the larger chunks last, the partial sums added by sum()
 ALTERNATIVES_PARALLEL_ASSEMBLY = {
@@ -999,6 +1045,16 @@ BUGS_IMU_PREINTEGRATION = {
     "ir_accel_bias_correction_sign": V(
         "imu_preintegration.py", IR_IN, "dba = b_a - np.asarray(pre.bias_accel, dtype=float)",
         "dba = np.asarray(pre.bias_accel, dtype=float) - b_a", {IR_V, IR_P}, "not b hat - b_i"),
+    # reached only since the checks preintegrate at a rate exactly 0: J_r without its series is nan there
+    "ip_jr_without_series": V(
+        "imu_preintegration.py", IP_IN, "Jr = right_jacobian(phi)",
+        "th = np.linalg.norm(phi)\n        W = skew(phi)\n"
+        "        Jr = np.eye(3) - (1.0 - np.cos(th)) / th**2 * W + (th - np.sin(th)) / th**3 * (W @ W)",
+        {IP_COV, IP_JR, IP_JVP}, "not a finite number"),
+    # reached only since the checks preintegrate one interval alone: squeezed, its rates are one vector
+    "ip_rates_squeezed": V(
+        "imu_preintegration.py", IP_IN, "rates = (gyro[:-1] + gyro[1:]) / 2.0 - bias_gyro",
+        "rates = np.squeeze((gyro[:-1] + gyro[1:]) / 2.0) - bias_gyro", IP_ALL, "one interval"),
     # reached only since the checks call scheme="euler" (a branch no input reached before)
     "ip_euler_with_the_right_sample": V(
         "imu_preintegration.py", IP_IN + ("else:",), "rates = gyro[:-1] - bias_gyro", "rates = gyro[1:] - bias_gyro",
@@ -1026,6 +1082,13 @@ P3_E, P3_A, P3_B = ("pose_graph_3d.edge_errors_and_jacobians: " + t for t in (
 P3_RETRACT = "pose_graph_3d.retract: the retraction T (+) delta"
 P3_ASM = "pose_graph_3d_assembly.SparseAssembler3D: H (upper, CSC), b, chi2 in 6x6 blocks"
 BUGS_POSE_GRAPH_3D = {
+    # reached only since the checks have an edge whose residual rotation is exactly 0: J_r^-1 written without its
+    # small-angle series is nan there (at 1e-9 rad its error is rounding times |phi|^2)
+    "p3_jr_inverse_without_series": V(
+        "pose_graph_3d.py", [], "Jr_inv = right_jacobian_inverse_many(e[:, 3:])",
+        "th = np.linalg.norm(e[:, 3:], axis=1)[:, None, None]\n    W = skew(e[:, 3:])\n"
+        "    Jr_inv = np.eye(3) + 0.5 * W + (1.0 / th**2 - (1.0 + np.cos(th)) / (2.0 * th * np.sin(th))) * (W @ W)",
+        {P3_A, P3_B}, "not a finite number"),
     "p3_translation_unrotated": V(
         "pose_graph_3d.py", [], 'e[:, :3] = np.einsum("mab,mb->ma", RzT, d - t_z)', "e[:, :3] = d - t_z",
         {P3_E}, "rotated into the measurement's frame"),
@@ -1094,6 +1157,10 @@ ALTERNATIVES_POSE_GRAPH_3D = {
         'np.einsum("nab,nbc->nac", R, exp_many(delta[:, 3:]))', set()),
 }
 BUGS_POSE_GRAPH_3D_ASSEMBLY = {
+    # reached only since the checks fix no pose (fixed = []): an empty list is a float array to numpy
+    "p3a_fixed_indices_as_given": V(
+        "pose_graph_3d_assembly.py", [], "6 * np.asarray(fixed, dtype=np.int64)[:, None]",
+        "6 * np.asarray(fixed)[:, None]", {P3_ASM}, "IndexError"),
     "p3a_no_information": V(
         "pose_graph_3d_assembly.py", [], "OA, OB = np.matmul(information, A), np.matmul(information, B)",
         "OA, OB = A, B", {P3_ASM},
@@ -1196,6 +1263,10 @@ BUGS_GNC = {
     "gnc_max_iterations_ignored": V(
         "gnc.py", [], "for _ in range(max_iterations):", "for _ in range(1000):", {G_LOOP},
         "stop after max_iterations"),
+    # reached only since the checks pass known_inliers=None: the raw argument as an index sets every weight
+    "gnc_known_inliers_argument_as_index": V(
+        "gnc.py", ["for _ in range(max_iterations)"], "weights[known] = 1.0", "weights[known_inliers] = 1.0",
+        {G_LOOP}, "weights[None] = 1.0 sets every weight to 1"),
     "gnc_no_new_solve": V(
         "gnc.py", ["for _ in range(max_iterations)"], "s = np.asarray(solve(weights), dtype=float)", "pass",
         {G_LOOP}, "solve again after every new set of weights"),
