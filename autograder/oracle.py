@@ -56,6 +56,12 @@ _MEMO_SIZE = 64
 _MEMO_LOCK = threading.Lock()
 
 
+def forget() -> None:
+    """Drop the remembered outputs (after the reference's libraries changed, in a test)."""
+    with _MEMO_LOCK:
+        _MEMO.clear()
+
+
 def _digest(value) -> bytes:
     return hashlib.sha256(pickle.dumps(value, protocol=4)).digest()
 

@@ -80,8 +80,6 @@ def stable(known: dict, again: dict) -> dict:
     mistakes on the moved call) gives too, with a :func:`close` value; a mistake that is not finite,
     or that rounding moves (it reads a rank decision at its threshold, an eigenvector of a repeated
     eigenvalue, a difference that cancels), is dropped: it would differ between machines."""
-    kept: dict = {}
-    for key, pairs in known.items():
-        others = {why: value for value, why in again.get(key, ())}
-        kept[key] = [(value, why) for value, why in pairs if why in others and close(value, others[why])]
-    return kept
+    return {key: [(value, why) for value, why in pairs
+                  if any(other_why == why and close(value, other) for other, other_why in again.get(key, ()))]
+            for key, pairs in known.items()}

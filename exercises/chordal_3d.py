@@ -15,6 +15,15 @@ ICRA 2015; GTSAM's ``InitializePose3``) needs no start at all:
 ``chordal_poses`` (given) chains the three. Conventions as in ``pose_graph_3d``: a pose is
 ``(R, t)``, edge k measures ``Z_k = (R_z, t_z)``, pose j seen from pose i; the information
 (M, 6, 6) is for the error ``[D_t; Log(D_R)]``, translation first.
+
+Inputs at the edges of the contract (each is a check input):
+- relaxed_rotations: the anchor not the first pose
+- relaxed_rotations: edges written from the larger index to the smaller
+- project_to_so3: a matrix of negative determinant (U V^T alone a reflection)
+- project_to_so3: a rotation (it stays)
+- project_to_so3: an exact reflection -R (the nearest rotation not unique: any of them is right)
+- translations_given_rotations: full, correlated 3x3 translation information
+- translations_given_rotations: the anchor not the first pose
 """
 
 import numpy as np

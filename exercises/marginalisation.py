@@ -28,6 +28,17 @@ ray, a window without a prior has a gauge freedom. Its inverse is therefore take
 pseudo-inverse from the eigen-decomposition of the symmetrised block, dropping the
 eigenvalues at or below ``eps`` times the largest one (a *relative* threshold: the scale of
 H is the units' choice, an absolute one would depend on it).
+
+Inputs at the edges of the contract (each is a check input):
+- marginalise: one variable removed (m = 1)
+- marginalise: removed indices neither contiguous nor sorted
+- marginalise: H_mm singular (a landmark seen once, by one bearing)
+- marginalise: an eigenvalue of H_mm 1e-12 times its largest (below eps max(s), dropped)
+- prior_residual: H_prior of full rank
+- prior_residual: H_prior of rank 4 of 6 (exact zero eigenvalues)
+- prior_residual: an eigenvalue above an absolute 1e-8 but below eps max(s) (dropped)
+- prior_update: J square
+- prior_update: J with fewer rows than columns (a prior of lower rank)
 """
 
 import numpy as np

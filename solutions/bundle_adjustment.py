@@ -24,7 +24,7 @@ Inputs at the edges of the contract (each is a check input):
 - normal_equations: a camera that sees no point, the last (U_c = 0, g_cam_c = 0)
 - normal_equations: a point seen by no camera, the last (V_p = 0, g_point_p = 0)
 - normal_equations: a point seen by one camera (V_p of rank 2)
-- schur_solve: a point seen once, V_p of rank 2 made definite by the damping alone (lambda = 1e-4)
+- schur_solve: a point seen once, V_p of rank 2 made definite by the damping alone (lambda = 1e-2)
 - schur_solve: a camera that sees no point and a point seen by none (their blocks: the damping alone)
 - schur_solve: the damping already in U and V (no damping arguments)
 - schur_solve: 9C above DENSE_LIMIT (112 cameras: the sparse branch)

@@ -1,4 +1,12 @@
-"""Chapter 2 exercise: solve ``H dx = -b`` densely and sparsely."""
+"""Chapter 2 exercise: solve ``H dx = -b`` densely and sparsely.
+
+Inputs at the edges of the contract (each is a check input):
+- dense_solve: n = 1 (a 1 x 1 H)
+- upper_triangle_csc: H given as a scipy sparse matrix
+- SparseCholeskySolver: an entry of H cancelled to exactly zero and left out (fewer entries)
+- SparseCholeskySolver: as many entries as an earlier pattern, at other positions (an explicit zero stored)
+- SparseCholeskySolver: two solvers, each with its own pattern, used alternately
+"""
 
 import numpy as np
 import scipy.linalg

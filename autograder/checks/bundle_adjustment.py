@@ -271,7 +271,7 @@ def _schur_calls(seed=None):
 
 
 #: the damping of the Schur step's edge problem: V_p of its point seen once is definite through it alone
-EDGE_LAMBDA = 1e-4
+EDGE_LAMBDA = 1e-2  # large enough that the step is fixed to 1e-12 (at 1e-4, rounding moved it by 2e-9)
 
 
 # ---------------------------------------------------------------- judges
@@ -440,7 +440,7 @@ EDGES = (
          lambda c: _counts(c, "point")[-1] == 0),
     Edge("normal_equations: a point seen by one camera (V_p of rank 2)", _N_TARGET,
          lambda c: bool(np.any(_counts(c, "point") == 1))),
-    Edge("schur_solve: a point seen once, V_p of rank 2 made definite by the damping alone (lambda = 1e-4)",
+    Edge("schur_solve: a point seen once, V_p of rank 2 made definite by the damping alone (lambda = 1e-2)",
          _S_TARGET, _damped_once),
     Edge("schur_solve: a camera that sees no point and a point seen by none (their blocks: the damping alone)",
          _S_TARGET, lambda c: bool(np.any(_counts(c, "camera") == 0) and np.any(_counts(c, "point") == 0))),

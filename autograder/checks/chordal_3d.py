@@ -7,7 +7,7 @@ from the larger index to the smaller), measurements with noise so that the relax
 exact, the anchor pose 2 (not the first), weights from 0.5 to 5; the projection on 8 matrices
 (general ones, two with a negative determinant, near-rotations, a rotation, a stretched
 reflection); the translations with full, correlated 3x3 information blocks; hidden inputs: the
-same kind from the hidden seed, and the projection of two exact reflections, whose nearest
+same kind from the hidden seed, and the projection of six exact reflections, whose nearest
 rotation is not unique: the projection is judged by the properties the contract states (a
 rotation, as near to M as the reference's), so any nearest rotation keeps full marks.
 """
@@ -18,6 +18,7 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.common import check, failed, values
+from autograder.checks.edges import Edge
 from autograder.feedback import call_fields
 from course.geometry import se3
 from course.geometry.so3 import exp_many
@@ -72,9 +73,9 @@ def _project_calls(seed=None):
                                                            "determinant), 4-5 near rotations, 6 a rotation, "
                                                            "7 a stretched reflection")]
     if seed is not None:
-        reflections = -exp_many(rng.normal(0, 1.0, (2, 3)))
+        reflections = -exp_many(rng.normal(0, 1.0, (6, 3)))
         calls.append(Call("chordal_3d:project_to_so3", (reflections,),
-                          where="on 2 exact reflections -R (every singular value 1: the nearest rotation is not "
+                          where="on 6 exact reflections -R (every singular value 1: the nearest rotation is not "
                                 "unique, any of them is right)"))
     return calls
 
@@ -136,3 +137,33 @@ CHECKS = [
         ("value",), 1e-7, 1e-9, "minimize sum r^T W r, r = t_j - t_i - R_i t_z, W = (R_i R_z) Omega_tt (R_i R_z)^T, "
                                 "the anchor held", {"value": "t[{}]"})),
 ]
+
+
+def _matrices(call) -> np.ndarray:
+    return np.asarray(call.args[0], dtype=float)
+
+
+def _orthogonal(M) -> np.ndarray:
+    return np.abs(np.matmul(M.transpose(0, 2, 1), M) - np.eye(3)).max(axis=(1, 2)) <= 1e-12
+
+
+_TRANSLATIONS = "chordal_3d:translations_given_rotations"
+
+EDGES = (
+    Edge("relaxed_rotations: the anchor not the first pose", "chordal_3d:relaxed_rotations",
+         lambda c: c.kwargs.get("anchor", 0) != 0),
+    Edge("relaxed_rotations: edges written from the larger index to the smaller", "chordal_3d:relaxed_rotations",
+         lambda c: bool(np.any(np.asarray(c.args[1]) > np.asarray(c.args[2])))),
+    Edge("project_to_so3: a matrix of negative determinant (U V^T alone a reflection)", "chordal_3d:project_to_so3",
+         lambda c: bool(np.any(np.linalg.det(_matrices(c)) < 0))),
+    Edge("project_to_so3: a rotation (it stays)", "chordal_3d:project_to_so3",
+         lambda c: bool(np.any(_orthogonal(_matrices(c)) & (np.linalg.det(_matrices(c)) > 0)))),
+    Edge("project_to_so3: an exact reflection -R (the nearest rotation not unique: any of them is right)",
+         "chordal_3d:project_to_so3",
+         lambda c: bool(np.any(_orthogonal(_matrices(c)) & (np.linalg.det(_matrices(c)) < 0)))),
+    Edge("translations_given_rotations: full, correlated 3x3 translation information", _TRANSLATIONS,
+         lambda c: bool(np.all(np.abs(np.asarray(c.args[5])[:, :3, :3] - np.eye(3) * np.asarray(c.args[5])[:, :3, :3])
+                               .max(axis=(1, 2)) > 0))),
+    Edge("translations_given_rotations: the anchor not the first pose", _TRANSLATIONS,
+         lambda c: c.kwargs.get("anchor", 0) != 0),
+)

@@ -36,13 +36,16 @@ def listed(docstring: str) -> list:
     if start is None:
         return []
     items: list = []
+    indent = None  # of the items' "- "
     for line in lines[start + 1:]:
         stripped = line.strip()
+        depth = len(line) - len(line.lstrip())
         if not stripped:
             break
-        if stripped.startswith("- "):
+        if stripped.startswith("- ") and (indent is None or depth == indent):
             items.append(stripped[2:])
-        elif items and line[:1].isspace():
+            indent = depth
+        elif items and indent is not None and depth > indent:
             items[-1] += " " + stripped
         else:
             break

@@ -87,7 +87,8 @@ def _loop_calls(seed=None):
 CHECKS = [
     check(TLS, "the truncated-least-squares weights", 2, _weight_calls("tls_weights", (0.05, 1.0, 20.0)), values(
         ("value",), 1e-10, 1e-12, "w = 1 for s <= mu/(mu+1) c2, 0 for s >= (mu+1)/mu c2, "
-                                  "sqrt(c2 mu (mu+1) / s) - mu in between", {"value": "w[{}]"})),
+                                  "sqrt(c2 mu (mu+1) / s) - mu in between", {"value": "w[{}]"}),
+        exact_inputs=True),  # s exactly on mu's bounds, as the contract writes them: moving it changes the case
     check(GM, "the Geman-McClure weights", 1, _weight_calls("gm_weights", (1.0, 4.0, 300.0)), values(
         ("value",), 1e-10, 1e-12, "w = (mu c2 / (s + mu c2))^2", {"value": "w[{}]"})),
     check(LOOP, "the outer loop: mu schedule, weights", 3, _loop_calls, values(

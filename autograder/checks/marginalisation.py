@@ -20,6 +20,7 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.common import check, failed, values
+from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare
 
 MODULES = ("marginalisation",)
@@ -222,3 +223,39 @@ CHECKS = [
                  "linearisation point", {"value": "e"}, atol_scaled=True,
                  errors={"ValueError": "J is (r, n) and x - x_lin (n,): e = e0 + J (x - x_lin), not J^T"})),
 ]
+
+
+def _spectrum(A) -> np.ndarray:
+    A = np.asarray(A, dtype=float)
+    return np.linalg.eigvalsh(0.5 * (A + A.T))
+
+
+def _removed_spectrum(call) -> np.ndarray:
+    H, remove = np.asarray(call.args[0], dtype=float), np.asarray(call.args[2])
+    return _spectrum(H[np.ix_(remove, remove)])
+
+
+_M_TARGET = f"marginalisation:{MARGINALISE.split('.')[1]}"
+_R_TARGET = f"marginalisation:{RESIDUAL.split('.')[1]}"
+_U_TARGET = f"marginalisation:{UPDATE.split('.')[1]}"
+
+EDGES = (
+    Edge("marginalise: one variable removed (m = 1)", _M_TARGET, lambda c: len(c.args[2]) == 1),
+    Edge("marginalise: removed indices neither contiguous nor sorted", _M_TARGET,
+         lambda c: np.any(np.diff(np.asarray(c.args[2])) < 0) and np.ptp(c.args[2]) + 1 > len(c.args[2])),
+    Edge("marginalise: H_mm singular (a landmark seen once, by one bearing)", _M_TARGET,
+         lambda c: _removed_spectrum(c)[0] <= 1e-14 * _removed_spectrum(c)[-1]),
+    Edge("marginalise: an eigenvalue of H_mm 1e-12 times its largest (below eps max(s), dropped)", _M_TARGET,
+         lambda c: bool(np.any((_removed_spectrum(c) > 1e-14 * _removed_spectrum(c)[-1])
+                               & (_removed_spectrum(c) < 1e-10 * _removed_spectrum(c)[-1])))),
+    Edge("prior_residual: H_prior of full rank", _R_TARGET,
+         lambda c: _spectrum(c.args[0])[0] > 1e-6 * _spectrum(c.args[0])[-1]),
+    Edge("prior_residual: H_prior of rank 4 of 6 (exact zero eigenvalues)", _R_TARGET,
+         lambda c: int(np.sum(_spectrum(c.args[0]) > 1e-10 * _spectrum(c.args[0])[-1])) == 4),
+    Edge("prior_residual: an eigenvalue above an absolute 1e-8 but below eps max(s) (dropped)", _R_TARGET,
+         lambda c: bool(np.any((_spectrum(c.args[0]) > 1e-7)
+                               & (_spectrum(c.args[0]) < 1e-9 * _spectrum(c.args[0])[-1])))),
+    Edge("prior_update: J square", _U_TARGET, lambda c: np.shape(c.args[0])[0] == np.shape(c.args[0])[1]),
+    Edge("prior_update: J with fewer rows than columns (a prior of lower rank)", _U_TARGET,
+         lambda c: np.shape(c.args[0])[0] < np.shape(c.args[0])[1]),
+)

@@ -14,6 +14,7 @@ import numpy as np
 
 from autograder.checks import Call, Verdict
 from autograder.checks.common import check, failed, values
+from autograder.checks.edges import Edge
 from autograder.checks.pose_graph_assembly import small_graph
 from autograder.feedback import call_fields, compare
 
@@ -48,10 +49,12 @@ def _dense_calls(seed=None):
     rng = np.random.default_rng(5 if seed is None else [seed, 222])
     M = rng.normal(size=(12, 4))
     H4, b4 = M.T @ M + 0.1 * np.eye(4), rng.normal(size=4)
+    H5, b5 = np.array([[float(np.round(rng.uniform(0.5, 4.0), 3))]]), np.round(rng.normal(size=1), 3)
     return [Call("sparse_solve:dense_solve", (H, b), where=where) for H, b, where in (
         (H1, b1, "for H and b of the 6-pose graph (18 x 18)"),
         (H3, b3, "for a damped H of the 6-pose graph"),
-        (H4, b4, "for a 4 x 4 symmetric positive definite H"))]
+        (H4, b4, "for a 4 x 4 symmetric positive definite H"),
+        (H5, b5, f"for a 1 x 1 H = [[{H5[0, 0]:g}]]"))]
 
 
 def _upper_calls(seed=None):
@@ -276,3 +279,26 @@ CHECKS = [
     check(SPARSE, "two solvers, two patterns, used alternately", 1, _alternating_calls,
           _judge_sparse(_alternating, SHARED_STATE, {"ValueError": SHARED_STATE}), needs=QDLDL),
 ]
+
+
+def _pattern_steps(call):
+    """Every (earlier, later) pair of the patterns of a ``pattern_solves`` call."""
+    patterns = call.args[1]
+    return [(patterns[i], patterns[j]) for j in range(len(patterns)) for i in range(j)]
+
+
+EDGES = (
+    Edge("dense_solve: n = 1 (a 1 x 1 H)", "sparse_solve:dense_solve", lambda c: np.shape(c.args[0]) == (1, 1)),
+    Edge("upper_triangle_csc: H given as a scipy sparse matrix", "@autograder.tasks.sparse_solve:upper_triangle",
+         lambda c: bool(c.args[1])),
+    Edge("SparseCholeskySolver: an entry of H cancelled to exactly zero and left out (fewer entries)",
+         "@autograder.tasks.sparse_solve:pattern_solves",
+         lambda c: any(len(b[0]) < len(a[0]) for a, b in _pattern_steps(c))),
+    Edge("SparseCholeskySolver: as many entries as an earlier pattern, at other positions (an explicit zero "
+         "stored)", "@autograder.tasks.sparse_solve:pattern_solves",
+         lambda c: any(len(b[0]) == len(a[0]) and not np.array_equal(a[0], b[0]) and np.any(b[2] == 0.0)
+                       for a, b in _pattern_steps(c))),
+    Edge("SparseCholeskySolver: two solvers, each with its own pattern, used alternately",
+         "@autograder.tasks.sparse_solve:alternating_solves",
+         lambda c: not np.array_equal(c.args[0][1], c.args[1][1])),
+)

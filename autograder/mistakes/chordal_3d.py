@@ -51,9 +51,9 @@ def relaxed_mistakes(call, ref):
 def project_mistakes(call, ref):
     M = np.asarray(call.args[0], float)
     U, S, Vt = np.linalg.svd(M)
-    if np.any(S[:, 1] - S[:, 2] <= 1e-6 * S[:, 0]):  # a repeated smallest singular value: no unique answer
-        return {"value": []}
     d = np.linalg.det(np.matmul(U, Vt))
+    if np.any((d < 0) & (S[:, 1] - S[:, 2] <= 1e-6 * S[:, 0])):  # a reflection whose nearest rotation is not unique
+        return {"value": []}
     first = U.copy()
     first[:, :, 0] *= d[:, None]
     Q = np.linalg.qr(M)[0]

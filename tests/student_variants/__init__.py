@@ -272,8 +272,18 @@ BUGS_CHAPTERS_2_3 = {
         {UPPER + "upper triangle as CSC", PG_E2E + "gauss-newton"}, "this is the whole of H"),
     "sparse_never_refactorizes": V(
         "sparse_solve.py", [], "self._solver.update(H_upper, upper=True)", "pass",
-        {SPARSE + "later solves with new values, same pattern"},
-        "this solve used the first call's matrix"),
+        {SPARSE + "later solves with new values, same pattern"}, "this solve used the first call's matrix"),
+    # wrong only where the pattern changes between calls (an entry cancelled to zero in a dense H): qdldl's
+    # update then factorizes the wrong matrix without a word
+    "sparse_reuses_the_analysis_across_patterns": V(
+        "sparse_solve.py", ["def solve", "# BEGIN SOLUTION"], "same = (", "same = self._solver is not None or (",
+        {SPARSE + "a changed pattern is analysed again"}, "a new qdldl.Solver"),
+    "sparse_pattern_by_its_number_of_entries": V(
+        "sparse_solve.py", ["def solve", "# BEGIN SOLUTION"],
+        "np.array_equal(H_upper.indptr, self._pattern[0])\n                and np.array_equal(H_upper.indices, "
+        "self._pattern[1]))",
+        "len(H_upper.indices) == len(self._pattern[1]))",
+        {SPARSE + "a changed pattern is analysed again"}, "not nnz"),
     # slipped through before the 2-pose, 1-edge graph: the 6-pose graph has an edge from its last pose
     "assembly_size_from_edge_starts": V(
         "pose_graph_assembly.py", [], "n = 3 * len(poses)", "n = 3 * (max(edges_i) + 1)",
@@ -283,23 +293,21 @@ BUGS_CHAPTERS_2_3 = {
     # slipped through before two solvers were used alternately: every solver shares one factorization
     "sparse_solver_on_the_class": V(
         "sparse_solve.py", ["def solve", "# BEGIN SOLUTION"],
-        "        if self._solver is None:\n            self._solver = qdldl.Solver(H_upper, upper=True)\n"
-        "        else:\n            self._solver.update(H_upper, upper=True)\n"
-        "        return -self._solver.solve(",
+        "        if same:\n            self._solver.update(H_upper, upper=True)\n"
+        "        else:\n            self._solver = qdldl.Solver(H_upper, upper=True)\n",
         "        cls = SparseCholeskySolver\n        if getattr(cls, 'cached', None) is None:\n"
         "            cls.cached = qdldl.Solver(H_upper, upper=True)\n"
         "        else:\n            cls.cached.update(H_upper, upper=True)\n"
-        "        return -cls.cached.solve(",
-        {SPARSE + "two solvers, two patterns, used alternately"}, "must not share a factorization"),
+        "        self._solver = cls.cached\n        if False:\n",
+        {SPARSE + "two solvers, two patterns, used alternately", SPARSE + "a changed pattern is analysed again"},
+        "must not share a factorization"),
     # qdldl.Solver bound when the module is imported (a class attribute): still counted
     "sparse_new_solver_bound_at_import": V(
         "sparse_solve.py", ["def solve", "# BEGIN SOLUTION"],
-        "        if self._solver is None:\n            self._solver = qdldl.Solver(H_upper, upper=True)\n"
-        "        else:\n            self._solver.update(H_upper, upper=True)\n"
         "        return -self._solver.solve(np.asarray(b, dtype=float))\n        # END SOLUTION\n",
         "        return -self.make(H_upper, upper=True).solve(np.asarray(b, dtype=float))\n        # END SOLUTION\n"
         "\n    from qdldl import Solver as make  # a class attribute, bound at import; a new analysis per call\n",
-        {SPARSE + "one symbolic analysis for the pattern"}, "3 qdldl.Solver objects were made for 3 solves"),
+        {SPARSE + "one symbolic analysis for the pattern"}, "qdldl.Solver objects were made for 3 solves"),
     # wrong only where theta_j - theta_i - theta_ij is exactly pi: atan2 gives +pi, outside [-pi, pi)
     "edge_wrap_by_arctan2": V(
         "pose_graph_edge.py", [], "e[2] = (x_j[2] - x_i[2] - z_ij[2] + np.pi) % (2.0 * np.pi) - np.pi",
@@ -1222,6 +1230,23 @@ BUGS_CHORDAL_3D = {
         {C3_T}, "g has the opposite sign"),
 }
 ALTERNATIVES_CHORDAL_3D = {
+    # the polar decomposition M (M^T M)^-1/2, the reflection fixed along the smallest singular direction: on an
+    # exact reflection it picks another of the nearest rotations than the reference's SVD
+    "c3_polar_decomposition": V(
+        "chordal_3d.py", ["def project_to_so3", "# BEGIN SOLUTION"],
+        "    U, _, Vt = np.linalg.svd(np.asarray(M, dtype=float))\n    d = np.linalg.det(np.matmul(U, Vt))\n"
+        "    U = U.copy()\n    U[:, :, 2] *= d[:, None]\n    return np.matmul(U, Vt)\n",
+        "    M = np.asarray(M, dtype=float)\n    s2, V = np.linalg.eigh(np.matmul(M.transpose(0, 2, 1), M))\n"
+        "    Q = M @ (V / np.sqrt(s2)[:, None, :]) @ V.transpose(0, 2, 1)\n"
+        "    v = V[:, :, 0]\n    flip = np.eye(3) - 2.0 * v[:, :, None] * v[:, None, :]\n"
+        "    return np.where((np.linalg.det(M) < 0)[:, None, None], Q @ flip, Q)\n", set()),
+    # another LAPACK driver (gesvd, not numpy's gesdd), one matrix at a time
+    "c3_svd_by_scipy_gesvd": V(
+        "chordal_3d.py", ["def project_to_so3", "# BEGIN SOLUTION"],
+        "    U, _, Vt = np.linalg.svd(np.asarray(M, dtype=float))\n",
+        "    import scipy.linalg\n\n"
+        "    parts = [scipy.linalg.svd(m, lapack_driver='gesvd') for m in np.asarray(M, dtype=float)]\n"
+        "    U, Vt = np.stack([p[0] for p in parts]), np.stack([p[2] for p in parts])\n", set()),
     "c3_dense_solve": V(
         "chordal_3d.py", [], "X = spd_solve(H[free][:, free], np.asarray(rhs))",
         "X = np.linalg.solve(H[free][:, free].toarray(), np.asarray(rhs))", set()),
