@@ -242,7 +242,7 @@ _U_TARGET = f"marginalisation:{UPDATE.split('.')[1]}"
 EDGES = (
     Edge("marginalise: one variable removed (m = 1)", _M_TARGET, lambda c: len(c.args[2]) == 1),
     Edge("marginalise: removed indices neither contiguous nor sorted", _M_TARGET,
-         lambda c: np.any(np.diff(np.asarray(c.args[2])) < 0) and np.ptp(c.args[2]) + 1 > len(c.args[2])),
+         lambda c: bool(np.any(np.diff(np.asarray(c.args[2])) < 0) and np.ptp(c.args[2]) + 1 > len(c.args[2]))),
     Edge("marginalise: H_mm singular (a landmark seen once, by one bearing)", _M_TARGET,
          lambda c: _removed_spectrum(c)[0] <= 1e-14 * _removed_spectrum(c)[-1]),
     Edge("marginalise: an eigenvalue of H_mm 1e-12 times its largest (below eps max(s), dropped)", _M_TARGET,
