@@ -58,9 +58,7 @@ class SparseCholeskySolver:
         import qdldl  # here, not at the top: dense_solve works where qdldl has no wheel (Python 3.15)
 
         # BEGIN SOLUTION
-        H_upper = sp.csc_matrix(H_upper)
-        if not H_upper.has_sorted_indices:
-            H_upper = H_upper.sorted_indices()
+        H_upper = sp.csc_matrix(H_upper)  # the same pattern stored in another order is analysed again: safe
         same = (self._pattern is not None and np.array_equal(H_upper.indptr, self._pattern[0])
                 and np.array_equal(H_upper.indices, self._pattern[1]))
         if same:

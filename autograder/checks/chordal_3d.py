@@ -58,8 +58,9 @@ def _relaxed_calls(seed=None):
 
 
 def _project_calls(seed=None):
-    """Eight matrices with a unique nearest rotation (distinct singular values); the hidden set adds
-    a call on exact reflections ``-R``, where every ``-R (I - 2 v v^T)`` is a nearest rotation."""
+    """Eight matrices with a unique nearest rotation (distinct singular values), then six reflections:
+    stretched a little in the public set (still one answer), exact in the hidden set, where every
+    ``-R (I - 2 v v^T)`` is a nearest rotation."""
     rng = np.random.default_rng(83 if seed is None else [seed, 283])
     M = rng.normal(0, 1.0, (8, 3, 3))
     for k in (0, 1):  # a negative determinant: U V^T alone is a reflection
@@ -72,8 +73,12 @@ def _project_calls(seed=None):
     calls = [Call("chordal_3d:project_to_so3", (M,), where="on 8 matrices: 0-3 general (0 and 1 with a negative "
                                                            "determinant), 4-5 near rotations, 6 a rotation, "
                                                            "7 a stretched reflection")]
-    if seed is not None:
-        reflections = -exp_many(rng.normal(0, 1.0, (6, 3)))
+    reflections = -exp_many(rng.normal(0, 1.0, (6, 3)))
+    if seed is None:  # public data holds only unique answers: these are one singular value from degenerate
+        calls.append(Call("chordal_3d:project_to_so3", (reflections @ np.diag([1.0, 1.01, 1.02]),),
+                          where="on 6 reflections -R stretched by 1, 1.01, 1.02 (singular values close, but "
+                                "distinct: one nearest rotation)"))
+    else:
         calls.append(Call("chordal_3d:project_to_so3", (reflections,),
                           where="on 6 exact reflections -R (every singular value 1: the nearest rotation is not "
                                 "unique, any of them is right)"))
