@@ -118,6 +118,24 @@ class RunResult:
         return out
 
 
+class RepairedEdges:
+    """For a graph's dataclass that has ``repaired`` ((M,) bool, the edges whose information the
+    reader repaired) and ``information_repair`` (how): the count and the sentence that says it."""
+
+    repaired: np.ndarray | None
+    information_repair: str
+
+    @property
+    def num_repaired(self) -> int:
+        """How many edges' information the reader repaired."""
+        return 0 if self.repaired is None else int(np.count_nonzero(self.repaired))
+
+    @property
+    def repair_note(self) -> str:
+        """``"3 edges' information repaired (nearest-psd)"``, or "" when none was."""
+        return repair_note(self.num_repaired, self.information_repair)
+
+
 def repair_note(count: int, mode: str) -> str:
     """``"1 edge's information repaired (nearest-psd)"``, ``"3 edges' ..."``; "" for none."""
     if not count:

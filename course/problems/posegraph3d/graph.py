@@ -4,12 +4,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from course.core.trace import repair_note
+from course.core.trace import RepairedEdges
 from course.geometry import se3
 
 
 @dataclass
-class PoseGraph3D:
+class PoseGraph3D(RepairedEdges):
     """A 3D pose graph (SE(3)); conventions in :mod:`course.geometry.se3`.
 
     Vertices are renumbered ``0..N-1`` in file order; ``ids`` keeps the file's ids.
@@ -60,16 +60,6 @@ class PoseGraph3D:
             self.ids = np.arange(len(self.t))
         self.repaired = np.zeros(len(self.edges_i), dtype=bool) if self.repaired is None \
             else np.asarray(self.repaired, dtype=bool).reshape(-1)
-
-    @property
-    def num_repaired(self) -> int:
-        """How many edges' information the reader repaired."""
-        return 0 if self.repaired is None else int(np.count_nonzero(self.repaired))
-
-    @property
-    def repair_note(self) -> str:
-        """``"3 edges' information repaired (nearest-psd)"``, or "" when none was."""
-        return repair_note(self.num_repaired, self.information_repair)
 
     @property
     def num_poses(self) -> int:
