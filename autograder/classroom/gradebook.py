@@ -37,7 +37,7 @@ FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
 def cell(value) -> str:
     """``value`` as a CSV cell a spreadsheet shows as text: one that would start a formula (a name
     or a folder name from an upload: ``=HYPERLINK(...)``) gets a leading single quote, the usual
-    defence against CSV injection. Numbers we write are formatted by :func:`_number`, not here."""
+    defence against CSV injection. Numbers we write are formatted by :func:`number`, not here."""
     text = "" if value is None else str(value)
     return "'" + text if text.startswith(FORMULA_START) else text
 
@@ -109,8 +109,8 @@ def adjust(data: dict, overrides=(), lateness=None, due=None, submitted=None, so
         test_extra["graded_score"] = test["score"]
         test_extra["graded_output"] = test.get("output", "")
         test_extra["override"] = {"points": item.points, "reason": item.reason}
-        line = (f"Override by the instructor: {_number(item.points)} points instead of "
-                f"{_number(test['score'])}: {item.reason}")
+        line = (f"Override by the instructor: {number(item.points)} points instead of "
+                f"{number(test['score'])}: {item.reason}")
         test["output"] = line + ("\n\n" + test["output"] if test.get("output") else "")
         test["score"] = float(item.points)
         applied.append({"check": item.check, "points": item.points, "graded": test_extra["graded_score"],
@@ -131,7 +131,7 @@ def adjust(data: dict, overrides=(), lateness=None, due=None, submitted=None, so
                          "fraction": lateness.fraction, "penalty": round(before - score, 4), "note": lateness.note}
         if lateness.late.total_seconds() > 0:
             notes.insert(0, f"Late: submitted {extra['submitted_at']}, due {extra['late']['due']}: {lateness.note}; "
-                            f"{_number(before)} points before the penalty, {_number(score)} after.")
+                            f"{number(before)} points before the penalty, {number(score)} after.")
     else:
         extra["late"] = None
     data["score"] = score
@@ -185,17 +185,17 @@ def table(records) -> str:
             if exercise:
                 by_exercise[exercise] += test["score"]
         maximum = sum(test["max_score"] for test in data["tests"])
-        overridden = "; ".join(f"{o['check']}: {_number(o['points'])} ({o['reason']})"
+        overridden = "; ".join(f"{o['check']}: {number(o['points'])} ({o['reason']})"
                                for o in extra.get("overrides") or [])
         writer.writerow([*map(cell, (extra["id"], extra.get("name", ""), extra.get("sid", ""), extra.get("email", ""),
-                                     extra.get("status", ""))), _number(data["score"]), _number(maximum),
-                         _number(before), _number(late.get("penalty", 0.0)), cell(extra.get("submitted_at") or ""),
-                         _number(late.get("days", "")), cell(extra.get("assignment") or ""), cell(overridden),
-                         *(_number(by_exercise[e]) for e in exercises), *(_number(scores.get(c, "")) for c in checks)])
+                                     extra.get("status", ""))), number(data["score"]), number(maximum),
+                         number(before), number(late.get("penalty", 0.0)), cell(extra.get("submitted_at") or ""),
+                         number(late.get("days", "")), cell(extra.get("assignment") or ""), cell(overridden),
+                         *(number(by_exercise[e]) for e in exercises), *(number(scores.get(c, "")) for c in checks)])
     return out.getvalue()
 
 
-def _number(x) -> str:
+def number(x) -> str:
     if x == "" or x is None:
         return ""
     return f"{float(x):.4f}".rstrip("0").rstrip(".")
