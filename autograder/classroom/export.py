@@ -93,6 +93,7 @@ def people(assignments, known: roster.Roster) -> list:
             sub_id = str(extra["id"])
             for name, sid, email in _members(extra):
                 found = known.find(sid, email, sub_id if len(_members(extra)) == 1 else "")
+                key: tuple
                 if found is not None:
                     key = ("roster", known.students.index(found))
                 else:
