@@ -176,8 +176,8 @@ def main(argv=None) -> int:
     if twice:
         p.error(f"assignment {', '.join(twice)} is in more than one DIR")
     rows = people(assignments, known)
-    for flag, write, needs in ((args.canvas, canvas, "an ID, SIS User ID or SIS Login ID"),
-                               (args.moodle, moodle, "an ID number or e-mail")):
+    for flag, write, needs in ((args.canvas, canvas, "ID, SIS User ID or SIS Login ID"),
+                               (args.moodle, moodle, "ID number or e-mail address")):
         if not flag:
             continue
         text, unmatched = write(assignments, rows)
