@@ -316,10 +316,7 @@ def main(argv=None) -> int:
         after = adjusted(before, sub, due, policy, found_overrides)
         if after != before:
             gradebook.save(results_dir, after)
-    matched = {key.lower() for sub in mine for key in (sub.id, sub.sid, sub.email) if key for key in key.split("; ")}
-    for item in found_overrides:
-        if item.student.lower() not in matched and shards == 1:
-            print(f"autograder: overrides line {item.line}: no submission of {item.student!r}", file=sys.stderr)
+    _check_overrides(found_overrides, mine, results_dir, shards == 1)
     gradebook.write_table(out)
     if not args.no_report:
         from autograder.classroom import report as class_report
@@ -331,6 +328,25 @@ def main(argv=None) -> int:
     print(f"graded {len(graded)} of {len(mine)} submissions in {elapsed:.1f} s{per}; "
           f"grades in {out / 'grades.csv'}")
     return 0
+
+
+def _check_overrides(found_overrides, mine, results_dir: Path, everyone: bool) -> None:
+    """Say on stderr which override names no submission (when this run sees the whole class) or a
+    check its student's record does not have (a typo, or a check this run did not grade)."""
+    for item in found_overrides:
+        subs = [sub for sub in mine if item.student.lower() in
+                {k.lower() for key in (sub.id, sub.sid, sub.email) if key for k in key.split("; ")}]
+        if not subs:
+            if everyone:
+                print(f"autograder: overrides line {item.line}: no submission of {item.student!r}", file=sys.stderr)
+            continue
+        try:
+            checks = {t["name"] for t in gradebook.load(results_dir / f"{subs[0].id}.json")["tests"]}
+        except ValueError:
+            continue
+        if item.check not in checks:
+            print(f"autograder: overrides line {item.line}: {item.student!r} has no check {item.check!r} "
+                  "(the exact name, as in grades.csv)", file=sys.stderr)
 
 
 def _bar(total: int):
