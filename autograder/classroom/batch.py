@@ -112,6 +112,13 @@ def graded_already(path: Path, grading: dict) -> bool:
     return all(extra.get(key) == value for key, value in grading.items())
 
 
+def keys_of(sub) -> set:
+    """What names a submission on the command line and in the instructor's files: its id, and each
+    submitter's sid and e-mail (a group's are "; "-joined), lower case."""
+    return {part.strip().lower() for key in (sub.id, sub.sid, sub.email) if key for part in key.split(";")
+            if part.strip()}
+
+
 def assignment_settings(name: str) -> tuple:
     """``(due, policy)`` of the assignment ``name`` from the course configuration, or
     ``(None, None)`` when there is none.
@@ -207,10 +214,18 @@ def main(argv=None) -> int:
         policy = LatePolicy(policy.per_day, policy.per_hour, policy.cutoff, {**policy.extensions, **extensions})
     regrade = set(args.regrade or [])
     unknown = sorted(key for key in regrade - {EVERYONE}
-                     if not any(key.lower() in {k.lower() for k in (s.id, s.sid, s.email) if k} for s in subs))
+                     if not any(key.lower() in keys_of(s) for s in subs))
     if unknown:
         p.error(f"--regrade {' '.join(unknown)}: no submission has this id, sid or e-mail")
     mine = [sub for sub in subs if shard_of(sub.id, shards) == shard]
+    if due is not None:
+        untimed = [sub.id for sub in mine if sub.submitted is None]
+        if untimed:
+            print(f"autograder: no submission time for {', '.join(untimed)}: no late penalty applied to them "
+                  "(give a roster with a submitted column)", file=sys.stderr)
+        if any(sub.submitted_from == "file time" for sub in mine):
+            print("autograder: submission times are the files' modification times in the uploads; if they are not "
+                  "when the students handed in, give a roster with a submitted column", file=sys.stderr)
     grading = {"set": which, "only": sorted(args.only or []), "assignment": args.assignment}
     results_dir = out / "results"
     results_dir.mkdir(exist_ok=True)
@@ -219,8 +234,7 @@ def main(argv=None) -> int:
     hashes = {sub.id: submission.content_hash(where[sub.id]) for sub in mine}
 
     def asked(sub) -> bool:
-        return EVERYONE in regrade or bool({k.lower() for k in (sub.id, sub.sid, sub.email) if k}
-                                           & {key.lower() for key in regrade})
+        return EVERYONE in regrade or bool(keys_of(sub) & {key.lower() for key in regrade})
 
     todo, changed = [], []
     for sub in mine:
@@ -334,8 +348,7 @@ def _check_overrides(found_overrides, mine, results_dir: Path, everyone: bool) -
     """Say on stderr which override names no submission (when this run sees the whole class) or a
     check its student's record does not have (a typo, or a check this run did not grade)."""
     for item in found_overrides:
-        subs = [sub for sub in mine if item.student.lower() in
-                {k.lower() for key in (sub.id, sub.sid, sub.email) if key for k in key.split("; ")}]
+        subs = [sub for sub in mine if item.student.lower() in keys_of(sub)]
         if not subs:
             if everyone:
                 print(f"autograder: overrides line {item.line}: no submission of {item.student!r}", file=sys.stderr)
