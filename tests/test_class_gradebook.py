@@ -248,3 +248,37 @@ def test_export_joins_assignments_maps_the_roster_and_splits_groups(tmp_path, ca
     mtable = list(csv.reader(moodle.open(newline="")))
     assert mtable[0] == ["Full name", "ID number", "Email address", "ch1", "Homework 2 (4521)"]
     assert ["Ada Lovelace", "9001", "ada@x.edu", "4", "2"] in mtable
+
+
+@pytest.mark.slow
+def test_a_folder_of_uploads_with_a_roster_times_and_an_extension(tmp_path):
+    """Folder names only: the roster gives the sid and e-mail, one student's time (the files' time
+    is the other's) and an extension; the Moodle file then has the ids."""
+    import os
+
+    uploads = tmp_path / "uploads"
+    reference = (REPO_ROOT / "solutions" / "damping.py").read_bytes()
+    for name in ("ada", "bob"):
+        (uploads / name).mkdir(parents=True)
+        (uploads / name / "damping.py").write_bytes(reference)
+    late = datetime(2026, 10, 3, 12, 0, tzinfo=timezone.utc).timestamp()  # 2.5 days after the due date
+    os.utime(uploads / "bob" / "damping.py", (late, late))
+    (tmp_path / "roster.csv").write_text("id,sid,email,name,submitted,due\n"
+                                         "ada,9001,ada@x.edu,Ada Lovelace,2026-10-04T00:00:00Z,2026-10-05T00:00:00Z\n"
+                                         "bob,9002,bob@x.edu,Bob,,\n")
+    out = tmp_path / "out"
+    proc = run("batch", uploads, "--out", out, *ARGS, "--due", "2026-10-01T00:00:00Z", "--late-per-day", "0.2",
+               "--cutoff-days", "7", "--roster", tmp_path / "roster.csv")
+    assert "modification times" in proc.stderr
+    table = rows(out)
+    maximum = float(table["ada"]["max"])
+    assert table["ada"]["sid"] == "9001" and table["ada"]["name"] == "Ada Lovelace"
+    assert float(table["ada"]["total"]) == pytest.approx(maximum)  # the extension
+    assert table["bob"]["submitted"].startswith("2026-10-03T12:00:00")
+    assert float(table["bob"]["total"]) == pytest.approx(0.4 * maximum)  # 3 started days at 20%
+    assert gradebook.load(out / "results" / "bob.json")["extra_data"]["submitted_from"] == "file time"
+    moodle = tmp_path / "moodle.csv"
+    run("export", out, "--moodle", moodle)
+    lines = list(csv.reader(moodle.open(newline="")))
+    assert lines[0] == ["Full name", "ID number", "Email address", "out"]
+    assert ["Bob", "9002", "bob@x.edu", gradebook.number(0.4 * maximum)] in lines
