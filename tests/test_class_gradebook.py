@@ -100,7 +100,7 @@ def test_late_changed_regraded_and_overridden(tmp_path):
     before = stamps(out)
     (export_dir / "submission_3" / "damping.py").write_bytes((REPO_ROOT / "exercises" / "damping.py").read_bytes())
     proc = run("batch", export_dir, "--out", out, *ARGS, *LATE)
-    assert "changed since they were graded, graded again: 3" in proc.stdout
+    assert "1 submission changed since graded, graded again: 3" in proc.stdout
     after = stamps(out)
     assert after["3"] != before["3"] and after["1"] == before["1"] and after["2"] == before["2"]
     second = rows(out)

@@ -251,7 +251,8 @@ def main(argv=None) -> int:
         f"{', assignment ' + args.assignment if args.assignment else ''})")
     if changed:
         log(f"batch: files changed since their record, graded again: {', '.join(changed)}")
-        print(f"{len(changed)} submissions changed since they were graded, graded again: {', '.join(changed)}")
+        print(f"{len(changed)} submission{'s' if len(changed) != 1 else ''} changed since graded, graded again: "
+              f"{', '.join(changed)}")
     if len(todo) < len(mine):
         print(f"{len(mine) - len(todo)} of {len(mine)} submissions already graded (--regrade grades them again)")
 
