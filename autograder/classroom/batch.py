@@ -154,7 +154,8 @@ def adjusted(data: dict, sub, due: datetime | None, policy: LatePolicy | None, f
     keys = (sub.id, sub.sid, sub.email)
     late = None
     if due is not None and policy is not None and sub.submitted is not None:
-        late = lateness(sub.submitted, due, policy, tuple(k for key in keys if key for k in key.split("; ")))
+        named = [k for key in keys if key for k in key.split("; ")]
+        late = lateness(sub.submitted, due, policy, (*named, *(k.lower() for k in named)))
     return gradebook.adjust(data, overrides.for_student(found_overrides, *keys), late,
                             due=due if late is not None else None, submitted=sub.submitted,
                             source=sub.submitted_from)
@@ -209,7 +210,8 @@ def main(argv=None) -> int:
     except (intake.IntakeError, roster.RosterError, overrides.OverridesError) as exc:
         p.error(str(exc))
     subs = [roster.apply(sub, known.find(sub.id, sub.path.name, sub.sid, sub.email)) for sub in subs]
-    extensions = {key: s.due for s in known.students if s.due is not None for key in (s.id, s.sid, s.email) if key}
+    extensions = {key.lower(): s.due for s in known.students if s.due is not None
+                  for key in (s.id, s.sid, s.email) if key}
     if extensions and policy is not None:
         policy = LatePolicy(policy.per_day, policy.per_hour, policy.cutoff, {**policy.extensions, **extensions})
     regrade = set(args.regrade or [])
