@@ -93,6 +93,8 @@ def test_late_changed_regraded_and_overridden(tmp_path):
     late = gradebook.load(out / "results" / "2.json")
     assert late["output"].startswith("Late: submitted 2026-10-03T10:00:00-07:00")
     assert late["extra_data"]["late"]["penalty"] == pytest.approx(0.2 * maximum)
+    assert (out / "results" / "2.txt").read_text().startswith("Late: submitted")
+    assert "Total after the overrides and the penalty" in (out / "results" / "1.txt").read_text()
     # a formula-like name from the upload is text in grades.csv
     assert first["3"]["name"] == "'" + EVIL
 
@@ -115,6 +117,7 @@ def test_late_changed_regraded_and_overridden(tmp_path):
     assert stamps(out)["1"] != third["1"]
     assert float(fourth["1"][T1_DIAG]) == 0.5 and float(fourth["1"]["total"]) == float(first["1"]["total"])
     assert float(fourth["2"]["total"]) == pytest.approx(0.8 * maximum)
+    assert (out / "results" / "1.txt").read_text().count("Override by the instructor") == 1
     assert run("batch", export_dir, "--out", out, *ARGS, "--regrade", "nobody", check=False).returncode == 2
 
     # the Canvas file: Canvas' columns, the points possible, the scores after the penalty

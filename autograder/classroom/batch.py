@@ -264,6 +264,7 @@ def main(argv=None) -> int:
         sub = by_id[data["extra_data"]["id"]]
         data = adjusted(data, sub, due, policy, found_overrides)
         gradebook.save(results_dir, data)
+        _retable(results_dir / f"{sub.id}.txt", data)
         return data
 
     checks = select(all_checks(), args.only)
@@ -333,6 +334,7 @@ def main(argv=None) -> int:
         after = adjusted(before, sub, due, policy, found_overrides)
         if after != before:
             gradebook.save(results_dir, after)
+            _retable(path.with_suffix(".txt"), after)
     _check_overrides(found_overrides, mine, results_dir, shards == 1)
     gradebook.write_table(out)
     if not args.no_report:
@@ -345,6 +347,12 @@ def main(argv=None) -> int:
     print(f"graded {len(graded)} of {len(mine)} submissions in {elapsed:.1f} s{per}; "
           f"grades in {out / 'grades.csv'}")
     return 0
+
+
+def _retable(path: Path, data: dict) -> None:
+    """``results/<id>.txt`` with the record's penalty and overrides on top."""
+    if path.is_file():
+        path.write_text(gradebook.table_with_adjustments(path.read_text(), data))
 
 
 def _check_overrides(found_overrides, mine, results_dir: Path, everyone: bool) -> None:

@@ -135,8 +135,20 @@ def adjust(data: dict, overrides=(), lateness=None, due=None, submitted=None, so
     else:
         extra["late"] = None
     data["score"] = score
+    extra["adjustments"] = notes
     data["output"] = "\n".join(notes) + ("\n\n" if notes else "") + extra["graded_output"]
     return data
+
+
+def table_with_adjustments(text: str, data: dict) -> str:
+    """The terminal table ``results/<id>.txt`` with the record's late penalty and overrides on top
+    (those of an earlier run taken off: the table starts at its ``Autograder:`` line)."""
+    lines = text.splitlines()
+    start = next((i for i, line in enumerate(lines) if line.startswith("Autograder: ")), 0)
+    notes = list(data["extra_data"].get("adjustments") or [])
+    if notes:
+        notes.append(f"Total after the overrides and the penalty: {number(data['score'])}")
+    return "\n".join([*notes, *([""] if notes else []), *lines[start:]]) + "\n"
 
 
 def save(results_dir: Path, data: dict) -> Path:
