@@ -303,3 +303,36 @@ def test_report_without_reference_and_command_line(batch_dir, tmp_path):
     assert "s11" in text.split('id="similar"')[1] and "no reference" in text
     assert "s99.json: not read" in text and "13 students" in text
     assert str(out.resolve()) in text.split('id="footer"')[1]
+
+
+def test_a_leaked_reference_is_flagged_alone_or_by_several(batch_dir):
+    """The pairs discount the reference, so a student handing it in is never a pair; the leak check
+    holds each file against the reference's solution blocks: s01 (the reference), s03 and s04 (the
+    reference with one slip each, the same one) are flagged; X and Y (their own code) and the stubs
+    are not."""
+    found = similarity.compare_class(batch_dir / "submissions", STUBS, REFERENCE)
+    damping = {leak.student: leak for leak in found.leaks if leak.file == "damping.py"}
+    assert {"s01", "s03", "s04"} <= set(damping)
+    assert not {X, Y, "s02", "s08", "s13"} & set(damping)
+    assert damping["s01"].score == pytest.approx(1.0) and damping["s01"].total >= similarity.LEAK_MIN_GRAMS
+    assert similarity.LEAK_CONTAINMENT <= damping["s03"].score < 1.0 and damping["s03"].lines
+    assert (X, Y, "damping.py") in {(p.a, p.b, p.file) for p in found.pairs}  # the pairs are unchanged
+    assert not any((p.a, p.b) == ("s03", "s04") for p in found.pairs)  # a shared leak is no pair
+    # renaming every local name and rewriting the comments hides nothing
+    renamed = (REFERENCE / "damping.py").read_text()
+    for old, new in (("diag_H", "d"), ("lam", "damping_factor"), ("rho", "gain")):
+        renamed = re.sub(rf"(?<![.\w]){old}(?!\w)", new, renamed)
+    solution = similarity.solution_grams((REFERENCE / "damping.py").read_text(),
+                                         similarity.fingerprint((STUBS / "damping.py").read_text()).grams)
+    held = set(similarity.fingerprint(renamed).grams) & solution
+    assert len(held) >= similarity.LEAK_CONTAINMENT * len(solution)
+    assert similarity.compare_class(batch_dir / "submissions", STUBS, None).leaks == []  # needs the reference
+
+
+def test_report_lists_the_leaks(report):
+    section = report.split('id="leaked"')[1].split('id="footer"')[0]
+    rows = re.findall(r"<tr><td>([^<]*)</td><td>([^<]*)</td>", section)
+    damping = {who.split(" ")[0] for file, who in rows if file == "damping.py"}
+    assert {"s01", "s03", "s04"} <= damping and not {X, Y} & damping
+    # X and Y wrote damping.py themselves and copied the reference's other files
+    assert any(file == "curve_model.py" and who.startswith(X) for file, who in rows)

@@ -12,9 +12,23 @@ feedback, :mod:`autograder.classroom.gradebook`) and ``results/<id>.txt`` (the t
 table), each written as soon as that student is graded; then ``grades.csv`` (atomically),
 ``report.html`` and a line per student in ``grading.log``.
 
-Resumable: a student whose record exists (graded with the same set and ``--only``) is not
-graded again, so a killed run restarts where it stopped; ``--regrade`` grades everyone
-again. ``--shard i/n`` grades the students whose id hashes to ``i`` (1-based) of ``n``,
+Resumable: a student whose record exists (graded with the same set, ``--only`` and
+``--assignment``, from the same files: the record keeps a hash of the exercise files it graded)
+is not graded again, so a killed run restarts where it stopped, and a student whose files changed
+since is graded again. ``--regrade`` grades everyone again, ``--regrade ID`` one student (by id,
+sid or e-mail; repeatable).
+
+Late work: with ``--due`` (and ``--late-per-day`` or ``--late-per-hour``, ``--cutoff-days``: an
+:class:`autograder.late.LatePolicy`), each record has the submission's time (the export's
+``:created_at:``, the newest file's time in a folder of uploads, or the ``submitted`` column of
+``--roster``), how late it was and the penalty; the roster's ``due`` column gives a student an
+extension. The instructor's overrides (``DIR/overrides.csv``, :mod:`autograder.classroom.overrides`)
+and the penalty are applied to every record on every run, from the judge's scores kept in it: an
+override survives a regrade, and a new due date or policy needs no regrade.
+``--assignment NAME`` labels the records (and ``export``'s column); :func:`assignment_settings`
+is where the course configuration's due date and policy for NAME come in.
+
+``--shard i/n`` grades the students whose id hashes to ``i`` (1-based) of ``n``,
 the same split on every machine; ``python -m autograder merge`` joins the parts.
 
 Exit status 0 when grading ran, 2 for usage errors (a missing folder, a malformed export) or
@@ -28,11 +42,16 @@ import signal
 import sys
 import threading
 import time
+from datetime import datetime, timedelta
 from pathlib import Path
 
 from autograder import report, sandbox, submission
-from autograder.classroom import gradebook, intake
+from autograder.classroom import gradebook, intake, overrides, roster
+from autograder.late import LatePolicy, lateness
 from course.core.impl import REPO_ROOT
+
+#: ``--regrade`` without an id: everyone
+EVERYONE = "*"
 
 
 def parser() -> argparse.ArgumentParser:
@@ -46,7 +65,22 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=float, default=sandbox.DEFAULT_TIMEOUT, help="seconds per check")
     p.add_argument("--memory-mb", type=float, default=sandbox.DEFAULT_MEMORY_MB, help="memory limit of a child")
     p.add_argument("--budget", type=float, default=600.0, help="seconds per submission (default %(default)g)")
-    p.add_argument("--regrade", action="store_true", help="grade every submission again, even those graded")
+    p.add_argument("--regrade", nargs="?", const=EVERYONE, action="append", metavar="ID",
+                   help="grade again: everyone (no ID), or the student with this id, sid or e-mail (repeatable)")
+    p.add_argument("--assignment", default="", metavar="NAME", help="the assignment these submissions are for "
+                   "(recorded in each record; export's column name)")
+    p.add_argument("--due", metavar="TIME", help="the due date, ISO 8601 (2026-10-01T23:59:00+02:00; UTC without "
+                   "a zone): each record then has how late it was and the penalty")
+    p.add_argument("--late-per-day", type=float, default=None, metavar="F",
+                   help="the fraction of the score lost per started day late (0.1 is 10%%)")
+    p.add_argument("--late-per-hour", type=float, default=None, metavar="F",
+                   help="the fraction lost per started hour late")
+    p.add_argument("--cutoff-days", type=float, default=None, metavar="N",
+                   help="more than N days late scores 0")
+    p.add_argument("--roster", metavar="CSV", help="who is who, submission times, extensions "
+                   "(columns id, sid, email, name, submitted, due, ...: autograder/classroom/roster.py)")
+    p.add_argument("--overrides", metavar="CSV", help="the instructor's overrides (default DIR/overrides.csv; "
+                   "columns id, check, points, reason)")
     p.add_argument("--shard", default="1/1", metavar="I/N", help="grade the I-th of N parts (default 1/1)")
     p.add_argument("--no-report", action="store_true", help="do not write report.html")
     return p
@@ -69,13 +103,62 @@ def parse_shard(text: str) -> tuple:
 
 
 def graded_already(path: Path, grading: dict) -> bool:
-    """True when ``path`` is a record graded the same way (set, --only)."""
+    """True when ``path`` is a record graded the same way (set, --only, assignment, the files'
+    content hash)."""
     try:
         extra = gradebook.load(path)["extra_data"]
     except ValueError:
         return False
     return all(extra.get(key) == value for key, value in grading.items())
 
+
+def keys_of(sub) -> set:
+    """What names a submission on the command line and in the instructor's files: its id, and each
+    submitter's sid and e-mail (a group's are "; "-joined), lower case."""
+    return {part.strip().lower() for key in (sub.id, sub.sid, sub.email) if key for part in key.split(";")
+            if part.strip()}
+
+
+def assignment_settings(name: str) -> tuple:
+    """``(due, policy)`` of the assignment ``name`` from the course configuration, or
+    ``(None, None)`` when there is none.
+
+    TO WIRE: the course configuration (``autograder/course_config.py``) gives each assignment its
+    due date and :class:`autograder.late.LatePolicy`; this is the one place ``batch`` asks for
+    them. Until it exists, ``--assignment`` only labels the records and the command line's
+    ``--due`` / ``--late-per-day`` / ``--late-per-hour`` / ``--cutoff-days`` give the policy."""
+    return None, None
+
+
+def late_settings(args) -> tuple:
+    """``(due, policy)`` from the command line, else from :func:`assignment_settings`;
+    ``ValueError`` for a bad time or policy."""
+    due, policy = assignment_settings(args.assignment) if args.assignment else (None, None)
+    if args.due:
+        due = intake.parse_time(args.due)
+    given = {"per_day": args.late_per_day, "per_hour": args.late_per_hour}
+    if any(v is not None for v in given.values()) or args.cutoff_days is not None:
+        if args.cutoff_days is not None and args.cutoff_days < 0:
+            raise ValueError(f"--cutoff-days must not be negative, got {args.cutoff_days:g}")
+        cutoff = timedelta(days=args.cutoff_days) if args.cutoff_days is not None else None
+        policy = LatePolicy(per_day=given["per_day"] or 0.0, per_hour=given["per_hour"] or 0.0, cutoff=cutoff)
+    if policy is not None and due is None:
+        raise ValueError("a late policy needs a due date (--due)")
+    if due is not None and policy is None:
+        policy = LatePolicy()  # how late each submission was, no penalty
+    return due, policy
+
+
+def adjusted(data: dict, sub, due: datetime | None, policy: LatePolicy | None, found_overrides) -> dict:
+    """The record ``data`` of ``sub`` with its overrides and late penalty (see gradebook.adjust)."""
+    keys = (sub.id, sub.sid, sub.email)
+    late = None
+    if due is not None and policy is not None and sub.submitted is not None:
+        named = [k for key in keys if key for k in key.split("; ")]
+        late = lateness(sub.submitted, due, policy, (*named, *(k.lower() for k in named)))
+    return gradebook.adjust(data, overrides.for_student(found_overrides, *keys), late,
+                            due=due if late is not None else None, submitted=sub.submitted,
+                            source=sub.submitted_from)
 
 class Log:
     """``grading.log``: one line per event, flushed at once (it survives a killed run)."""
@@ -114,35 +197,88 @@ def main(argv=None) -> int:
         p.error(f"--set {which}: the hidden checks need the reference, which this tree does not have")
     if args.only and not select(all_checks(), args.only):
         p.error(f"--only {' '.join(args.only)!r} matches no check or exercise")
+    try:
+        due, policy = late_settings(args)
+    except ValueError as exc:
+        p.error(str(exc))
     out = Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     try:
         subs = intake.read(args.submissions, unpack_to=out / "export")
-    except intake.IntakeError as exc:
+        known = roster.read(args.roster) if args.roster else roster.Roster()
+        found_overrides = overrides.read(args.overrides or out / "overrides.csv")
+    except (intake.IntakeError, roster.RosterError, overrides.OverridesError) as exc:
         p.error(str(exc))
+    subs = [roster.apply(sub, known.find(sub.id, sub.path.name, sub.sid, sub.email)) for sub in subs]
+    extensions = {key.lower(): s.due for s in known.students if s.due is not None
+                  for key in (s.id, s.sid, s.email) if key}
+    if extensions and policy is not None:
+        policy = LatePolicy(policy.per_day, policy.per_hour, policy.cutoff, {**policy.extensions, **extensions})
+    regrade = set(args.regrade or [])
+    unknown = sorted(key for key in regrade - {EVERYONE}
+                     if not any(key.lower() in keys_of(s) for s in subs))
+    if unknown:
+        p.error(f"--regrade {' '.join(unknown)}: no submission has this id, sid or e-mail")
     mine = [sub for sub in subs if shard_of(sub.id, shards) == shard]
-    grading = {"set": which, "only": sorted(args.only or [])}
+    if due is not None:
+        untimed = [sub.id for sub in mine if sub.submitted is None]
+        if untimed:
+            print(f"autograder: no submission time for {', '.join(untimed)}: no late penalty applied to them "
+                  "(give a roster with a submitted column)", file=sys.stderr)
+        if any(sub.submitted_from == "file time" for sub in mine):
+            print("autograder: submission times are the files' modification times in the uploads; if they are not "
+                  "when the students handed in, give a roster with a submitted column", file=sys.stderr)
+    grading = {"set": which, "only": sorted(args.only or []), "assignment": args.assignment}
     results_dir = out / "results"
     results_dir.mkdir(exist_ok=True)
-    todo = [sub for sub in mine if args.regrade or not graded_already(results_dir / f"{sub.id}.json", grading)]
+    modules = submission.exercise_modules(REPO_ROOT)
+    where = {sub.id: submission.locate_submission(sub.path, modules) for sub in mine}
+    hashes = {sub.id: submission.content_hash(where[sub.id]) for sub in mine}
+
+    def asked(sub) -> bool:
+        return EVERYONE in regrade or bool(keys_of(sub) & {key.lower() for key in regrade})
+
+    todo, changed = [], []
+    for sub in mine:
+        record_path = results_dir / f"{sub.id}.json"
+        if asked(sub):
+            todo.append(sub)
+        elif not graded_already(record_path, {**grading, "content_hash": hashes[sub.id]}):
+            todo.append(sub)
+            if graded_already(record_path, grading):  # graded the same way, from other files
+                changed.append(sub.id)
     log = Log(out / "grading.log")
     log(f"batch: {len(subs)} submissions, shard {shard}/{shards}: {len(mine)}, to grade: {len(todo)} "
-        f"(set {which}{', only ' + ' '.join(args.only) if args.only else ''})")
+        f"(set {which}{', only ' + ' '.join(args.only) if args.only else ''}"
+        f"{', assignment ' + args.assignment if args.assignment else ''})")
+    if changed:
+        log(f"batch: files changed since their record, graded again: {', '.join(changed)}")
+        print(f"{len(changed)} submission{'s' if len(changed) != 1 else ''} changed since graded, graded again: "
+              f"{', '.join(changed)}")
     if len(todo) < len(mine):
         print(f"{len(mine) - len(todo)} of {len(mine)} submissions already graded (--regrade grades them again)")
 
-    modules = submission.exercise_modules(REPO_ROOT)
+    by_id = {sub.id: sub for sub in mine}
+
+    def save(data: dict) -> dict:
+        sub = by_id[data["extra_data"]["id"]]
+        data = adjusted(data, sub, due, policy, found_overrides)
+        gradebook.save(results_dir, data)
+        _retable(results_dir / f"{sub.id}.txt", data)
+        return data
+
     checks = select(all_checks(), args.only)
     names = [(c.name, c.exercise, c.points, False) for c in checks] if which != "hidden" else []
     names += [(c.name + HIDDEN_SUFFIX, c.exercise, c.points, True) for c in checks] if which != "public" else []
     graded, located = [], {}
     for sub in todo:
-        found = submission.locate_submission(sub.path, modules)
+        found = where[sub.id]
         staged = out / "submissions" / sub.id
         if staged.exists():
             shutil.rmtree(staged)
+        how = {**grading, "content_hash": hashes[sub.id]}
         if found.folder is None:
-            gradebook.save(results_dir, gradebook.no_files(sub, found.message, names, grading))
+            save(gradebook.no_files(sub, found.message, names, how))
             log(f"{sub.id}: no files ({found.message.splitlines()[0]})")
             continue
         submission.stage_submission(found, REPO_ROOT, staged)
@@ -155,11 +291,11 @@ def main(argv=None) -> int:
     def done(index, results):
         sub = graded[index]
         seconds = sum(r.seconds for r in results)
-        data = gradebook.record(sub, results, seconds, located[sub.id], grading)
+        data = gradebook.record(sub, results, seconds, located[sub.id], {**grading, "content_hash": hashes[sub.id]})
         text = report.table(results, f"{sub.id} ({sub.name})", seconds, args.jobs, which)
         try:
             (results_dir / f"{sub.id}.txt").write_text(text + "\n")
-            gradebook.save(results_dir, data)
+            data = save(data)
         except OSError as exc:  # e.g. a full disk: this student is graded again by the next run
             log(f"{sub.id}: graded, but the record could not be written ({exc}); run again to grade it")
             print(f"autograder: {sub.id}: the record could not be written ({exc})", file=sys.stderr)
@@ -185,6 +321,21 @@ def main(argv=None) -> int:
             print(f"autograder: {line}", file=sys.stderr)
     bar.close()
     elapsed = time.perf_counter() - start
+    done_ids = {sub.id for sub in graded}
+    for sub in mine:  # the overrides and the late policy, on the records graded before too
+        path = results_dir / f"{sub.id}.json"
+        if sub.id in done_ids or not path.is_file():
+            continue
+        try:
+            before = gradebook.load(path)
+        except ValueError as exc:
+            log(f"{sub.id}: {exc}")
+            continue
+        after = adjusted(before, sub, due, policy, found_overrides)
+        if after != before:
+            gradebook.save(results_dir, after)
+            _retable(path.with_suffix(".txt"), after)
+    _check_overrides(found_overrides, mine, results_dir, shards == 1)
     gradebook.write_table(out)
     if not args.no_report:
         from autograder.classroom import report as class_report
@@ -196,6 +347,30 @@ def main(argv=None) -> int:
     print(f"graded {len(graded)} of {len(mine)} submissions in {elapsed:.1f} s{per}; "
           f"grades in {out / 'grades.csv'}")
     return 0
+
+
+def _retable(path: Path, data: dict) -> None:
+    """``results/<id>.txt`` with the record's penalty and overrides on top."""
+    if path.is_file():
+        path.write_text(gradebook.table_with_adjustments(path.read_text(), data))
+
+
+def _check_overrides(found_overrides, mine, results_dir: Path, everyone: bool) -> None:
+    """Say on stderr which override names no submission (when this run sees the whole class) or a
+    check its student's record does not have (a typo, or a check this run did not grade)."""
+    for item in found_overrides:
+        subs = [sub for sub in mine if item.student.lower() in keys_of(sub)]
+        if not subs:
+            if everyone:
+                print(f"autograder: overrides line {item.line}: no submission of {item.student!r}", file=sys.stderr)
+            continue
+        try:
+            checks = {t["name"] for t in gradebook.load(results_dir / f"{subs[0].id}.json")["tests"]}
+        except ValueError:
+            continue
+        if item.check not in checks:
+            print(f"autograder: overrides line {item.line}: {item.student!r} has no check {item.check!r} "
+                  "(the exact name, as in grades.csv)", file=sys.stderr)
 
 
 def _bar(total: int):

@@ -6,8 +6,17 @@ set and ``--only`` it was graded with) and in each test (exercise, hidden, statu
 known mistake it matched). ``status`` of a submission: ``ok``, ``timed out`` (a check ran
 out of time), ``crashed`` (a child died) or ``no files`` (no exercise file in the upload).
 
-``grades.csv``: one row per record; columns id, name, sid, email, status, total, max, one
-per exercise, one per check (in the registry's order, public then hidden).
+After grading, :func:`adjust` applies the instructor's overrides (a check's points, with a
+reason) and the late penalty to a record, from the scores the judge gave (kept in the record), so
+that it can run again on every batch run: an override survives a regrade, and a changed due date
+or policy changes the penalty without grading anyone again. ``extra_data`` then also holds
+``graded_score`` (the judge's total), ``score_before_penalty`` (with the overrides), ``late``
+(submission time, due date, how late, the fraction kept, the penalty in points) and ``overrides``.
+
+``grades.csv``: one row per record; columns id, name, sid, email, status, total (after overrides
+and penalty), max, before_penalty, penalty, submitted, days_late, assignment, overrides, one per
+exercise, one per check (in the registry's order, public then hidden). A text cell a spreadsheet
+would run as a formula is written as text (:func:`cell`).
 """
 
 import csv
@@ -19,7 +28,18 @@ from autograder import report
 from course.core import jsonio
 
 STATUSES = ("ok", "timed out", "crashed", "no files")
-FIXED_COLUMNS = ("id", "name", "sid", "email", "status", "total", "max")
+FIXED_COLUMNS = ("id", "name", "sid", "email", "status", "total", "max", "before_penalty", "penalty", "submitted",
+                 "days_late", "assignment", "overrides")
+#: a cell starting with one of these is a formula to a spreadsheet (=1+1, +cmd, -2+3, @SUM, a tab, a CR)
+FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def cell(value) -> str:
+    """``value`` as a CSV cell a spreadsheet shows as text: one that would start a formula (a name
+    or a folder name from an upload: ``=HYPERLINK(...)``) gets a leading single quote, the usual
+    defence against CSV injection. Numbers we write are formatted by :func:`number`, not here."""
+    text = "" if value is None else str(value)
+    return "'" + text if text.startswith(FORMULA_START) else text
 
 
 def status_of(results) -> str:
@@ -57,6 +77,80 @@ def no_files(sub, message: str, tasks, grading: dict) -> dict:
                            "seconds": 0.0, "graded": message, **grading}}
 
 
+def _total(tests) -> float:
+    return round(sum(float(t["score"]) for t in tests), 4)
+
+
+def adjust(data: dict, overrides=(), lateness=None, due=None, submitted=None, source: str = "") -> dict:
+    """``data`` (a record) with ``overrides`` and the late penalty applied, from the judge's scores.
+
+    ``overrides``: :class:`autograder.classroom.overrides.Override` of this student (a check's
+    points and the reason); ``lateness``: :class:`autograder.late.Lateness` or None (no policy);
+    ``due``, ``submitted``: datetimes or None; ``source``: where the submission time comes from.
+    Idempotent: the judge's score and output of every check are kept in the record
+    (``graded_score``, ``graded_output``) and everything is derived from them again."""
+    data = json.loads(json.dumps(data))  # a copy
+    extra = data["extra_data"]
+    extra.setdefault("graded_output", data.get("output", ""))
+    notes = []
+    by_name = {t["name"]: t for t in data["tests"]}
+    for test in data["tests"]:
+        test_extra = test.setdefault("extra_data", {})
+        if "graded_score" in test_extra:
+            test["score"] = test_extra.pop("graded_score")
+            test["output"] = test_extra.pop("graded_output", test.get("output", ""))
+        test_extra.pop("override", None)
+    applied = []
+    for item in overrides:
+        test = by_name.get(item.check)
+        if test is None:
+            continue
+        test_extra = test["extra_data"]
+        test_extra["graded_score"] = test["score"]
+        test_extra["graded_output"] = test.get("output", "")
+        test_extra["override"] = {"points": item.points, "reason": item.reason}
+        line = (f"Override by the instructor: {number(item.points)} points instead of "
+                f"{number(test['score'])}: {item.reason}")
+        test["output"] = line + ("\n\n" + test["output"] if test.get("output") else "")
+        test["score"] = float(item.points)
+        applied.append({"check": item.check, "points": item.points, "graded": test_extra["graded_score"],
+                        "reason": item.reason})
+        notes.append(f"{item.check}: {line}")
+    extra["graded_score"] = _total([{"score": t["extra_data"].get("graded_score", t["score"])}
+                                    for t in data["tests"]])
+    before = _total(data["tests"])
+    extra["score_before_penalty"] = before
+    extra["overrides"] = applied
+    extra["submitted_at"] = submitted.isoformat() if submitted is not None else None
+    extra["submitted_from"] = source if submitted is not None else ""
+    score = before
+    if lateness is not None:
+        score = round(before * lateness.fraction, 4)
+        extra["late"] = {"due": due.isoformat() if due is not None else None,
+                         "days": round(lateness.late.total_seconds() / 86400.0, 4),
+                         "fraction": lateness.fraction, "penalty": round(before - score, 4), "note": lateness.note}
+        if lateness.late.total_seconds() > 0:
+            notes.insert(0, f"Late: submitted {extra['submitted_at']}, due {extra['late']['due']}: {lateness.note}; "
+                            f"{number(before)} points before the penalty, {number(score)} after.")
+    else:
+        extra["late"] = None
+    data["score"] = score
+    extra["adjustments"] = notes
+    data["output"] = "\n".join(notes) + ("\n\n" if notes else "") + extra["graded_output"]
+    return data
+
+
+def table_with_adjustments(text: str, data: dict) -> str:
+    """The terminal table ``results/<id>.txt`` with the record's late penalty and overrides on top
+    (those of an earlier run taken off: the table starts at its ``Autograder:`` line)."""
+    lines = text.splitlines()
+    start = next((i for i, line in enumerate(lines) if line.startswith("Autograder: ")), 0)
+    notes = list(data["extra_data"].get("adjustments") or [])
+    if notes:
+        notes.append(f"Total after the overrides and the penalty: {number(data['score'])}")
+    return "\n".join([*notes, *([""] if notes else []), *lines[start:]]) + "\n"
+
+
 def save(results_dir: Path, data: dict) -> Path:
     """Write the record ``data`` to ``results_dir/<id>.json`` atomically."""
     return jsonio.write_json(Path(results_dir) / f"{data['extra_data']['id']}.json", data, indent=2, newline=True)
@@ -91,9 +185,11 @@ def table(records) -> str:
                 exercises.append(exercise)
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow([*FIXED_COLUMNS, *exercises, *checks])
+    writer.writerow([*FIXED_COLUMNS, *map(cell, exercises), *map(cell, checks)])
     for data in records:
         extra = data["extra_data"]
+        late = extra.get("late") or {}
+        before = extra.get("score_before_penalty", data["score"])
         scores = {test["name"]: test["score"] for test in data["tests"]}
         by_exercise = dict.fromkeys(exercises, 0.0)
         for test in data["tests"]:
@@ -101,14 +197,18 @@ def table(records) -> str:
             if exercise:
                 by_exercise[exercise] += test["score"]
         maximum = sum(test["max_score"] for test in data["tests"])
-        writer.writerow([extra["id"], extra.get("name", ""), extra.get("sid", ""), extra.get("email", ""),
-                         extra.get("status", ""), _number(data["score"]), _number(maximum),
-                         *(_number(by_exercise[e]) for e in exercises), *(_number(scores.get(c, "")) for c in checks)])
+        overridden = "; ".join(f"{o['check']}: {number(o['points'])} ({o['reason']})"
+                               for o in extra.get("overrides") or [])
+        writer.writerow([*map(cell, (extra["id"], extra.get("name", ""), extra.get("sid", ""), extra.get("email", ""),
+                                     extra.get("status", ""))), number(data["score"]), number(maximum),
+                         number(before), number(late.get("penalty", 0.0)), cell(extra.get("submitted_at") or ""),
+                         number(late.get("days", "")), cell(extra.get("assignment") or ""), cell(overridden),
+                         *(number(by_exercise[e]) for e in exercises), *(number(scores.get(c, "")) for c in checks)])
     return out.getvalue()
 
 
-def _number(x) -> str:
-    if x == "":
+def number(x) -> str:
+    if x == "" or x is None:
         return ""
     return f"{float(x):.4f}".rstrip("0").rstrip(".")
 

@@ -9,15 +9,22 @@
   folder of the output (members checked: no absolute paths, no ``..``, no links, bounded
   sizes). A group submission is one row, its submitters' names joined with "; ".
 
+The submission's time: the export's ``:created_at:`` (Gradescope's time of that submission), or
+for a folder of uploads the modification time of the newest file in the student's folder (what
+the upload kept: copy with ``cp -p``, ``rsync -t`` or unzip to keep it). A roster the instructor
+gives (:mod:`autograder.classroom.roster`) overrides either.
+
 Ids are made safe as file names (letters, digits, ``-``, ``_``, ``.``); two submissions
 with the same safe id are an error naming both.
 """
 
+import os
 import re
 import shutil
 import stat
 import zipfile
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from pathlib import Path
 
 METADATA = "submission_metadata.yml"
@@ -38,6 +45,48 @@ class Submission:
     path: Path  # the upload's folder
     sid: str = ""
     email: str = ""
+    submitted: datetime | None = None  # when it was handed in, with a time zone
+    submitted_from: str = ""  # "export metadata", "file time" or "roster"
+
+
+_TIME = re.compile(r"(\d{4}-\d\d-\d\d)[T ](\d\d:\d\d(?::\d\d)?)(?:\.(\d+))?\s*(Z|[+-]\d\d:?\d\d)?$")
+
+
+def parse_time(value) -> datetime:
+    """A time as the export, a roster or the command line writes it: a datetime (PyYAML reads the
+    export's ``:created_at:`` as one), ISO 8601, or ``2026-11-20 10:00:00.000000000 -08:00``; one
+    without a time zone is UTC. ``ValueError`` naming the text otherwise."""
+    if isinstance(value, datetime):
+        moment = value
+    else:
+        text = str(value).strip()
+        m = _TIME.match(text)
+        if not m:
+            try:
+                moment = datetime.fromisoformat(text)
+            except ValueError:
+                raise ValueError(f"{text!r} is not a time (expected e.g. 2026-10-01T23:59:00+02:00)") from None
+        else:
+            day, clock, fraction, zone = m.groups()
+            zone = "" if zone is None else ("+00:00" if zone == "Z" else zone[:3] + ":" + zone[-2:])
+            fraction = "." + (fraction + "000000")[:6] if fraction else ""
+            moment = datetime.fromisoformat(f"{day}T{clock}{fraction}{zone}")
+    return moment if moment.tzinfo is not None else moment.replace(tzinfo=timezone.utc)
+
+
+def newest_file_time(folder: Path) -> datetime | None:
+    """The modification time of the newest regular file under ``folder`` (links not followed)."""
+    newest = None
+    for directory, dirs, names in os.walk(folder):
+        dirs[:] = [d for d in dirs if not d.startswith(".") and d != "__pycache__"]
+        for name in names:
+            try:
+                info = os.lstat(os.path.join(directory, name))
+            except OSError:
+                continue
+            if stat.S_ISREG(info.st_mode) and (newest is None or info.st_mtime > newest):
+                newest = info.st_mtime
+    return None if newest is None else datetime.fromtimestamp(newest, tz=timezone.utc)
 
 
 def safe_id(text: str) -> str:
@@ -68,7 +117,12 @@ def _names(folder: Path) -> list:
 
 def from_folder(folder: Path) -> list:
     """One submission per subfolder of ``folder``, named after it."""
-    subs = [Submission(safe_id(name), name, folder / name) for name in _names(folder) if (folder / name).is_dir()]
+    subs = []
+    for name in _names(folder):
+        if (folder / name).is_dir():
+            when = newest_file_time(folder / name)
+            subs.append(Submission(safe_id(name), name, folder / name, submitted=when,
+                                   submitted_from="file time" if when else ""))
     if not subs:
         raise IntakeError(f"{folder}: no submission in it (one subfolder per student)")
     return _unique(subs, folder)
@@ -113,8 +167,14 @@ def from_export(folder: Path) -> list:
             raise IntakeError(f"{metadata_path}: {folder_name} is listed, but there is no folder {folder_name}/")
 
         number = folder_name.removeprefix("submission_")
+        created = _get(entry, "created_at")
+        try:
+            when = parse_time(created) if created not in (None, "") else None
+        except ValueError as exc:
+            raise IntakeError(f"{metadata_path}: {folder_name}: ':created_at:' {exc}") from None
         subs.append(Submission(safe_id(number), _joined(submitters, "name") or folder_name, root / folder_name,
-                               _joined(submitters, "sid"), _joined(submitters, "email")))
+                               _joined(submitters, "sid"), _joined(submitters, "email"), submitted=when,
+                               submitted_from="export metadata" if when else ""))
     if not subs:
         raise IntakeError(f"{metadata_path}: lists no submission")
     return _unique(subs, metadata_path)

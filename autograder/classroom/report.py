@@ -4,8 +4,9 @@ One static page (no server, no external files; the histogram is an embedded PNG)
 headline (students, mean and median total, the points available), the histogram of the
 totals, the share of the class with full marks on each check (hardest first), the known
 mistakes the class made per exercise (a student counts once per mistake sentence), the
-submissions that timed out, crashed or sent no files, and the pairs of submissions whose
-code is unusually similar (:mod:`autograder.classroom.similarity`). It reads
+submissions that timed out, crashed or sent no files, the pairs of submissions whose
+code is unusually similar, and the files that reproduce the reference's solution (a leaked
+solution, handed in by one student or several; :mod:`autograder.classroom.similarity`). It reads
 ``DIR/results/<id>.json`` and ``DIR/submissions/<id>/`` as data and text only.
 
 ``python -m autograder.classroom.report DIR [--stubs exercises] [--reference solutions]``
@@ -249,7 +250,15 @@ def _shown_lines(path: Path, ranges: list) -> str:
     return _e("\n".join(out))
 
 
-def _similar_section(out_dir: Path, students: list, stubs_dir: Path, reference_dir) -> str:
+def _compare(out_dir: Path, stubs_dir: Path, reference_dir):
+    """The class's :class:`similarity.Comparison`, or the folder that is missing (a Path)."""
+    submissions = Path(out_dir) / "submissions"
+    if not submissions.is_dir() or not Path(stubs_dir).is_dir():
+        return submissions if not submissions.is_dir() else Path(stubs_dir)
+    return similarity.compare_class(submissions, stubs_dir, reference_dir)
+
+
+def _similar_section(out_dir: Path, students: list, stubs_dir: Path, reference_dir, found) -> str:
     names = {s.sid: s for s in students}
     label = lambda sid: _who(names[sid]) if sid in names else sid
     discounted = ("the shipped stubs (docstrings, signatures, hints), the reference solution's code (a correct "
@@ -267,10 +276,8 @@ def _similar_section(out_dir: Path, students: list, stubs_dir: Path, reference_d
              f"compared.</p>\n<p><strong>Similarity is a prompt to look at two submissions, not a verdict.</strong>"
              f"</p>\n")
     submissions = Path(out_dir) / "submissions"
-    if not submissions.is_dir() or not Path(stubs_dir).is_dir():
-        missing = submissions if not submissions.is_dir() else Path(stubs_dir)
-        return intro + f'<p class="note">Not compared: {_e(missing)} is not a folder.</p>'
-    found = similarity.compare_class(submissions, stubs_dir, reference_dir)
+    if isinstance(found, Path):
+        return intro + f'<p class="note">Not compared: {_e(found)} is not a folder.</p>'
     parts = [intro]
     if found.pairs:
         rows = "".join(f"<tr><td>{_e(p.file)}</td><td>{_e(label(p.a))}</td><td>{_e(label(p.b))}</td>"
@@ -300,10 +307,37 @@ def _similar_section(out_dir: Path, students: list, stubs_dir: Path, reference_d
     return "".join(parts)
 
 
+def _leaks_section(students: list, reference_dir, found) -> str:
+    names = {s.sid: s for s in students}
+    label = lambda sid: _who(names[sid]) if sid in names else sid
+    if reference_dir is None:
+        return '<p class="note">Not checked: no reference solution was given.</p>'
+    if isinstance(found, Path):
+        return f'<p class="note">Not checked: {_e(found)} is not a folder.</p>'
+    leaks = found.leaks
+    intro = (f"<p>Files that reproduce the reference's solution code (the code between the solution markers of "
+             f"the reference, less what the stub gives): at least {similarity.LEAK_CONTAINMENT:.0%} of its "
+             f"{similarity.NGRAM}-token sequences, names of variables, comments and blank lines ignored; files "
+             f"whose solution has fewer than {similarity.LEAK_MIN_GRAMS} sequences are not checked. The pairs "
+             "above discount the reference, so students who hand it in nearly unchanged, alone or several, "
+             "show here only. A prompt to look, not a verdict.</p>\n")
+    if not leaks:
+        return intro + "<p>No file reproduces the reference's solution.</p>"
+    by_file: dict = {}
+    for leak in leaks:
+        by_file.setdefault(leak.file, []).append(leak)
+    rows = "".join(f"<tr><td>{_e(leak.file)}</td><td>{_e(label(leak.student))}</td>"
+                   f'<td class="num">{leak.score:.2f}</td><td class="num">{leak.shared} / {leak.total}</td>'
+                   f"<td>{len(by_file[leak.file])}</td></tr>\n" for leak in leaks)
+    return intro + ("<table><tr><th>File</th><th>Student</th><th>Share of the solution</th><th>Sequences</th>"
+                    f"<th>Students with this file's reference</th></tr>\n{rows}</table>\n")
+
+
 def render(out_dir, stubs_dir, reference_dir=None) -> str:
     """The report's HTML."""
     out_dir = Path(out_dir)
     students, notes = load_students(out_dir)
+    found = _compare(out_dir, Path(stubs_dir), reference_dir)
     when = datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
     unread = ("<ul>" + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul>") if notes else ""
     reference = _e(reference_dir) if reference_dir is not None else "no reference given"
@@ -315,7 +349,9 @@ def render(out_dir, stubs_dir, reference_dir=None) -> str:
         + _section("mistakes", "Known mistakes per exercise", _mistakes_table(students))
         + _section("problems", "Submissions that did not run to the end", _problems_table(students))
         + _section("similar", "Similar submissions",
-                   _similar_section(out_dir, students, Path(stubs_dir), reference_dir))
+                   _similar_section(out_dir, students, Path(stubs_dir), reference_dir, found))
+        + _section("leaked", "The reference's solution handed in",
+                   _leaks_section(students, reference_dir, found))
         + f'<hr>\n<p id="footer" class="note">Written by <code>python -m autograder.classroom.report</code> '
         f"from {_e(out_dir.resolve())} (results/ and submissions/), stubs {_e(stubs_dir)}, {reference}, "
         f"on {_e(when)}.</p>\n</body>\n</html>\n")

@@ -28,6 +28,14 @@ pygments, declares Python up to 3.12 only, and flags on one global threshold; he
 discounting (stub, reference, class-common code), the per-file outlier test and the line
 mapping for the report are a couple of hundred lines we control, with no dependency.
 
+A leaked solution: discounting the reference hides the students who hand it in nearly unchanged,
+alone or several of them. So each written file is also held against the reference's solution
+code alone (the lines between ``# BEGIN SOLUTION`` and ``# END SOLUTION`` of ``solutions/NAME.py``,
+the stub's n-grams taken out): a file that holds at least ``LEAK_CONTAINMENT`` of those n-grams is
+flagged (:class:`Leak`), where the solution has at least ``LEAK_MIN_GRAMS`` of them (a solution of
+a few lines is written alike by students who never saw it). The same normalisation applies, so
+renaming the variables and rewriting the comments hide nothing.
+
 Similarity is a prompt to look at two submissions, not a verdict.
 """
 
@@ -57,6 +65,11 @@ COMMON_FRACTION = 0.5
 COMMON_MIN_STUDENTS = 3
 #: larger files are not compared (an exercise file is a few kilobytes)
 MAX_BYTES = 1_000_000
+#: a file holding at least this share of the reference's solution n-grams reproduces the reference...
+LEAK_CONTAINMENT = 0.8
+#: ... where the solution has at least this many n-grams beyond the stub's
+LEAK_MIN_GRAMS = 25
+BEGIN, END = "# BEGIN SOLUTION", "# END SOLUTION"
 
 _BUILTINS = frozenset(dir(builtins))
 _SKIP = {tokenize.COMMENT, tokenize.NL, tokenize.INDENT, tokenize.DEDENT, tokenize.ENCODING, tokenize.ENDMARKER}
@@ -89,6 +102,20 @@ class SimilarPair:
 
 
 @dataclass
+class Leak:
+    """A student's ``file`` that reproduces the reference's solution: the share of the solution's
+    n-grams it holds (``score``), how many (``shared``) of how many (``total``), and the line ranges
+    of the student's file they cover."""
+
+    student: str
+    file: str
+    score: float
+    shared: int
+    total: int
+    lines: list
+
+
+@dataclass
 class FileStats:
     """One exercise file across the class: the students who wrote it, every pair's score
     (``{(a, b): score}``) and shared n-grams (``{(a, b): count}``), and the outlier bar used."""
@@ -110,6 +137,7 @@ class Comparison:
     files: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     reference_used: bool = False
+    leaks: list = field(default_factory=list)
 
 
 def _normalise(kind: int, text: str, previous: str) -> str:
@@ -202,6 +230,29 @@ def _covered(fp: Fingerprint, shared: set) -> list:
     return _ranges(lines)
 
 
+def solution_lines(text: str) -> set:
+    """The line numbers (1-based) between the ``# BEGIN SOLUTION`` and ``# END SOLUTION`` markers."""
+    inside, lines = False, set()
+    for number, line in enumerate(text.splitlines(), 1):
+        stripped = line.strip()
+        if stripped.startswith(BEGIN):
+            inside = True
+        elif stripped.startswith(END):
+            inside = False
+        elif inside:
+            lines.add(number)
+    return lines
+
+
+def solution_grams(reference_text: str, given=frozenset()) -> set:
+    """The n-grams of the reference's solution blocks (every token of the n-gram inside a block),
+    without those in ``given`` (the stub's)."""
+    fp = fingerprint(reference_text)
+    inside = solution_lines(reference_text)
+    return {gram for i, gram in enumerate(fp.grams)
+            if all(line in inside for _, line in fp.tokens[i:i + NGRAM])} - set(given)
+
+
 def outlier_bar(scores: list) -> tuple:
     """``(median, scaled MAD, bar)`` of one file's pair scores: a pair must score above the bar
     (median + ``OUTLIER_MADS`` MADs scaled to a normal's standard deviation). With fewer than
@@ -229,8 +280,11 @@ def compare_class(submissions_dir, stubs_dir, reference_dir=None) -> Comparison:
     for name in _exercise_files(Path(stubs_dir)):
         stub_bytes = (Path(stubs_dir) / name).read_bytes()
         given = set(fingerprint(stub_bytes.decode("utf-8", errors="replace")).grams)
+        solution: set = set()
         if reference_dir is not None and (Path(reference_dir) / name).is_file():
-            given |= set(fingerprint(_read(Path(reference_dir) / name)).grams)
+            reference_text = _read(Path(reference_dir) / name)
+            solution = solution_grams(reference_text, given)
+            given |= set(fingerprint(reference_text).grams)
         prints: dict = {}
         seen: dict = {}
         for folder in students:
@@ -249,6 +303,12 @@ def compare_class(submissions_dir, stubs_dir, reference_dir=None) -> Comparison:
             if fp.note:
                 result.notes.append(f"{folder.name}/{name} {fp.note}")
             prints[folder.name] = fp
+        if len(solution) >= LEAK_MIN_GRAMS:
+            for sid, fp in sorted(prints.items()):
+                held = set(fp.grams) & solution
+                if len(held) >= LEAK_CONTAINMENT * len(solution):
+                    result.leaks.append(Leak(sid, name, len(held) / len(solution), len(held), len(solution),
+                                             _covered(fp, held)))
         remaining = {sid: set(fp.grams) - given for sid, fp in prints.items()}
         counts: dict = {}
         for grams in remaining.values():
@@ -275,7 +335,13 @@ def compare_class(submissions_dir, stubs_dir, reference_dir=None) -> Comparison:
                 result.pairs.append(SimilarPair(a, b, name, score, len(shared),
                                                 _covered(prints[a], shared), _covered(prints[b], shared)))
     result.pairs.sort(key=lambda p: (-p.score, p.file, p.a, p.b))
+    result.leaks.sort(key=lambda leak: (leak.file, -leak.score, leak.student))
     return result
+
+
+def leaked(submissions_dir, stubs_dir, reference_dir) -> list:
+    """The :class:`Leak` records: files that reproduce the reference's solution code."""
+    return compare_class(submissions_dir, stubs_dir, reference_dir).leaks
 
 
 def similar_pairs(submissions_dir, stubs_dir, reference_dir=None) -> list:
