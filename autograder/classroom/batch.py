@@ -106,14 +106,16 @@ def main(argv=None) -> int:
         p.error(str(exc))
     if args.timeout <= 0 or args.jobs < 1 or args.memory_mb <= 0 or args.budget <= 0:
         p.error("--timeout, --memory-mb, --jobs and --budget must be positive")
-    from autograder.checks import all_checks, select
+    from autograder.checks import SelectionError, all_checks, select
     from autograder.grade import HIDDEN_SUFFIX, default_set, grade_many, reference_available
 
     which = args.which or default_set()
     if which != "public" and not reference_available():
         p.error(f"--set {which}: the hidden checks need the reference, which this tree does not have")
-    if args.only and not select(all_checks(), args.only):
-        p.error(f"--only {' '.join(args.only)!r} matches no check or exercise")
+    try:
+        select(all_checks(), args.only)
+    except SelectionError as exc:
+        p.error(str(exc))
     out = Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     try:
