@@ -47,6 +47,9 @@ def pytest_addoption(parser):
     group.addoption("--autograder-set", choices=("public", "hidden", "all"), default=None,
                     help="the checks to collect: public (shipped inputs), hidden (fresh inputs, judged with the "
                          "reference: instructor only) or all; default: all where the reference is, else public")
+    group.addoption("--autograder-only", action="append", metavar="NAME", default=None,
+                    help="keep only the checks of this check module, exercise or check, by its exact name (as "
+                         "python -m autograder --only); repeatable")
 
 
 def pytest_configure(config):
@@ -92,6 +95,29 @@ def is_implementation(path: Path) -> bool:
     else:
         names = {entry.stem for entry in CHECKS_DIR.glob("*.py")} - set(NOT_CHECKS)
     return 2 * len(files & names) > len(names)
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """``--autograder-only NAME``: deselect the checks ``NAME`` does not name (exact names, as
+    :func:`autograder.checks.select`); a name that names none is a usage error listing the close ones."""
+    names = config.getoption("autograder_only")
+    if not names:
+        return
+    from autograder.checks import SelectionError, select
+
+    checks: list = []
+    for item in items:
+        if isinstance(item, CheckItem) and item.check not in checks:
+            checks.append(item.check)
+    try:
+        chosen = {check.name for check in select(checks, names)}
+    except SelectionError as exc:
+        raise pytest.UsageError(f"--autograder-only: {exc}") from None
+    kept = [item for item in items if not isinstance(item, CheckItem) or item.check.name in chosen]
+    dropped = [item for item in items if isinstance(item, CheckItem) and item.check.name not in chosen]
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+        items[:] = kept
 
 
 @pytest.hookimpl(tryfirst=True)

@@ -157,3 +157,43 @@ def test_list_only_pose_graph_lists_its_end_to_end_only():
     ch3 = subprocess.run([sys.executable, "-m", "autograder", "--list", "--assignment", "ch3"], cwd=REPO_ROOT,
                          capture_output=True, text=True, check=True).stdout
     assert all(line.split(None, 1)[1].startswith("dogleg.") for line in ch3.strip().splitlines()[:-1])
+
+
+def test_results_carry_extra_credit_uncounted_hidden_checks_and_lateness():
+    from autograder import report
+    from autograder.grade import CheckResult, mark
+    from autograder.late import Lateness
+
+    data = {"assignments": {"ch2": {"exercises": ["pose_graph_edge", "pose_graph_assembly", "pose_graph_fast"],
+                                    "optional": ["pose_graph_fast"],
+                                    "hidden_visibility": "after_due_date", "hidden_counts": False}}}
+    ch2 = parse(data).assignment("ch2")
+    results = []
+    for check in ch2.checks():
+        for hidden in (False, True):
+            result = CheckResult(check.name + (" (hidden inputs)" if hidden else ""), check.exercise, check.points,
+                                 check.points, "ok", hidden=hidden)
+            results.append(mark(result, check, ch2))
+    edge = sum(c.points for c in ch2.checks() if not c.exercise.startswith("pose_graph_fast"))
+    fast = sum(c.points for c in ch2.checks() if c.exercise.startswith("pose_graph_fast"))
+    assert report.earned(results) == edge + fast and report.maximum(results) == edge == ch2.maximum()
+    assert report.total(results).startswith(f"{edge + fast:g} / {edge:g} (extra credit included")
+    data = report.gradescope(results, 1.0, Lateness(timedelta(days=1, hours=2), 0.8, "1.08 days late: ..."))
+    assert data["score"] == pytest.approx(0.8 * (edge + fast))
+    assert "Late: 1.08 days late" in data["output"]
+    by_name = {t["name"]: t for t in data["tests"]}
+    hidden = [t for t in data["tests"] if "(hidden inputs)" in t["name"]]
+    assert {t["visibility"] for t in hidden} == {"after_due_date"}
+    assert all(t["score"] == 0 == t["max_score"] and t["output"].startswith("Not counted") for t in hidden)
+    extra = [t for name, t in by_name.items() if "extra credit" in name]
+    assert extra and all(t["max_score"] == 0 and t["score"] > 0 for t in extra)
+
+
+def test_pytest_autograder_only_keeps_the_exact_names():
+    run = subprocess.run([sys.executable, "-m", "pytest", "exercises", "--collect-only", "-q", "-p", "no:cacheprovider",
+                          "--autograder-only", "pose_graph"], cwd=REPO_ROOT, capture_output=True, text=True)
+    items = [line for line in run.stdout.splitlines() if line.startswith("exercises")]
+    assert items and all("::pose_graph::end_to_end" in line for line in items), run.stdout
+    bad = subprocess.run([sys.executable, "-m", "pytest", "exercises", "--collect-only", "-q", "-p", "no:cacheprovider",
+                          "--autograder-only", "pose_grap"], cwd=REPO_ROOT, capture_output=True, text=True)
+    assert bad.returncode != 0 and "close: pose_graph" in bad.stdout + bad.stderr
