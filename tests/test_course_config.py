@@ -124,7 +124,7 @@ def test_the_late_policy_and_gradescope_metadata(tmp_path):
         "s@x.edu": "2027-02-08T23:59:00+01:00"}})).assignment("ch1")
     assert extended.lateness(extended.due + timedelta(days=2), ("123", "s@x.edu")).fraction == 1.0
     meta = tmp_path / "submission_metadata.json"
-    meta.write_text('{"created_at": "2027-02-07T23:59:00.5+01:00", "assignment": {"due_date": '
+    meta.write_text('{"created_at": "2027-02-07T23:59:00.500000+01:00", "assignment": {"due_date": '
                     '"2027-02-05T23:59:00.000000+01:00"}, "users": [{"email": "s@x.edu", "id": 7, "name": "S"}]}')
     submitted = course_config.gradescope_metadata(meta)
     assert submitted.created_at == datetime(2027, 2, 7, 22, 59, 0, 500000, tzinfo=timezone.utc)
