@@ -1,4 +1,5 @@
-"""``python -m autograder [--impl exercises|solutions|PATH] [--only NAME] [--set public|hidden|all] [--json FILE]``,
+"""``python -m autograder [--impl exercises|solutions|PATH] [--assignment NAME] [--only NAME] [--set public|hidden|all]
+[--json FILE] [--metadata submission_metadata.json]``,
 or a whole class: ``python -m autograder batch SUBMISSIONS --out DIR``, ``python -m autograder
 merge PART... --out DIR`` and ``python -m autograder export DIR... --canvas|--moodle OUT.csv``
 (:mod:`autograder.classroom`).
@@ -35,7 +36,44 @@ def parser():
     p.add_argument("--budget", type=float, default=600.0,
                    help="total seconds for the whole grading run (default %(default)g)")
     p.add_argument("--list", action="store_true", help="list the checks and their points, then exit")
+    p.add_argument("--assignment", metavar="NAME", default=None,
+                   help="grade this assignment of the course configuration only, with its points (default: the "
+                        "tree's own in a released assignment tree, autograder/ASSIGNMENT; else the whole course)")
+    p.add_argument("--config", metavar="FILE", default=None,
+                   help="the course configuration (default autograder/course.toml)")
+    p.add_argument("--metadata", metavar="FILE", default=None,
+                   help="Gradescope's submission_metadata.json: its created_at, against the assignment's due date, "
+                        "applies the assignment's late policy (needs an assignment)")
     return p
+
+
+def assignment_of(args, p):
+    """The :class:`autograder.course_config.Assignment` graded (None: the whole course)."""
+    from autograder import course_config
+
+    name = args.assignment or course_config.current_assignment()
+    if not name:
+        if args.metadata:
+            p.error("--metadata: the late policy is an assignment's; give --assignment NAME")
+        return None
+    try:
+        return course_config.load(args.config).assignment(name)
+    except course_config.ConfigError as exc:
+        p.error(str(exc))
+
+
+def lateness_of(args, p, assignment):
+    """What the late policy makes of the submission of ``args.metadata`` (None without one)."""
+    if not args.metadata:
+        return None
+    from autograder import course_config
+
+    try:
+        submitted = course_config.gradescope_metadata(args.metadata)
+    except (OSError, ValueError) as exc:  # a grade without the policy rather than no grade
+        print(f"autograder: --metadata {args.metadata}: {exc}; graded without the late policy", file=sys.stderr)
+        return None
+    return assignment.lateness(submitted.created_at, submitted.students, due=submitted.due)
 
 
 def main(argv=None) -> int:
@@ -54,17 +92,21 @@ def main(argv=None) -> int:
         return merge.main(argv[1:])
     p = parser()
     args = p.parse_args(argv)
-    from autograder.checks import all_checks, select
+    from autograder.checks import SelectionError, all_checks, select
 
-    checks = select(all_checks(), args.only)
-    if args.only and not checks:
-        exercises = sorted({c.exercise for c in all_checks()})
-        p.error(f"--only {' '.join(args.only)!r} matches no check or exercise; exercises: {', '.join(exercises)}")
+    assignment = assignment_of(args, p)
+    try:
+        checks = select(assignment.checks() if assignment is not None else all_checks(), args.only)
+    except SelectionError as exc:
+        where = f" of assignment {assignment.name}" if assignment is not None else ""
+        p.error(f"{exc}{' (among the checks' + where + ')' if where else ''}")
     if args.list:
         for check in checks:
-            print(f"{check.points:>4g}  {check.name}")
+            extra = "  (extra credit)" if assignment is not None and assignment.is_extra(check) else ""
+            print(f"{check.points:>4g}  {check.name}{extra}")
         print(f"{sum(c.points for c in checks):>4g}  total")
         return 0
+    lateness = lateness_of(args, p, assignment)
     if args.timeout <= 0 or args.workers < 1 or args.memory_mb <= 0 or args.budget <= 0:
         p.error("--timeout, --memory-mb, --workers and --budget must be positive")
     from autograder.grade import default_set, reference_available
@@ -89,15 +131,17 @@ def main(argv=None) -> int:
     notices: list = []
     try:
         results, seconds = run(impl, args.only, timeout=args.timeout, memory_mb=args.memory_mb,
-                               workers=args.workers, which=which, budget=args.budget, notices=notices)
+                               workers=args.workers, which=which, budget=args.budget, notices=notices,
+                               assignment=assignment, checks=checks if assignment is not None else None)
     except (ExpectedDataError, IsolationError) as exc:
         print(f"autograder: {exc}", file=sys.stderr)
         return 2
     for line in notices:
         print(f"autograder: {line}", file=sys.stderr)
     if args.json:
-        report.write_json(args.json, report.gradescope(results, seconds))
-    print(report.table(results, impl, seconds, args.workers, which))
+        report.write_json(args.json, report.gradescope(results, seconds, lateness))
+    title = f"assignment {assignment.name}: {assignment.title}" if assignment is not None else ""
+    print(report.table(results, impl, seconds, args.workers, which, lateness, title))
     return 0
 
 

@@ -13,12 +13,15 @@ not installed here (``Check.needs``, e.g. pyceres) is not run: it scores 0 and s
 and the library's absence is said once (``course.core.peers``).
 """
 
+import shutil
 import sys
+import tempfile
 import threading
 import time
 import traceback
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -46,6 +49,12 @@ class CheckResult:
     hidden: bool = False
     status: str = "ok"  # ok | timeout | crashed (the child) | not run
     mistake: str = ""  # the known mistake the output matched (its likely cause), if any
+    #: in an assignment (autograder.course_config): Gradescope's visibility ("" = the default: visible, hidden
+    #: checks after_published), extra credit (its points not in the maximum), counted (a hidden check whose
+    #: assignment does not count them is shown and scores nothing)
+    visibility: str = ""
+    extra: bool = False
+    counted: bool = True
 
     @property
     def title(self) -> str:
@@ -211,18 +220,60 @@ def skipped(task: "Task", why: str) -> CheckResult:
 
 
 def grade(impl: str, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sandbox.DEFAULT_MEMORY_MB,
-          workers=2, checks=None, which=None, budget=None, notices=None) -> list:
+          workers=2, checks=None, which=None, budget=None, notices=None, assignment=None) -> list:
     """Grade ``impl`` ("solutions", "exercises" or a path) on the selected checks, in order.
 
     ``which``: "public", "hidden" or "all" (default: all where the reference is, else
     public). ``notices``: a list that receives the sandbox's one-line notice, if any.
+    ``assignment``: an :class:`autograder.course_config.Assignment` (see :func:`grade_many`).
     """
-    return grade_many([impl], only, timeout, memory_mb, workers, checks, which, budget, notices)[0]
+    return grade_many([impl], only, timeout, memory_mb, workers, checks, which, budget, notices,
+                      assignment=assignment)[0]
+
+
+def given_folder() -> Path:
+    """Where the solved exercise files come from: ``autograder/given/`` in a released tree or zip
+    (the reference of the assignment's ``solved`` files, as released), else ``solutions/``."""
+    from course.core.impl import REPO_ROOT
+
+    given = Path(__file__).resolve().parent / "given"
+    return given if given.is_dir() else REPO_ROOT / "solutions"
+
+
+def compose(impl: str, solved, target: Path, given: Path | None = None) -> str:
+    """A package at ``target``: the exercise files of ``impl`` (a name or a path), with each module of
+    ``solved`` replaced by the given (solved) code of :func:`given_folder`. An assignment grades this,
+    so that the pieces it does not grade (the curve model of dogleg's end-to-end runs) are the solved
+    code whatever the submission holds: its grade depends on its own files alone."""
+    from course.core.impl import BUILTIN, REPO_ROOT
+
+    source = REPO_ROOT / impl if impl in BUILTIN else Path(impl)
+    given = given_folder() if given is None else given
+    target.mkdir(parents=True)
+    for path in sorted(source.glob("*.py")):
+        if path.is_file() and not path.is_symlink():
+            shutil.copyfile(path, target / path.name)
+    for module in solved:
+        origin = given / f"{module}.py"
+        if not origin.is_file():
+            raise FileNotFoundError(f"{origin}: the solved code of {module} is missing")
+        shutil.copyfile(origin, target / f"{module}.py")
+    return str(target)
+
+
+def mark(result: CheckResult, check: Check, assignment) -> CheckResult:
+    """``result`` with its assignment's visibility, extra credit and counting."""
+    if assignment is None:
+        return result
+    result.visibility = assignment.hidden_visibility if result.hidden else "visible"
+    result.extra = assignment.is_extra(check)
+    result.counted = not result.hidden or assignment.hidden_counts
+    return result
 
 
 def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sandbox.DEFAULT_MEMORY_MB,
                workers=2, checks=None, which=None, budget=None, notices=None, on_done=None, on_check=None,
-               catalogue=True) -> list:
+               catalogue=True, assignment=None) -> list:
     """Grade each implementation of ``impls`` as :func:`grade` does, in one run: the expected
     outputs computed once, one sandbox session, ``workers`` children at a time across all of
     them. Returns one list of results per implementation, in order. ``budget`` is per
@@ -233,9 +284,26 @@ def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sand
     Once a function of an implementation has timed out, its other checks that call it are
     not run (:class:`Hung`). ``catalogue=False`` judges as if no mistake were known (the
     instructor's measure of the feedback on mistakes nobody foresaw).
+
+    ``assignment`` (:class:`autograder.course_config.Assignment`): grade its checks (default for
+    ``checks``) with its points, each result marked with its visibility, extra credit and counting,
+    and each implementation composed with the assignment's solved files (:func:`compose`). Without
+    it, every piece a check runs is the implementation's own, as before.
     """
     impls = [str(impl) for impl in impls]
-    checks = select(checks if checks is not None else all_checks(), only)
+    if checks is None:
+        checks = assignment.checks() if assignment is not None else all_checks()
+    checks = select(checks, only)
+    with tempfile.TemporaryDirectory(prefix="autograder-compose-") as scratch:
+        if assignment is not None and assignment.solved:
+            impls = [compose(impl, assignment.solved, Path(scratch) / str(index))
+                     for index, impl in enumerate(impls)]
+        return _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notices, on_done, on_check,
+                           catalogue, assignment)
+
+
+def _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notices, on_done, on_check, catalogue,
+                assignment) -> list:
     tasks = plan(checks, which or default_set())
     if not catalogue:
         tasks = [replace(task, expected=task.expected.without_catalogue()) if task.expected else task
@@ -269,6 +337,7 @@ def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sand
                                         impl=staged[index])
                     hung[index].record(task, child)
                     result = judge_task(task, child)
+            result = mark(result, task.check, assignment)
             with report:
                 results[index][number] = result
                 left[index] -= 1

@@ -29,6 +29,7 @@ checks)``; with every check run, the total of ``python -m autograder --impl SAME
 """
 
 import contextlib
+import functools
 import io
 import re
 from dataclasses import dataclass, field
@@ -46,6 +47,9 @@ def pytest_addoption(parser):
     group.addoption("--autograder-set", choices=("public", "hidden", "all"), default=None,
                     help="the checks to collect: public (shipped inputs), hidden (fresh inputs, judged with the "
                          "reference: instructor only) or all; default: all where the reference is, else public")
+    group.addoption("--autograder-only", action="append", metavar="NAME", default=None,
+                    help="keep only the checks of this check module, exercise or check, by its exact name (as "
+                         "python -m autograder --only); repeatable")
 
 
 def pytest_configure(config):
@@ -65,6 +69,16 @@ def which_set(config) -> str:
     return which
 
 
+@functools.cache
+def assignment():
+    """The assignment a released tree grades (``autograder/ASSIGNMENT``: its check modules only, with
+    its points), or None: every check."""
+    from autograder import course_config
+
+    name = course_config.current_assignment()
+    return course_config.load().assignment(name) if name else None
+
+
 def is_implementation(path: Path) -> bool:
     """True for a folder laid out like ``exercises/`` (see the module docstring). It reads names
     only: the check modules (``autograder/checks/NAME.py``), named after the exercise files they
@@ -75,8 +89,35 @@ def is_implementation(path: Path) -> bool:
         files = {entry.stem for entry in path.iterdir() if entry.suffix == ".py"}
     except OSError:
         return False
-    names = {entry.stem for entry in CHECKS_DIR.glob("*.py")} - set(NOT_CHECKS)
+    graded = assignment()
+    if graded is not None:  # an assignment's tree: its own exercise files
+        names = set(graded.modules)
+    else:
+        names = {entry.stem for entry in CHECKS_DIR.glob("*.py")} - set(NOT_CHECKS)
     return 2 * len(files & names) > len(names)
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """``--autograder-only NAME``: deselect the checks ``NAME`` does not name (exact names, as
+    :func:`autograder.checks.select`); a name that names none is a usage error listing the close ones."""
+    names = config.getoption("autograder_only")
+    if not names:
+        return
+    from autograder.checks import SelectionError, select
+
+    checks: list = []
+    for item in items:
+        if isinstance(item, CheckItem) and item.check not in checks:
+            checks.append(item.check)
+    try:
+        chosen = {check.name for check in select(checks, names)}
+    except SelectionError as exc:
+        raise pytest.UsageError(f"--autograder-only: {exc}") from None
+    kept = [item for item in items if not isinstance(item, CheckItem) or item.check.name in chosen]
+    dropped = [item for item in items if isinstance(item, CheckItem) and item.check.name not in chosen]
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+        items[:] = kept
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -98,12 +139,17 @@ class ImplementationFolder(pytest.Directory):
 
         which = which_set(self.config)
         hidden_sets = {"public": (False,), "hidden": (True,), "all": (False, True)}[which]
+        graded = assignment()
+        points = {check.name: check for check in graded.checks()} if graded is not None else {}
         for name, module in modules():
+            if graded is not None and name not in graded.exercises:
+                continue
             if name in module.MODULES:
                 group = ExerciseFile.from_parent(self, path=self.path / f"{name}.py")
             else:
                 group = CheckGroup.from_parent(self, name=name)
-            group.entries = [(check, hidden) for check in module.CHECKS for hidden in hidden_sets]
+            group.entries = [(points.get(check.name, check), hidden) for check in module.CHECKS
+                             for hidden in hidden_sets]
             group.prefix, group.folder = name, self.path.resolve()
             yield group
 
@@ -251,7 +297,7 @@ def grade_items(items: list) -> FolderGrading:
     try:
         with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(printed):
             results = grade(impl_argument(items[0].folder), checks=checks, which=which, workers=2,
-                            notices=run.notices)
+                            notices=run.notices, assignment=assignment())
     except (ExpectedDataError, IsolationError) as exc:
         run.error = f"autograder: {exc}"
         results = []

@@ -27,13 +27,38 @@ def not_implemented(results) -> list:
     return seen
 
 
+def earned(results) -> float:
+    """The points earned: every counted check's, extra credit included."""
+    return sum(r.score for r in results if getattr(r, "counted", True))
+
+
+def maximum(results) -> float:
+    """The most ``results`` can earn: counted checks, extra credit aside."""
+    return sum(r.max_score for r in results if getattr(r, "counted", True) and not getattr(r, "extra", False))
+
+
 def total(results) -> str:
-    """The points of ``results`` as the table's last lines print them: ``"14 / 30"``."""
-    return f"{points(sum(r.score for r in results))} / {points(sum(r.max_score for r in results))}"
+    """The points of ``results`` as the table's last lines print them: ``"14 / 30"`` (and the extra
+    credit in them, in an assignment with optional exercises)."""
+    text = f"{points(earned(results))} / {points(maximum(results))}"
+    extra = [r for r in results if getattr(r, "extra", False) and getattr(r, "counted", True)]
+    if extra:
+        text += (f" (extra credit included: {points(sum(r.score for r in extra))} of "
+                 f"{points(sum(r.max_score for r in extra))})")
+    return text
 
 
-def summary(results) -> str:
+def late_line(lateness, before: float) -> str:
+    """The line saying how late a submission was and what it cost."""
+    if lateness.fraction >= 1.0:
+        return f"Submitted: {lateness.note}"
+    return (f"Late: {lateness.note}: {points(before)} -> {points(round(before * lateness.fraction, 4))} points")
+
+
+def summary(results, lateness=None) -> str:
     lines = [f"Total: {total(results)}"]
+    if lateness is not None:
+        lines.append(late_line(lateness, earned(results)))
     todos = not_implemented(results)
     if todos:
         lines.append(f"Not implemented ({len(todos)}):")
@@ -48,10 +73,11 @@ SET_TEXT = {
 }
 
 
-def table(results, impl: str, seconds: float, workers: int, which: str = "public") -> str:
+def table(results, impl: str, seconds: float, workers: int, which: str = "public", lateness=None,
+          title: str = "") -> str:
     width = shutil.get_terminal_size((120, 24)).columns
     message_width = max(30, width - NAME_WIDTH - 16)
-    out = [f"Autograder: implementation {impl}, {SET_TEXT.get(which, which)}", ""]
+    out = [f"Autograder: implementation {impl}, {SET_TEXT.get(which, which)}" + (f"; {title}" if title else ""), ""]
     out.append(f"{'check':<{NAME_WIDTH}} {'points':>6} {'max':>5}  message")
     out.append("-" * min(width, NAME_WIDTH + 16 + message_width))
     exercises = []
@@ -60,12 +86,14 @@ def table(results, impl: str, seconds: float, workers: int, which: str = "public
             exercises.append(result.exercise)
     for exercise in exercises:
         rows = [r for r in results if r.exercise == exercise]
-        score, maximum = sum(r.score for r in rows), sum(r.max_score for r in rows)
-        out.append(f"{exercise:<{NAME_WIDTH}} {points(score):>6} {points(maximum):>5}")
+        score, most = sum(r.score for r in rows), sum(r.max_score for r in rows)
+        extra = " (extra credit)" if rows and all(getattr(r, "extra", False) for r in rows) else ""
+        out.append(f"{exercise:<{NAME_WIDTH}} {points(score):>6} {points(most):>5}{extra}")
         for r in rows:
             name = _short("  " + r.title, NAME_WIDTH)
+            shown = r.message if getattr(r, "counted", True) else "(not counted) " + r.message
             out.append(f"{name:<{NAME_WIDTH}} {points(r.score):>6} {points(r.max_score):>5}  "
-                       f"{_short(r.message, message_width)}")
+                       f"{_short(shown, message_width)}")
     out.append("-" * min(width, NAME_WIDTH + 16 + message_width))
     details = [r for r in results if not r.full and not r.not_implemented]
     if details:
@@ -73,26 +101,39 @@ def table(results, impl: str, seconds: float, workers: int, which: str = "public
         for r in details:
             out.append(f"* {r.name} ({points(r.score)}/{points(r.max_score)})")
             out += [f"    {line}" for line in r.message.splitlines()]
-    out += ["", summary(results)]
+    out += ["", summary(results, lateness)]
     out.append(f"Elapsed: {seconds:.1f} s ({len(results)} checks, {workers} workers)")
     return "\n".join(out)
 
 
-def gradescope(results, seconds: float) -> dict:
-    """Gradescope's results.json: score, execution_time, output, tests[]."""
+def gradescope(results, seconds: float, lateness=None) -> dict:
+    """Gradescope's results.json: score, execution_time, output, tests[].
+
+    In an assignment (results marked by :func:`autograder.grade.mark`): each test's visibility is its
+    own; an extra-credit test has ``max_score`` 0 (its points above the maximum); a hidden test that
+    does not count scores 0 of 0 and says what it would have scored. ``lateness``
+    (:class:`autograder.late.Lateness`) scales the score and says so in the output.
+    """
     tests = []
     for r in results:
+        score, most, output, name = round(r.score, 4), r.max_score, r.message, r.name
+        if not getattr(r, "counted", True):
+            output = f"Not counted in the grade ({points(score)} / {points(most)}).\n{output}"
+            score, most = 0.0, 0.0
+        elif getattr(r, "extra", False):
+            name, most = f"{name} (extra credit, {points(most)} points)", 0.0
         tests.append({
-            "name": r.name,
-            "score": round(r.score, 4),
-            "max_score": r.max_score,
-            "output": r.message,
-            "visibility": "after_published" if r.hidden else "visible",
+            "name": name,
+            "score": score,
+            "max_score": most,
+            "output": output,
+            "visibility": getattr(r, "visibility", "") or ("after_published" if r.hidden else "visible"),
         })
+    score = earned(results) * (lateness.fraction if lateness is not None else 1.0)
     return {
-        "score": round(sum(r.score for r in results), 4),
+        "score": round(score, 4),
         "execution_time": round(seconds, 3),
-        "output": summary(results),
+        "output": summary(results, lateness),
         "tests": tests,
     }
 

@@ -285,3 +285,29 @@ def test_a_folder_of_uploads_with_a_roster_times_and_an_extension(tmp_path):
     lines = list(csv.reader(moodle.open(newline="")))
     assert lines[0] == ["Full name", "ID number", "Email address", "out"]
     assert ["Bob", "9002", "bob@x.edu", gradebook.number(0.4 * maximum)] in lines
+
+
+@pytest.mark.slow
+def test_an_assignment_of_the_configuration_gives_its_points_and_its_late_policy(tmp_path):
+    """``--assignment ch1`` without ``--due``: ch1's checks with ch1's points, and ch1's due date and
+    policy from the course configuration (a submission after it pays the configured penalty)."""
+    import os
+
+    from autograder import course_config
+
+    ch1 = course_config.load().assignment("ch1")
+    uploads = tmp_path / "uploads"
+    (uploads / "ada").mkdir(parents=True)
+    (uploads / "ada" / "damping.py").write_bytes((REPO_ROOT / "solutions" / "damping.py").read_bytes())
+    when = (ch1.due + timedelta(days=1, hours=1)).timestamp()
+    os.utime(uploads / "ada" / "damping.py", (when, when))
+    out = tmp_path / "out"
+    run("batch", uploads, "--out", out, "--only", "damping", "--set", "public", "--timeout", "3", "--jobs", "2",
+        "--no-report", "--assignment", "ch1")
+    row = rows(out)["ada"]
+    maximum = sum(c.points for c in ch1.checks() if c.exercise.startswith("damping.") and not ch1.is_extra(c))
+    assert float(row["max"]) == pytest.approx(maximum) and row["assignment"] == "ch1"
+    kept = ch1.lateness(datetime.fromtimestamp(when, timezone.utc)).fraction
+    assert kept < 1.0 and float(row["total"]) == pytest.approx(kept * maximum)
+    proc = run("batch", uploads, "--out", tmp_path / "x", "--assignment", "ch9", check=False)
+    assert proc.returncode == 2 and "ch9" in proc.stderr

@@ -26,6 +26,7 @@ A call's ``target`` is ``"module:qualname"`` inside the implementation
 ``impl=<the student's implementation>`` (see :mod:`autograder.tasks`).
 """
 
+import difflib
 import importlib
 
 from autograder.records import Call, Check, Context, ErrorInfo, Outcome, Verdict  # noqa: F401 (re-exported)
@@ -37,9 +38,20 @@ ORDER = ("curve_model", "gauss_newton", "damping", "end_to_end", "pose_graph_edg
          "marginalisation", "imu_preintegration", "pose_graph_3d", "pose_graph_3d_assembly", "chordal_3d", "gnc")
 
 
+def present() -> tuple:
+    """The names of :data:`ORDER` whose module is here: all of them, but in an assignment's tree
+    (``autograder/ASSIGNMENT``) the check modules of later assignments are not shipped."""
+    from pathlib import Path
+
+    here = Path(__file__).resolve().parent
+    if not (here.parent / "ASSIGNMENT").is_file():
+        return ORDER
+    return tuple(name for name in ORDER if (here / f"{name}.py").is_file())
+
+
 def modules() -> list:
     """``(name, module)`` of every check module, in report order."""
-    return [(name, importlib.import_module(f"{__name__}.{name}")) for name in ORDER]
+    return [(name, importlib.import_module(f"{__name__}.{name}")) for name in present()]
 
 
 def module_of() -> dict:
@@ -57,16 +69,39 @@ def all_checks() -> list:
     return checks
 
 
+class SelectionError(ValueError):
+    """An ``--only`` name that selects nothing; the message lists the close names."""
+
+
+def names(checks: list) -> list:
+    """Every name ``--only`` takes for ``checks``: check modules, exercises and check names, in order."""
+    owner = module_of()
+    out: list = []
+    for check in checks:
+        for name in (owner.get(check.name, ""), check.exercise, check.name):
+            if name and name not in out:
+                out.append(name)
+    return out
+
+
 def select(checks: list, only) -> list:
-    """Checks named by ``only`` (a list of check names, exercise names or prefixes)."""
+    """The checks named by ``only``: each name an exact check module (``damping``, ``pose_graph``: the
+    checks that grade that exercise file or run those pieces together), exercise
+    (``damping.GavinType1``, ``pose_graph.end_to_end``) or check name. No prefixes: ``pose_graph``
+    is not ``pose_graph_3d``. A name that matches none of ``checks`` raises :class:`SelectionError`
+    naming the close ones (difflib)."""
     if not only:
         return list(checks)
-    chosen = []
-    for check in checks:
-        for name in only:
-            if name in (check.name, check.exercise) or check.exercise.startswith(name + ".") or (
-                check.name.startswith(name)
-            ):
-                chosen.append(check)
-                break
-    return chosen
+    owner = module_of()
+    chosen = set()
+    for name in only:
+        hits = [check.name for check in checks if name in (owner.get(check.name), check.exercise, check.name)]
+        if not hits:
+            known = names(checks)
+            near = difflib.get_close_matches(name, known, n=6, cutoff=0.6)
+            near = (near + [k for k in known if k.startswith(name) and k not in near])[:6]
+            exercises = [k for k in known if k in ORDER]
+            hint = f"; close: {', '.join(near)}" if near else f"; the check modules: {', '.join(exercises)}"
+            raise SelectionError(f"--only {name!r} matches no check module, exercise or check{hint}")
+        chosen.update(hits)
+    return [check for check in checks if check.name in chosen]

@@ -27,6 +27,8 @@ from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare, fmt, values
 
 MODULES = ("dogleg",)
+#: the other exercise files the end-to-end runs use (given solved in an assignment: course_config)
+USES = ("curve_model", "gauss_newton", "pose_graph_edge", "pose_graph_assembly", "sparse_solve", "pose_graph_fast")
 
 CAUCHY = "dogleg.cauchy_point"
 STEP = "dogleg.dogleg_step"

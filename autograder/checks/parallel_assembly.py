@@ -32,6 +32,8 @@ from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare
 
 MODULES = ("parallel_assembly",)
+#: the other exercise files its checks import (graded with a stand-in kernel)
+USES = ("bundle_adjustment",)
 BOUNDS = "parallel_assembly.chunk_bounds"
 PARALLEL = "parallel_assembly.normal_equations_parallel"
 TASK = "@autograder.tasks.parallel_assembly:parallel_normal_equations"

@@ -23,6 +23,8 @@ from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare
 
 MODULES = ("pose_graph_assembly",)
+#: the other exercise files its checks import (the edge function, replaced by the reference's blocks)
+USES = ("pose_graph_edge",)
 ASSEMBLY = "pose_graph_assembly.assemble_normal_equations"
 
 # ---------------------------------------------------------------- inputs

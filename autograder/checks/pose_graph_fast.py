@@ -25,6 +25,8 @@ from autograder.checks.pose_graph_assembly import (
 from autograder.checks.pose_graph_edge import exact_edge
 
 MODULES = ("pose_graph_fast",)
+#: the other exercise files its checks run (the per-edge loop, named in a stub's feedback)
+USES = ("pose_graph_assembly",)
 FAST_EDGES = "pose_graph_fast.edge_errors_and_jacobians"
 FAST_ASSEMBLER = "pose_graph_fast.SparseAssembler"
 

@@ -25,8 +25,10 @@ Late work: with ``--due`` (and ``--late-per-day`` or ``--late-per-hour``, ``--cu
 extension. The instructor's overrides (``DIR/overrides.csv``, :mod:`autograder.classroom.overrides`)
 and the penalty are applied to every record on every run, from the judge's scores kept in it: an
 override survives a regrade, and a new due date or policy needs no regrade.
-``--assignment NAME`` labels the records (and ``export``'s column); :func:`assignment_settings`
-is where the course configuration's due date and policy for NAME come in.
+``--assignment NAME`` grades that assignment of the course configuration (``autograder/course.toml``):
+its checks with its points, the earlier exercises it hands out solved in place of the student's, its
+due date and late policy (``--due`` and the late options override them); it labels the records and
+``export``'s column.
 
 ``--shard i/n`` grades the students whose id hashes to ``i`` (1-based) of ``n``,
 the same split on every machine; ``python -m autograder merge`` joins the parts.
@@ -119,15 +121,21 @@ def keys_of(sub) -> set:
             if part.strip()}
 
 
-def assignment_settings(name: str) -> tuple:
-    """``(due, policy)`` of the assignment ``name`` from the course configuration, or
-    ``(None, None)`` when there is none.
+def assignment_of(name: str):
+    """The :class:`autograder.course_config.Assignment` ``name`` of the course configuration, or None
+    for no name; ``ValueError`` (:class:`autograder.course_config.ConfigError`) for an unknown one."""
+    if not name:
+        return None
+    from autograder import course_config
 
-    TO WIRE: the course configuration (``autograder/course_config.py``) gives each assignment its
-    due date and :class:`autograder.late.LatePolicy`; this is the one place ``batch`` asks for
-    them. Until it exists, ``--assignment`` only labels the records and the command line's
-    ``--due`` / ``--late-per-day`` / ``--late-per-hour`` / ``--cutoff-days`` give the policy."""
-    return None, None
+    return course_config.load().assignment(name)
+
+
+def assignment_settings(name: str) -> tuple:
+    """``(due, policy)`` of the assignment ``name`` from the course configuration (``(None, None)``
+    for no name): the command line's ``--due`` and late options override them."""
+    assignment = assignment_of(name)
+    return (None, None) if assignment is None else (assignment.due, assignment.late)
 
 
 def late_settings(args) -> tuple:
@@ -189,14 +197,16 @@ def main(argv=None) -> int:
         p.error(str(exc))
     if args.timeout <= 0 or args.jobs < 1 or args.memory_mb <= 0 or args.budget <= 0:
         p.error("--timeout, --memory-mb, --jobs and --budget must be positive")
-    from autograder.checks import all_checks, select
+    from autograder.checks import SelectionError, all_checks, select
     from autograder.grade import HIDDEN_SUFFIX, default_set, grade_many, reference_available
 
     which = args.which or default_set()
     if which != "public" and not reference_available():
         p.error(f"--set {which}: the hidden checks need the reference, which this tree does not have")
-    if args.only and not select(all_checks(), args.only):
-        p.error(f"--only {' '.join(args.only)!r} matches no check or exercise")
+    try:
+        select(all_checks(), args.only)
+    except SelectionError as exc:
+        p.error(str(exc))
     try:
         due, policy = late_settings(args)
     except ValueError as exc:
@@ -267,7 +277,8 @@ def main(argv=None) -> int:
         _retable(results_dir / f"{sub.id}.txt", data)
         return data
 
-    checks = select(all_checks(), args.only)
+    assignment = assignment_of(args.assignment)
+    checks = select(assignment.checks() if assignment is not None else all_checks(), args.only)
     names = [(c.name, c.exercise, c.points, False) for c in checks] if which != "hidden" else []
     names += [(c.name + HIDDEN_SUFFIX, c.exercise, c.points, True) for c in checks] if which != "public" else []
     graded, located = [], {}
@@ -310,7 +321,8 @@ def main(argv=None) -> int:
         try:
             grade_many([str(out / "submissions" / sub.id) for sub in graded], args.only, timeout=args.timeout,
                        memory_mb=args.memory_mb, workers=args.jobs, which=which, budget=args.budget,
-                       notices=notices, on_done=done, on_check=lambda index, result: bar.update(1))
+                       notices=notices, on_done=done, on_check=lambda index, result: bar.update(1),
+                       assignment=assignment)
         except (ExpectedDataError, IsolationError) as exc:  # the grader cannot run here: nobody was graded
             bar.close()
             log(f"batch: could not grade ({exc})")

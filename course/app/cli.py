@@ -116,6 +116,12 @@ def build_parser() -> argparse.ArgumentParser:
                               "and the reference) to FILE.zip; with --check, only when nothing is stale")
     release.add_argument("--hidden-seed", type=int, default=None,
                          help="seed of the hidden checks' inputs in the Gradescope zip (default: a random one)")
+    release.add_argument("--assignment", metavar="NAME", default=None,
+                         help="hand out one assignment of the course configuration: --student and --gradescope "
+                              "then hold and grade NAME only (its stubs, the files it gives solved, its points, "
+                              "visibilities and late policy); without it, the whole course")
+    release.add_argument("--config", metavar="FILE", default=None,
+                         help="the course configuration (default: autograder/course.toml of the repository)")
     release.set_defaults(func=cmd_release)
 
     bench = sub.add_parser("benchmark", help="our time per iteration and to solution against the peers' on pose "
@@ -447,12 +453,35 @@ def cmd_release(args) -> int:
     if not (root / "solutions").is_dir():
         print(f"error: {root} has no solutions/ folder to release from", file=sys.stderr)
         return 2
+    assignment = None
+    if args.assignment:
+        from autograder.course_config import ConfigError, load
+
+        try:
+            course = load(args.config or root / "autograder" / "course.toml")
+            assignment = course.assignment(args.assignment)
+        except ConfigError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
     data_stale = []
     if root.resolve() == REPO_ROOT.resolve():  # the public checks' data, before a student tree copies it
         from autograder.oracle import release_expected
 
         data_stale = [f"autograder/{rel}" for rel in release_expected(check=args.check)]
-    stale = release(check=args.check, student_dir=args.student, root=root)
+    stale = release(check=args.check, student_dir=None if assignment else args.student, root=root)
+    overlay = None
+    if assignment is not None:
+        from course.release import assignment as handout
+        from course.release.stubs import ReleaseError, render
+
+        stubs = render(root / "solutions")
+        overlay = handout.bundle_overlay(course, assignment, stubs, root)
+        if args.student and not args.check:
+            try:
+                handout.write_student_tree(args.student, course, assignment, stubs, root)
+            except ReleaseError as exc:
+                print(f"error: {exc}", file=sys.stderr)
+                return 2
     if args.check:
         if data_stale:
             print("the public checks' data is out of date; run `python -m course release`. Stale files:")
@@ -465,27 +494,28 @@ def cmd_release(args) -> int:
         if data_stale:
             return 1
         print("exercises/ is up to date")
-        return _write_gradescope(args.gradescope, root, args.hidden_seed)
+        return _write_gradescope(args.gradescope, root, args.hidden_seed, overlay)
     print("rewrote exercises/: " + ", ".join(stale) if stale else "exercises/ was already up to date")
     if data_stale:
         print("rewrote the public checks' data: " + ", ".join(data_stale))
+    what = f" of assignment {assignment.name}" if assignment is not None else ""
     if args.student:
-        print(f"wrote the student tree to {args.student}")
-    return _write_gradescope(args.gradescope, root, args.hidden_seed)
+        print(f"wrote the student tree{what} to {args.student}")
+    return _write_gradescope(args.gradescope, root, args.hidden_seed, overlay, what)
 
 
-def _write_gradescope(target, root, hidden_seed=None) -> int:
+def _write_gradescope(target, root, hidden_seed=None, overlay=None, what="") -> int:
     """``release --gradescope FILE.zip``: the autograder bundle (course.release.gradescope)."""
     if not target:
         return 0
     from course.release.gradescope import BundleError, build_bundle
 
     try:
-        bundle = build_bundle(target, root, hidden_seed)
+        bundle = build_bundle(target, root, hidden_seed, overlay)
     except BundleError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    print(f"wrote the Gradescope autograder to {bundle.path} ({bundle.size / 2**20:.2f} MiB, "
+    print(f"wrote the Gradescope autograder{what} to {bundle.path} ({bundle.size / 2**20:.2f} MiB, "
           f"{len(bundle.members)} files); upload it as the assignment's autograder zip")
     return 0
 

@@ -109,13 +109,17 @@ def _add(archive: zipfile.ZipFile, path: Path, name: str, mode: int) -> None:
 SEED_FILE = "hidden_seed"
 
 
-def build_bundle(target, root: Path = REPO_ROOT, hidden_seed=None) -> Bundle:
+def build_bundle(target, root: Path = REPO_ROOT, hidden_seed=None, overlay=None) -> Bundle:
     """Write the Gradescope zip to ``target`` (replaced if it exists) from the tree ``root``.
 
     ``hidden_seed`` (an int) draws the hidden checks' inputs; by default a fresh random one,
     so the hidden inputs differ from the repository's default (which anyone can read) and
     from every other bundle. ``run_autograder`` exports it as ``AUTOGRADER_HIDDEN_SEED``.
+
+    ``overlay`` (``{member: text}``, an assignment's: :func:`course.release.assignment.bundle_overlay`)
+    adds or replaces members; when it holds ``exercises/`` files, they are the zip's whole ``exercises/``.
     """
+    overlay = dict(overlay or {})
     target = Path(target)
     root = Path(root).resolve()
     if target.suffix != ".zip":
@@ -127,6 +131,9 @@ def build_bundle(target, root: Path = REPO_ROOT, hidden_seed=None) -> Bundle:
     if missing:
         raise BundleError(f"the bundle's scripts are missing: {', '.join(missing)}")
     files = source_files(root)
+    if any(name.startswith("exercises/") for name in overlay):
+        files = [(path, name) for path, name in files if not name.startswith("exercises/")]
+    files = [(path, name) for path, name in files if name not in overlay]
     target.parent.mkdir(parents=True, exist_ok=True)
     partial = target.with_name(target.name + ".partial")
     members = []
@@ -136,6 +143,12 @@ def build_bundle(target, root: Path = REPO_ROOT, hidden_seed=None) -> Bundle:
             members.append(path.name)
         for path, name in files:
             _add(archive, path, name, 0o644)
+            members.append(name)
+        for name, text in sorted(overlay.items()):
+            info = zipfile.ZipInfo(name, date_time=ZIP_DATE)
+            info.external_attr = (stat.S_IFREG | 0o644) << 16
+            info.compress_type = zipfile.ZIP_DEFLATED
+            archive.writestr(info, text)
             members.append(name)
         seed = secrets.randbelow(2**31) if hidden_seed is None else int(hidden_seed)
         info = zipfile.ZipInfo(SEED_FILE, date_time=ZIP_DATE)

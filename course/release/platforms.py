@@ -258,6 +258,11 @@ def check(
     return results
 
 
+#: core requirements that stand in for the standard library on older Pythons (tomli: ``tomllib`` from 3.11):
+#: where their marker leaves them out nothing is missing
+BACKPORTS = ("tomli",)
+
+
 def _cell(target: Target, core: Sequence[str], peers: Sequence[str]) -> str:
     peer_names = _names(peers)
     present = _names(applicable(peers, target))
@@ -267,7 +272,8 @@ def _cell(target: Target, core: Sequence[str], peers: Sequence[str]) -> str:
         cell = "no peers"
     else:
         cell = ", ".join(present)
-    missing = sorted(set(_names(core)) - set(_names(applicable(core, target))), key=_names(core).index)
+    missing = sorted(set(_names(core)) - set(_names(applicable(core, target))) - set(BACKPORTS),
+                     key=_names(core).index)
     if missing:
         cell += f"; no {', '.join(missing)}"
     return cell

@@ -1,0 +1,210 @@
+"""One assignment handed out: ``python -m course release --assignment NAME --student DIR | --gradescope FILE.zip``.
+
+The assignment comes from the course configuration (:mod:`autograder.course_config`). What a
+student tree of assignment NAME holds, beside the framework:
+
+* ``exercises/``: the stubs of NAME's exercise files; the files NAME hands out ``solved``, as the
+  reference code (a solution as it is released after its due date: the code between the solution
+  markers kept, the marker lines dropped); the stubs of earlier assignments' other files (students
+  may still write them). No file of a later assignment.
+* ``autograder/``: the public data (``expected/``) of NAME's check modules only; no check module or
+  task of a later assignment; ``course.toml`` holding NAME alone; ``ASSIGNMENT`` naming it, so that
+  ``python -m autograder``, ``make check`` and ``pytest`` grade NAME with its points; ``given/``, the
+  solved files the grader composes with the student's (:func:`autograder.grade.compose`).
+* ``notebooks/``: the notebooks of NAME's and earlier chapters (``chN_...`` for assignment ``chN``).
+* ``README.md``: the student's, opening with what the assignment asks, gives and when it is due.
+
+The Gradescope zip of NAME is the whole grader (the reference too, for the hidden checks) with
+``exercises/`` holding NAME's stubs alone (what a student uploads; nothing else is asked for), and
+the same ``ASSIGNMENT``, ``course.toml`` and ``given/``: ``run_autograder`` grades NAME only, with
+its points, visibilities and late policy (from Gradescope's ``submission_metadata.json``).
+"""
+
+import json
+import re
+import shutil
+import sys
+from datetime import date, datetime
+from pathlib import Path
+
+from course.core.impl import REPO_ROOT
+from course.release.stubs import BEGIN, END
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+
+def released(source: str) -> str:
+    """A reference file as it is handed out solved: the solution markers' lines dropped."""
+    return "".join(line for line in source.splitlines(keepends=True) if line.strip() not in (BEGIN, END))
+
+
+def _owner_files(course) -> dict:
+    """``{exercise file: assignment name}``."""
+    return {module: a.name for a in course.assignments.values() for module in a.modules}
+
+
+def _check_owner(course) -> dict:
+    """``{check module: assignment name}``."""
+    return {exercise: a.name for a in course.assignments.values() for exercise in a.exercises}
+
+
+def exercise_files(course, assignment, stubs: dict, root: Path = REPO_ROOT) -> dict:
+    """``{file name: text}`` of the assignment's ``exercises/`` (see the module docstring); ``stubs``
+    is :func:`course.release.stubs.render` of ``solutions/``."""
+    earlier = set(course.earlier(assignment.name))
+    owners = _owner_files(course)
+    files = {"__init__.py": stubs["__init__.py"]}
+    for rel, text in stubs.items():
+        module = rel[:-3] if rel.endswith(".py") and "/" not in rel else ""
+        if not module or module in assignment.solved:
+            continue
+        if module in assignment.modules or owners.get(module) in earlier:
+            files[rel] = text
+    for module in assignment.solved:
+        files[f"{module}.py"] = released(Path(root, "solutions", f"{module}.py").read_text())
+    return dict(sorted(files.items()))
+
+
+def given_files(assignment, root: Path = REPO_ROOT) -> dict:
+    """``{file name: text}`` of ``autograder/given/``: the solved files, as released."""
+    files = {"__init__.py": '"""The solved exercise files handed out with this assignment (reference code)."""\n'}
+    for module in assignment.solved:
+        files[f"{module}.py"] = released(Path(root, "solutions", f"{module}.py").read_text())
+    return files
+
+
+def later(course, name: str) -> list:
+    names = list(course.assignments)
+    return names[names.index(name) + 1:]
+
+
+def notebook_prefix(name: str) -> str:
+    """``chapter3b_`` for assignment ``ch3b`` ('' when the name is not ``chN...``)."""
+    match = re.fullmatch(r"ch(\w+)", name)
+    return f"chapter{match.group(1)}_" if match else ""
+
+
+def dropped(course, assignment, root: Path = REPO_ROOT) -> list:
+    """Paths (relative to the repository) a student tree of ``assignment`` does not hold."""
+    out = []
+    owners = _check_owner(course)
+    for path in sorted(Path(root, "autograder", "expected").glob("*.json")):
+        if path.stem not in assignment.exercises:
+            out.append(f"autograder/expected/{path.name}")
+    after = later(course, assignment.name)
+    for module, owner in owners.items():
+        if owner in after:
+            for folder in ("checks", "tasks"):
+                if Path(root, "autograder", folder, f"{module}.py").is_file():
+                    out.append(f"autograder/{folder}/{module}.py")
+    for name in after:
+        prefix = notebook_prefix(name)
+        if prefix:
+            out += [f"notebooks/{p.name}" for p in sorted(Path(root, "notebooks").glob(f"{prefix}*"))]
+    return out
+
+
+# ---------------------------------------------------------------- the configuration it carries
+
+
+def _key(key: str) -> str:
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else json.dumps(key)
+
+
+def _value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, (datetime, date)):
+        return value.isoformat()
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{_key(k)} = {_value(v)}" for k, v in value.items()) + " }"
+    raise TypeError(f"cannot write {value!r} as TOML")
+
+
+def config_text(source: Path, name: str) -> str:
+    """The course configuration of ``source`` with assignment ``name`` alone, as TOML."""
+    with open(source, "rb") as handle:
+        data = tomllib.load(handle)
+    out = ["# The course configuration of this assignment (autograder/course_config.py says what each key means).", ""]
+    for table in ("course", "defaults"):
+        if data.get(table):
+            out.append(f"[{table}]")
+            out += [f"{_key(k)} = {_value(v)}" for k, v in data[table].items()]
+            out.append("")
+    out.append(f"[assignments.{_key(name)}]")
+    out += [f"{_key(k)} = {_value(v)}" for k, v in data["assignments"][name].items()]
+    return "\n".join(out) + "\n"
+
+
+def assignment_files(course, assignment, root: Path = REPO_ROOT) -> dict:
+    """``{path relative to the tree: text}`` that make a tree grade ``assignment``."""
+    files = {"autograder/ASSIGNMENT": assignment.name + "\n",
+             "autograder/course.toml": config_text(Path(assignment.source), assignment.name)}
+    files.update({f"autograder/given/{rel}": text for rel, text in given_files(assignment, root).items()})
+    return files
+
+
+# ---------------------------------------------------------------- the student tree
+
+
+def readme_section(assignment) -> str:
+    late = assignment.late
+    if late.per_day or late.per_hour:
+        rate = f"{100 * (late.per_day or late.per_hour):g}% per started {'day' if late.per_day else 'hour'} late"
+    else:
+        rate = "no penalty for lateness"
+    if late.cutoff is not None:
+        rate += f", nothing after {late.cutoff.total_seconds() / 86400:g} days late"
+    lines = [f"## This assignment: {assignment.name}, {assignment.title}", "",
+             f"Write: {', '.join(f'`exercises/{m}.py`' for m in assignment.modules)}."]
+    optional = [m for name in assignment.optional for m in [name]]
+    if optional:
+        lines.append(f"Optional (extra credit, not in the maximum): {', '.join(f'`{m}`' for m in optional)}.")
+    if assignment.solved:
+        lines.append("Given solved (the reference code, as released after its due date): "
+                     f"{', '.join(f'`exercises/{m}.py`' for m in assignment.solved)}.")
+    due = assignment.due.isoformat() if assignment.due else "not set"
+    lines += [f"Due {due}; {rate}.",
+              f"`make check` and `pytest` grade this assignment only: {assignment.maximum('public'):g} points on the "
+              "public checks; the hidden checks run when you submit.", ""]
+    return "\n".join(lines) + "\n"
+
+
+def write_student_tree(target, course, assignment, stub_files: dict, root: Path = REPO_ROOT) -> None:
+    """The student tree of ``assignment`` at the new directory ``target`` (see the module docstring)."""
+    from course.release.stubs import write_student_tree as write_tree
+
+    target, root = Path(target), Path(root).resolve()
+    write_tree(target, exercise_files(course, assignment, stub_files, root), root)
+    for rel in dropped(course, assignment, root):
+        path = target / rel
+        if path.is_dir():
+            shutil.rmtree(path)
+        elif path.exists():
+            path.unlink()
+    for rel, text in assignment_files(course, assignment, root).items():
+        path = target / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    readme = target / "README.md"
+    text = readme.read_text()
+    head, _, rest = text.partition("\n\n")
+    readme.write_text(f"{head}\n\n{readme_section(assignment)}\n{rest}")
+
+
+def bundle_overlay(course, assignment, stub_files: dict, root: Path = REPO_ROOT) -> dict:
+    """``{member of the Gradescope zip: text}`` replacing its ``exercises/`` and adding the assignment's
+    files (the zip keeps the rest of the grader, the reference included)."""
+    files = {f"exercises/{rel}": text for rel, text in stub_files.items()
+             if rel == "__init__.py" or rel[:-3] in assignment.modules}
+    files.update(assignment_files(course, assignment, root))
+    return files
