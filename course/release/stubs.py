@@ -23,7 +23,7 @@ BEGIN, END, OMIT = "# BEGIN SOLUTION", "# END SOLUTION", "# RELEASE: omit"
 #: the student's README.md and Makefile, copied over the instructor's
 STUDENT_TEMPLATES = Path(__file__).resolve().parent / "student_tree"
 #: paths (relative to the repository) that are the instructor's alone
-INSTRUCTOR_ONLY = ("solutions", "tests", ".ci", "autograder/mistakes", "CONTRIBUTING.md")
+INSTRUCTOR_ONLY = ("solutions", "tests", ".ci", "autograder/mistakes", "CONTRIBUTING.md", "docs/teaching.md")
 #: names skipped at any depth: version control, environments, outputs, caches
 LOCAL_CLUTTER = (".git", ".venv", "out", "build", "__pycache__", ".pytest_cache", ".mypy_cache",
                  ".import_linter_cache", ".ruff_cache", ".ipynb_checkpoints", "*.egg-info", "*.pyc")

@@ -1,0 +1,70 @@
+"""Every command of the teaching guide (docs/teaching.md) runs, in order, from a working folder of
+its own, with the class it grades made here: two students' uploads of chapter 1 (one complete, one
+with a wrong residual sign, submitted after the due date), a roster and an override."""
+
+import csv
+import os
+import re
+import shlex
+import subprocess
+import sys
+from datetime import timedelta
+from pathlib import Path
+
+import pytest
+
+from course.core.impl import REPO_ROOT
+
+GUIDE = REPO_ROOT / "docs" / "teaching.md"
+
+
+def commands() -> list:
+    """The guide's commands: each line of its ```bash blocks."""
+    blocks = re.findall(r"```bash\n(.*?)```", GUIDE.read_text(), re.S)
+    return [line.strip() for block in blocks for line in block.splitlines() if line.strip()]
+
+
+def test_the_guide_shows_commands_and_only_the_course_s():
+    lines = commands()
+    assert len(lines) >= 8
+    assert all(shlex.split(line)[:2] == ["python", "-m"] for line in lines)
+
+
+def make_class(work: Path) -> None:
+    from autograder import course_config
+
+    ch1 = course_config.load().assignment("ch1")
+    for student in ("ada", "bob"):
+        (work / "semester" / "uploads" / student).mkdir(parents=True)
+        for name in ("curve_model", "gauss_newton", "damping"):
+            text = (REPO_ROOT / "solutions" / f"{name}.py").read_text()
+            if student == "bob" and name == "curve_model":
+                text = text.replace("r = y_hat - y", "r = y - y_hat")
+            (work / "semester" / "uploads" / student / f"{name}.py").write_text(text)
+    late = (ch1.due + timedelta(hours=5)).timestamp()
+    for path in (work / "semester" / "uploads" / "bob").iterdir():
+        os.utime(path, (late, late))
+    (work / "semester" / "roster.csv").write_text("id,sid,email,name\nada,9001,ada@example.edu,Ada\n"
+                                                  "bob,9002,bob@example.edu,Bob\n")
+    (work / "semester" / "overrides.csv").write_text(
+        "id,check,points,reason\nbob,curve_model.residuals_and_jacobian: r values,2,the sign slip was the only one\n")
+
+
+@pytest.mark.slow
+def test_every_command_of_the_guide_runs(tmp_path):
+    make_class(tmp_path)
+    env = {**os.environ, "PYTHONPATH": str(REPO_ROOT)}
+    for line in commands():
+        argv = [sys.executable] + shlex.split(line)[1:]
+        done = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+        assert done.returncode == 0, f"{line}\n{done.stdout[-2000:]}\n{done.stderr[-2000:]}"
+    semester = tmp_path / "semester"
+    assert (semester / "ch1-tree" / "README.md").is_file() and (semester / "ch1.zip").is_file()
+    with open(semester / "ch1-grades" / "grades.csv", newline="") as file:
+        table = {row["id"]: row for row in csv.DictReader(file)}
+    assert float(table["ada"]["total"]) == pytest.approx(float(table["ada"]["max"]))
+    assert float(table["bob"]["total"]) < float(table["ada"]["total"]) and float(table["bob"]["penalty"]) > 0
+    assert "sign slip" in table["bob"]["overrides"]
+    with open(semester / "canvas.csv", newline="") as file:
+        assert next(csv.reader(file))[:5] == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section"]
+    assert (semester / "moodle.csv").read_text().startswith("Full name,ID number,Email address")
