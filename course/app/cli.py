@@ -215,6 +215,7 @@ def cmd_demo(args) -> int:
              f"start {tuple(data.start.tolist())}, truth {tuple(data.truth.tolist())}; impl {impl}; "
              f"median of {args.repeat} runs")
     print(compare.format_table(runs, title=title))
+    _advise(runs, "curve", impl)
     out = Path(args.out)
     lm_runs = [r for r in _ran(runs) if r.backend == "ours" and r.method.startswith("lm-type")]
     written = [out / "curve_chi2.png", out / "curve_lambda.png", out / "curve_fit.png"]
@@ -270,6 +271,7 @@ def _demo_pose_graphs(impl, out, init="file") -> tuple:
                                     f"`python -m course compare {name}` runs everything)")
         print("\n" + compare.format_table(
             runs, title=f"{name}: {graph.num_poses} poses, {graph.num_edges} edges; impl {impl}; init {init}{note}"))
+        _advise(runs, "posegraph", impl)
         json_path = write_json(out / f"{name}.json", compare.to_json(name, runs))
         ran = _ran(runs)
         if ran:  # the first run that ran: ours when written, else a peer
@@ -313,6 +315,7 @@ def _demo_pose_graphs_3d(impl, out) -> tuple:
         note = f"; methods {', '.join(plan['methods'])}" if plan else ""
         print("\n" + compare.format_table(runs, title=f"{name} (3D): {graph.num_poses} poses, {graph.num_edges} edges; "
                                                       f"impl {impl}; init {init}{note}"))
+        _advise(runs, "posegraph3d", impl)
         print(NOTE_3D)
         written.append(write_json(out / f"{name}.json", compare.to_json(name, runs)))
     return written, todo
@@ -334,6 +337,7 @@ def _demo_bundle_adjustment(impl, out) -> tuple:
     print("\n" + compare.format_table(runs, title=f"{DEMO_BAL}: {problem.num_cameras} cameras, {problem.num_points} "
                                                   f"points, {problem.num_observations} observations; impl {impl}; "
                                                   "ours with the gauge fixed"))
+    _advise(runs, "bal", impl)
     if compare.format_bal(runs):
         print("\n" + compare.format_bal(runs))
     name = DEMO_BAL.replace(":", "_")
@@ -380,11 +384,12 @@ def cmd_compare(args) -> int:
                          f"{args.dataset} is not one (leave --information out)")
     progress = _progress(runner.kind, methods, backends, args.dataset)
     runs = runner.run(args.dataset, impl=impl, methods=methods, backends=backends, repeat=args.repeat,
-                      max_iterations=args.max_iterations, progress=progress, **init)
+                      max_iterations=args.max_iterations, progress=progress, unimplemented="row", **init)
     progress.close()
     where = f"impl {impl}; init {args.init}" if init else f"impl {impl}"
     notes = list(dict.fromkeys(r.note for r in runs if r.note))
     print(compare.format_table(runs, title=f"{args.dataset} ({where}{''.join(f'; {n}' for n in notes)})"))
+    _say_what_to_check(runs, runner.kind, impl)
     if runner.kind == "posegraph3d":
         print(NOTE_3D)
     if runner.kind == "posegraph":
@@ -403,6 +408,8 @@ def cmd_compare(args) -> int:
         if runner.kind == "posegraph":
             from course.problems.posegraph import dataset as datasets
 
+            if not _ran(runs):
+                raise ValueError(f"--plot: no run finished on {args.dataset}, nothing to plot")
             best = min(_ran(runs), key=lambda r: (r.backend != "ours", r.final_chi2))
             graph = datasets.load_dataset(args.dataset, information=args.information)
             plot.pose_graph_before_after(_start(graph, args.init, impl), best, args.plot)
@@ -410,6 +417,27 @@ def cmd_compare(args) -> int:
             plot.chi2_per_iteration(_ran(runs), args.plot, title=f"{args.dataset}: chi2 per iteration")
         print(f"wrote {args.plot}")
     return 0
+
+
+def _advise(runs, kind, impl) -> None:
+    """Under a table: the lines of ``compare.advice`` (the student's runs that look wrong), if any."""
+    from course.app import compare
+
+    for line in compare.advice(runs, kind, impl):
+        print(line)
+
+
+def _say_what_to_check(runs, kind, impl) -> None:
+    """Under a table: the runs of the student's that look wrong (``compare.advice``), and the TODOs
+    that stopped runs with how to select what is written (``compare.todo_hint``)."""
+    from course.app import compare
+
+    lines = compare.advice(runs, kind, impl)
+    hint = compare.todo_hint(runs, impl)
+    if hint:
+        lines.append(hint)
+    if lines:
+        print("\n".join(lines))
 
 
 def cmd_outliers3d(args) -> int:
