@@ -19,8 +19,9 @@ turns a pair that stops at an unwritten TODO (``NotImplementedError``) into a ro
 so (``RunResult.not_run``) instead of stopping the whole comparison (``compare`` and ``demo`` always
 ask for it; ``todo_hint`` says how to select what is written); the default ``"raise"`` lets the
 error through. ``advice`` gives the lines naming the exercise to look at when a run of the
-student's ends above the peers' best chi2 or at the iteration limit. A peer whose library is not installed here is always
-a row (``not run: gtsam is not installed here``), said once on stderr (``course.core.peers``).
+student's ends above the peers' best chi2 or at the iteration limit. A peer whose library is not
+installed here is always a row (``not run: gtsam is not installed here``), said once on stderr
+(``course.core.peers``).
 """
 
 from collections.abc import Callable
