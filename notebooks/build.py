@@ -30,7 +30,7 @@ no logic of their own: they call the package (``course.app.compare``, ``course.a
 ``course.notebook_helpers.common``, ...). They read their settings from the environment
 (``COURSE_IMPL``, ``COURSE_NOTEBOOK_REPEAT``, ``COURSE_NOTEBOOK_SMALL``), so they are the
 same whatever the build options. Without ``COURSE_IMPL`` they use the tree's own
-implementation: ``solutions`` where ``solutions/`` exists, ``exercises`` in a student tree.
+implementation: ``solutions`` in the course's repository, ``exercises`` in a student tree.
 
 Answer cells (the written questions' cells, tagged ``answer``) belong to whoever writes in
 them: when the target ``.ipynb`` exists, rebuilding keeps the source of each of its
@@ -130,8 +130,8 @@ def shipped(path) -> nbformat.NotebookNode:
 
 
 def default_impl() -> str:
-    """This tree's own implementation: ``solutions`` when ``solutions/`` is next to
-    ``notebooks/``, else ``exercises`` (a student tree)."""
+    """This tree's own implementation: ``solutions`` when the reference package is next to
+    ``notebooks/`` (the course's repository), else ``exercises`` (a student tree)."""
     return "solutions" if (HERE.parent / "solutions" / "__init__.py").is_file() else "exercises"
 
 

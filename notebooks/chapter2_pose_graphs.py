@@ -45,7 +45,7 @@ from course.problems.posegraph.problem import PoseGraphProblem
 from course.solver import minimize
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);
-# by default this tree's own: "exercises" where there is no solutions/ folder
+# by default this tree's own: "exercises" in a student tree
 IMPL = os.environ.get("COURSE_IMPL") or (
     "solutions" if (root / "solutions" / "__init__.py").is_file() else "exercises")
 # runs per (back end, method); the table keeps the median-time run (--small sets 1)
@@ -255,9 +255,6 @@ for name in (["intel"] if SMALL else ["intel", "w10000"]):
 # **Question 2.** Which other methods for nonlinear least squares (and nonlinear
 # optimization in general) exist besides Gauss-Newton? For each, say in a sentence or two
 # how it works and when you would choose it.
-#
-# (Instructors: the reference answers are in `solutions/answers/chapter2.md`, which the
-# student tree leaves out.)
 
 # %% [markdown] tags=["answer"] id="answer-1"
 # **Your answer to question 1:** *(double-click to edit)*

@@ -105,18 +105,9 @@ def build_parser() -> argparse.ArgumentParser:
     listing = sub.add_parser("datasets", help="list the named datasets, their sizes and where each comes from")
     listing.set_defaults(func=cmd_datasets)
 
-    release = sub.add_parser("release", help="regenerate exercises/ from solutions/")
-    release.add_argument("--check", action="store_true",
-                         help="only check: exit 1 and list the stale files when exercises/ is out of date")
-    release.add_argument("--student", metavar="DIR", help="also write a student tree (no solutions/) to DIR")
-    release.add_argument("--root", metavar="DIR", default=None,
-                         help="repository holding solutions/ and exercises/ (default: this checkout)")
-    release.add_argument("--gradescope", metavar="FILE.zip", default=None,
-                         help="also write the Gradescope autograder zip (setup.sh, run_autograder, the grader "
-                              "and the reference) to FILE.zip; with --check, only when nothing is stale")
-    release.add_argument("--hidden-seed", type=int, default=None,
-                         help="seed of the hidden checks' inputs in the Gradescope zip (default: a random one)")
-    release.set_defaults(func=cmd_release)
+    release = _release_command()
+    if release is not None:  # the instructor's tree: exercises from solutions, the student tree, the zip
+        release.add_parser(sub)
 
     bench = sub.add_parser("benchmark", help="our time per iteration and to solution against the peers' on pose "
                                              "graphs, bundle adjustment and the VIO window, medians "
@@ -161,6 +152,16 @@ def build_parser() -> argparse.ArgumentParser:
                                                                 "truth (near 1 where the factors model the noise)")
     vio.set_defaults(func=cmd_vio)
     return parser
+
+
+def _release_command():
+    """``course.release.command`` (the ``release`` subcommand) where this tree has it: the instructor's
+    does, a student tree (``course/release`` is the instructor's alone) does not."""
+    try:
+        from course.release import command
+    except ImportError:
+        return None
+    return command
 
 
 def main(argv=None) -> int:
@@ -462,59 +463,13 @@ def cmd_datasets(args) -> int:
     print(f"\n{'name':28} {'size':36} where")
     from course.app.datasets import list_other_data
 
-    for name, size, where, reason in list_other_data():
+    other = list_other_data()
+    for name, size, where, reason in other:
         print(f"{name:28} {size:36} {where}{f' (missing: {reason})' if reason else ''}")
-    return 0
+    if not data_dir().is_dir() or any(reason for *_, reason in other):
+        from course.core.data import missing_data_help
 
-
-def cmd_release(args) -> int:
-    from course.core.impl import REPO_ROOT
-    from course.release.stubs import release
-
-    root = Path(args.root) if args.root else REPO_ROOT
-    if not (root / "solutions").is_dir():
-        print(f"error: {root} has no solutions/ folder to release from", file=sys.stderr)
-        return 2
-    data_stale = []
-    if root.resolve() == REPO_ROOT.resolve():  # the public checks' data, before a student tree copies it
-        from autograder.oracle import release_expected
-
-        data_stale = [f"autograder/{rel}" for rel in release_expected(check=args.check)]
-    stale = release(check=args.check, student_dir=args.student, root=root)
-    if args.check:
-        if data_stale:
-            print("the public checks' data is out of date; run `python -m course release`. Stale files:")
-            print("\n".join(f"  {rel}" for rel in data_stale))
-        if stale:
-            print("exercises/ is out of date with solutions/; run `python -m course release`. Stale files:")
-            for rel in stale:
-                print(f"  exercises/{rel}")
-            return 1
-        if data_stale:
-            return 1
-        print("exercises/ is up to date")
-        return _write_gradescope(args.gradescope, root, args.hidden_seed)
-    print("rewrote exercises/: " + ", ".join(stale) if stale else "exercises/ was already up to date")
-    if data_stale:
-        print("rewrote the public checks' data: " + ", ".join(data_stale))
-    if args.student:
-        print(f"wrote the student tree to {args.student}")
-    return _write_gradescope(args.gradescope, root, args.hidden_seed)
-
-
-def _write_gradescope(target, root, hidden_seed=None) -> int:
-    """``release --gradescope FILE.zip``: the autograder bundle (course.release.gradescope)."""
-    if not target:
-        return 0
-    from course.release.gradescope import BundleError, build_bundle
-
-    try:
-        bundle = build_bundle(target, root, hidden_seed)
-    except BundleError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    print(f"wrote the Gradescope autograder to {bundle.path} ({bundle.size / 2**20:.2f} MiB, "
-          f"{len(bundle.members)} files); upload it as the assignment's autograder zip")
+        print(f"\n{missing_data_help()}.")
     return 0
 
 

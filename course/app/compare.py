@@ -13,8 +13,8 @@ definite, ``course.solver.information``; ``repeat`` = solves per pair, the media
 and returns ``list[RunResult]`` with ``final_chi2`` evaluated by our own error, whatever the
 back end; where the reader repaired edges, every result says how many (``RunResult.note``).
 
-``impl=None`` means this tree's own implementation: ``solutions`` where ``solutions/``
-exists, else ``exercises`` (a student tree). ``unimplemented="row"`` (the demo's choice)
+``impl=None`` means this tree's own implementation: ``solutions`` in the course's repository,
+``exercises`` in a student tree. ``unimplemented="row"`` (the demo's choice)
 turns a pair that stops at an unwritten TODO (``NotImplementedError``) into a row saying
 so (``RunResult.not_run``) instead of stopping the whole comparison (``compare`` and ``demo`` always
 ask for it; ``todo_hint`` says how to select what is written); the default ``"raise"`` lets the
