@@ -57,8 +57,9 @@ def test_advice_names_the_exercise_of_a_run_above_the_peers_or_at_the_limit():
     lines = compare.advice(runs, "curve", "exercises")
     assert lines[0].startswith("check: ours lm-type1 ended at chi2 34369") and lines[0].endswith(
         "look at damping.GavinType1")
-    assert lines[1].startswith("check: ours dogleg stopped at the iteration limit (100 step attempts)")
-    assert "dogleg (cauchy_point" in lines[1]
+    assert lines[1].startswith("check: ours dogleg stopped at the iteration limit (100 step attempts) without "
+                               "converging: if more iterations (--max-iterations) do not end it at the peers' chi2")
+    assert lines[1].endswith("look at dogleg (cauchy_point, dogleg_step, update_radius)")
     assert not any("lm-type3" in line for line in lines)
     assert compare.advice(runs, "curve", "solutions") == []  # the reference is not the student's
     assert compare.advice(runs[1:2] + runs[3:], "curve", "exercises") == []
@@ -103,3 +104,15 @@ def test_a_broken_lm_type1_is_flagged_by_compare(tmp_path, capsys):
     assert line.startswith("check: ours lm-type1 ended at chi2") and "above the peers' best" in line
     assert line.endswith("look at damping.GavinType1")
     assert re.search(r"^ours +lm-type1 +100 .* max_iterations ", out, flags=re.M)
+
+
+def test_the_demo_says_how_to_get_the_data_folder_once(capsys, monkeypatch):
+    from course.app import cli
+    from course.core.data import missing_data_help
+    from course.core.errors import MissingDataError
+
+    monkeypatch.setattr(cli, "_DATA_HELP_SAID", [])
+    for name in ("intel", "smallGrid3D"):
+        cli._skipped(name, MissingDataError(f"dataset {name!r}: data folder /x not found", missing_data_help()))
+    out = capsys.readouterr().out
+    assert out.count("your instructor ships it") == 1 and "smallGrid3D skipped: dataset 'smallGrid3D': data" in out

@@ -243,6 +243,20 @@ def cmd_demo(args) -> int:
     return 0
 
 
+#: the demo says how to get the data folder once, after the first dataset it skips for want of it
+_DATA_HELP_SAID: list = []
+
+
+def _skipped(name, exc) -> None:
+    """``NAME skipped: why`` in the demo; where the data folder is missing, how to get it, once."""
+    short = getattr(exc, "short", None)
+    if short is None or str(exc) == short or _DATA_HELP_SAID:
+        print(f"\n{name} skipped: {short or exc}")
+        return
+    _DATA_HELP_SAID.append(name)
+    print(f"\n{name} skipped: {exc}")
+
+
 #: w10000 in the demo: Gauss-Newton and dogleg of every back end but Ceres, whose
 #: Python cost takes about 0.5 s per iteration there (see `compare w10000` for all)
 DEMO_W10000 = {"methods": ["gauss-newton", "dogleg"], "backends": ["ours", "g2o", "gtsam"]}
@@ -261,7 +275,7 @@ def _demo_pose_graphs(impl, out, init="file") -> tuple:
         try:
             plans.append((name, datasets.load_dataset(name), plan))
         except DatasetError as exc:
-            print(f"\n{name} skipped: {exc}")
+            _skipped(name, exc)
     for name, graph, plan in plans:
         progress = _progress("posegraph", plan.get("methods"), plan.get("backends"), name)
         runs = compare.run_posegraph(graph, impl=impl, unimplemented="row", progress=progress, init=init, **plan)
@@ -307,7 +321,7 @@ def _demo_pose_graphs_3d(impl, out) -> tuple:
         try:
             graph = datasets.load_dataset(name)
         except DatasetError as exc:
-            print(f"\n{name} skipped: {exc}")
+            _skipped(name, exc)
             continue
         progress = _progress("posegraph3d", plan.get("methods"), None, name)
         runs = compare.run_posegraph3d(graph, impl=impl, unimplemented="row", progress=progress, init=init, **plan)

@@ -646,7 +646,11 @@ def advice(runs, kind: str, impl) -> list:
     everyone = len(flagged) == len(ours) > 1
     for r, reasons in flagged:
         look = METHOD_EXERCISES.get(r.method, r.method)
-        lines.append(f"check: ours {r.method} {' and '.join(reasons)}: look at {look}")
+        if len(reasons) == 1 and reasons[0].startswith("stopped at the iteration limit"):
+            lines.append(f"check: ours {r.method} {reasons[0]} without converging: if more iterations "
+                         f"(--max-iterations) do not end it at the peers' chi2, look at {look}")
+        else:
+            lines.append(f"check: ours {r.method} {' and '.join(reasons)}: look at {look}")
     if model and everyone:
         lines.append(f"check: every method of ours is off: look first at {model}, which every method uses "
                      "on this problem")
