@@ -133,3 +133,15 @@ def test_the_benchmark_goes_on_past_an_unwritten_todo(tmp_path):
     assert "pose3example    skipped: TODO pose_graph_3d" in text
     assert "bal-synthetic:4:30 bundle adjustment skipped: TODO bundle_adjustment." in text
     assert "skipped: TODO bundle_adjustment." in lines[-1]
+
+
+@pytest.mark.slow
+def test_a_pose_graph_does_not_stop_at_the_ceres_cost(tmp_path, capsys):
+    """Chapter 2 written but its Ceres cost: the Ceres rows name the TODO, everything else runs."""
+    impl = _impl(tmp_path, CHAPTER1 + ("pose_graph_edge", "pose_graph_assembly", "sparse_solve"))
+    assert main(["compare", "manhattan:30", "--impl", str(impl)]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"^ceres +levenberg-marquardt +not implemented: TODO ceres_edge_cost\.", out, flags=re.M)
+    assert re.search(r"^ours +lm-type3 +\d+ ", out, flags=re.M)
+    assert "or select what is written: --methods gauss-newton,lm-type1,lm-type2,lm-type3 or --backends ours," in out
+    assert "check:" not in out

@@ -617,23 +617,36 @@ MODEL_EXERCISES = {
 ABOVE_PEERS = 1e-6
 
 
+#: the kinds of method a run of ours is compared within (a pose graph far from its minimum can lead
+#: Gauss-Newton and Levenberg-Marquardt to different local minima, and ours and the peers' alike)
+FAMILIES = {"gauss-newton": "gauss-newton", "dogleg": "dogleg"}
+
+
+def _family(method: str) -> str:
+    """``gauss-newton``, ``dogleg`` or, for every damped method (ours and the peers'), ``levenberg-marquardt``."""
+    return FAMILIES.get(method, "levenberg-marquardt")
+
+
 def advice(runs, kind: str, impl) -> list:
     """Lines for under the table when one of the student's runs looks wrong: ours ending above the
-    best chi2 of the peers that ran by more than ``ABOVE_PEERS`` (relative), or at the iteration
+    best chi2 of the peers' runs of the same kind of method (``_family``; of every peer when none
+    ran) by more than ``ABOVE_PEERS`` (relative), or at the iteration
     limit. Each names the exercise to look at (``METHOD_EXERCISES``), and the problem's model
     (``MODEL_EXERCISES``) when every method of ours is off. None for the reference (``solutions``)."""
     if str(impl) == "solutions":
         return []
     ours = [r for r in runs if r.backend == "ours" and not r.not_run]
-    peers = [r.final_chi2 for r in runs if r.backend != "ours" and not r.not_run and np.isfinite(r.final_chi2)]
-    best = min(peers) if peers else None
+    peers = [r for r in runs if r.backend != "ours" and not r.not_run and np.isfinite(r.final_chi2)]
     flagged = []
     for r in ours:
         reasons = []
+        family = [p.final_chi2 for p in peers if _family(p.method) == _family(r.method)]
+        best, whose = (min(family), f"the peers' best {_family(r.method)}") if family else \
+            (min(p.final_chi2 for p in peers), "the peers' best") if peers else (None, "")
         if not np.isfinite(r.final_chi2):
             reasons.append(f"ended at chi2 {r.final_chi2}")
         elif best is not None and r.final_chi2 > best * (1 + ABOVE_PEERS) + 1e-300:
-            reasons.append(f"ended at chi2 {r.final_chi2:.10g}, above the peers' best {best:.10g} "
+            reasons.append(f"ended at chi2 {r.final_chi2:.10g}, above {whose} {best:.10g} "
                            f"(relative {(r.final_chi2 - best) / max(abs(best), 1e-300):.2g})")
         if short_stop_reason(r.stop_reason) == "max_iterations":
             reasons.append(f"stopped at the iteration limit ({r.iterations} step attempts)")
