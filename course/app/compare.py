@@ -659,8 +659,8 @@ def advice(runs, kind: str, impl) -> list:
     everyone = len(flagged) == len(ours) > 1
     for r, reasons in flagged:
         look = METHOD_EXERCISES.get(r.method, r.method)
-        if len(reasons) == 1 and reasons[0].startswith("stopped at the iteration limit"):
-            lines.append(f"check: ours {r.method} {reasons[0]} without converging: if more iterations "
+        if reasons[-1].startswith("stopped at the iteration limit"):  # it may only be slow: more iterations first
+            lines.append(f"check: ours {r.method} {' and '.join(reasons)} without converging: if more iterations "
                          f"(--max-iterations) do not end it at the peers' chi2, look at {look}")
         else:
             lines.append(f"check: ours {r.method} {' and '.join(reasons)}: look at {look}")
