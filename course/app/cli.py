@@ -205,6 +205,7 @@ def cmd_demo(args) -> int:
     from course.problems.curve.problem import generate
 
     impl = args.impl or default_impl()
+    _DATA_HELP_SAID.clear()  # how to get the data folder: once per demo
     peers.announce_missing(("pyceres", "g2opy", "gtsam", "pycolmap", "qdldl"))  # up front, once, whatever runs
     data = generate(num_points=args.points, seed=args.seed)
     methods, backends = _names(args.methods), _names(args.backends)
