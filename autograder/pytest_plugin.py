@@ -309,7 +309,7 @@ def grade_items(items: list) -> FolderGrading:
 @pytest.hookimpl(wrapper=True, tryfirst=True)
 def pytest_terminal_summary(terminalreporter, config):
     """After pytest's own summary (the short one included), before the final counts: the points."""
-    from autograder.report import total
+    from autograder.report import next_step, total
 
     yield
     runs = gradings(config)
@@ -327,3 +327,6 @@ def pytest_terminal_summary(terminalreporter, config):
         terminalreporter.write_line(f"autograder: {total(run.reported)} points on the {count} "
                                     f"check{'s' if count != 1 else ''} run{where} ({SET_WORDS[which]}{note})",
                                     bold=True)
+        step = next_step(run.reported)
+        if step:
+            terminalreporter.write_line(f"autograder: {step}")

@@ -66,6 +66,56 @@ def summary(results, lateness=None) -> str:
     return "\n".join(lines)
 
 
+def _units():
+    """Every exercise unit (``damping.GavinType1``, ``end_to_end``) in report order, with its check
+    module: ``[(unit, module), ...]``."""
+    from autograder.checks import modules
+
+    units: dict = {}
+    for name, module in modules():
+        for check in module.CHECKS:
+            units.setdefault(check.exercise, name)
+    return list(units.items())
+
+
+def next_step(results) -> str:
+    """The grader's last line: what to do next.
+
+    The first exercise graded here that is not at full marks (``next: finish damping.GavinType2
+    (2 / 5 points)``); when every one is, the exercise after the last graded, in the course's order
+    (``checks.ORDER``), and, where that starts another chapter, the chapter's lesson (its notebook)
+    first. Empty when nothing was graded."""
+    from autograder.checks import CHAPTER, LESSONS
+
+    graded: dict = {}
+    for r in results:
+        score, maximum = graded.get(r.exercise, (0.0, 0.0))
+        graded[r.exercise] = (score + r.score, maximum + r.max_score)
+    if not graded:
+        return ""
+    units = _units()
+    order = [unit for unit, _ in units]
+    module = dict(units)
+    for unit in sorted(graded, key=lambda u: order.index(u) if u in order else len(order)):
+        score, maximum = graded[unit]
+        if score < maximum - 1e-9:
+            return (f"next: finish {unit} ({points(score)} / {points(maximum)} points; "
+                    f"`python -m autograder --only {unit}`)")
+    last = max(order.index(u) for u in graded if u in order) if any(u in order for u in graded) else -1
+    later = order[last + 1:]
+    done_chapter = CHAPTER.get(module.get(order[last], ""), "") if last >= 0 else ""
+    if not later:
+        lesson = LESSONS.get(done_chapter)
+        return "next: every exercise is at full marks" + (f"; the last lesson is {lesson}" if lesson else "")
+    following = later[0]
+    chapter = CHAPTER.get(module[following], "")
+    where = f"`python -m autograder --only {following}`"
+    if done_chapter and chapter != done_chapter and done_chapter in LESSONS:
+        return (f"next: chapter {done_chapter}'s lesson, {LESSONS[done_chapter]} (`make notebooks`), then "
+                f"{following} (chapter {chapter}; {where})")
+    return f"next: {following} (chapter {chapter}; {where})"
+
+
 SET_TEXT = {
     "public": "public checks (the inputs shipped with the course)",
     "hidden": "hidden checks (fresh inputs, judged with the reference)",
@@ -103,6 +153,9 @@ def table(results, impl: str, seconds: float, workers: int, which: str = "public
             out += [f"    {line}" for line in r.message.splitlines()]
     out += ["", summary(results, lateness)]
     out.append(f"Elapsed: {seconds:.1f} s ({len(results)} checks, {workers} workers)")
+    step = next_step(results)
+    if step:
+        out.append(step)
     return "\n".join(out)
 
 
@@ -133,7 +186,7 @@ def gradescope(results, seconds: float, lateness=None) -> dict:
     return {
         "score": round(score, 4),
         "execution_time": round(seconds, 3),
-        "output": summary(results, lateness),
+        "output": "\n".join(filter(None, [summary(results, lateness), next_step(results)])),
         "tests": tests,
     }
 

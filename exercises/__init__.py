@@ -1,5 +1,2 @@
-"""Your implementations of the course's exercises.
-
-Solution code sits between ``# BEGIN SOLUTION`` and ``# END SOLUTION``;
-``python -m course release`` turns this package into ``exercises/``.
-"""
+"""Your implementations of the course's exercises: replace each ``raise NotImplementedError("TODO ...")``
+with your code and keep the signatures; ``python -m autograder`` grades them."""

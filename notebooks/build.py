@@ -7,6 +7,7 @@
                                            # chapter 4 on synthetic problems, chapter 5 on a
                                            # 4-second simulation
     python -m notebooks.build --only chapter2 chapter3   # only those notebooks
+    python -m notebooks.build --execute --out /tmp/nb    # write them elsewhere
 
 Chapter 1 compares damping strategies on the curve, chapter 2 pose graphs (dense against
 sparse, every back end on every named dataset, the written questions), chapter 3 the
@@ -29,14 +30,18 @@ no logic of their own: they call the package (``course.app.compare``, ``course.a
 ``course.notebook_helpers.common``, ...). They read their settings from the environment
 (``COURSE_IMPL``, ``COURSE_NOTEBOOK_REPEAT``, ``COURSE_NOTEBOOK_SMALL``), so they are the
 same whatever the build options. Without ``COURSE_IMPL`` they use the tree's own
-implementation: ``solutions`` where ``solutions/`` exists, ``exercises`` in a student tree.
+implementation: ``solutions`` in the course's repository, ``exercises`` in a student tree.
 
 Answer cells (the written questions' cells, tagged ``answer``) belong to whoever writes in
 them: when the target ``.ipynb`` exists, rebuilding keeps the source of each of its
 answer cells, matched by cell id.
 
-Progress goes to stderr: one line per notebook and per executed cell (a tqdm bar when
-stderr is a terminal).
+Progress goes to stderr: one line per notebook (written, its run time, the cells that stopped at
+an unwritten TODO or failed), a tqdm bar over its cells when stderr is a terminal, and with
+``--verbose`` one line per cell elsewhere. A failing cell does not stop the build: its output is
+its error (one short line for an unwritten TODO, ``not written yet: TODO module.function``, and
+for each later cell that needs what it did not compute), the next cells and notebooks run, and the
+exit status is 0 unless a cell failed for another reason than a TODO.
 
 Kernel: ``execute`` runs the kernel on *this* interpreter (``sys.executable``), so the
 notebook sees the same packages as the caller. It uses the ``python3`` kernelspec when
@@ -127,8 +132,8 @@ def shipped(path) -> nbformat.NotebookNode:
 
 
 def default_impl() -> str:
-    """This tree's own implementation: ``solutions`` when ``solutions/`` is next to
-    ``notebooks/``, else ``exercises`` (a student tree)."""
+    """This tree's own implementation: ``solutions`` when the reference package is next to
+    ``notebooks/`` (the course's repository), else ``exercises`` (a student tree)."""
     return "solutions" if (HERE.parent / "solutions" / "__init__.py").is_file() else "exercises"
 
 
@@ -147,13 +152,98 @@ def keep_answers(nb, existing) -> int:
     return kept
 
 
-class _Progress:
-    """Reports each executed cell on stderr: a tqdm bar on a terminal, else one line per cell."""
+#: run silently in the kernel before the first cell: an exception in a cell shows as one short output,
+#: ``not written yet: TODO module.function (...)`` for an unwritten exercise, and ``not run: ...`` for a
+#: cell that fails after such a cell (it needs what that cell did not compute); any other error as usual
+SHORT_ERRORS = r"""
+def _course_short_errors():
+    import re
 
-    def __init__(self, name, nb):
+    from IPython import get_ipython
+
+    stopped = []
+
+    def handler(self, etype, value, tb, tb_offset=None):  # shows the error itself, as IPython expects
+        text = str(value)
+        todo = re.search(r"TODO [\w.]+", text)
+        if issubclass(etype, NotImplementedError) and todo:
+            stopped.append(todo.group(0))
+            module = todo.group(0)[5:].split(".")[0]
+            stb = [f"not written yet: {todo.group(0)} (your {module}.py; "
+                   f"`python -m autograder --only {module}` grades it)"]
+        elif stopped:
+            stb = [f"not run: this cell needs what a cell above did not compute ({stopped[-1]}) "
+                   f"[{etype.__name__}: {text[:160]}]"]
+        else:
+            self.showtraceback((etype, value, tb), tb_offset=tb_offset)
+            return None
+        self._showtraceback(etype, value, stb)
+        return stb
+
+    get_ipython().set_custom_exc((Exception,), handler)
+
+
+_course_short_errors()
+del _course_short_errors
+"""
+#: how ``SHORT_ERRORS`` starts the outputs it shortens
+TODO_MARK, AFTER_TODO_MARK = "not written yet: TODO ", "not run: this cell needs what a cell above"
+
+
+def failures(nb) -> dict:
+    """The failed cells of an executed notebook: ``{"todo": [...], "after_todo": [...], "error": [...]}``,
+    each a list of ``(cell id, first line of its error)``; ``todo`` the cells that stopped at an
+    unwritten exercise, ``after_todo`` the cells that failed after one (they need its results),
+    ``error`` any other failure."""
+    found: dict = {"todo": [], "after_todo": [], "error": []}
+    for cell in nb.cells:
+        if cell.cell_type != "code":
+            continue
+        for output in cell.get("outputs", []):
+            if output.get("output_type") != "error":
+                continue
+            first = (output.get("traceback") or [f"{output.get('ename')}: {output.get('evalue')}"])[0]
+            kind = "todo" if first.startswith(TODO_MARK) else "after_todo" if first.startswith(AFTER_TODO_MARK) \
+                else "error"
+            line = first if kind != "error" else f"{output.get('ename')}: {output.get('evalue')}"
+            found[kind].append((cell.get("id", ""), line.splitlines()[0] if line else ""))
+    return found
+
+
+def todo_name(line: str) -> str:
+    """``module.function`` from a ``not written yet: TODO module.function (...)`` line."""
+    return line[len(TODO_MARK):].split(" ")[0]
+
+
+def outcome(name, nb, seconds=None) -> str:
+    """One line for an executed notebook: written, and which cells stopped at a TODO or failed."""
+    found = failures(nb)
+    code = sum(c.cell_type == "code" for c in nb.cells)
+    took = f" in {seconds:.0f} s" if seconds is not None else ""
+    if not any(found.values()):
+        return f"{name}: all {code} code cells ran{took}"
+    parts = []
+    if found["todo"]:
+        todos = list(dict.fromkeys(todo_name(line) for _, line in found["todo"]))
+        parts.append(f"{len(found['todo'])} cell(s) stopped at a TODO ({', '.join(todos)})")
+    if found["after_todo"]:
+        parts.append(f"{len(found['after_todo'])} after them need their results")
+    if found["error"]:
+        cell, line = found["error"][0]
+        parts.append(f"{len(found['error'])} failed (first: cell {cell}: {line})")
+    ok = code - sum(len(v) for v in found.values())
+    return f"{name}: {ok} of {code} code cells ran{took}; " + "; ".join(parts)
+
+
+class _Progress:
+    """Reports each executed cell on stderr: a tqdm bar on a terminal; elsewhere one line per cell
+    when ``verbose``, else nothing (the build's one line per notebook says how it went)."""
+
+    def __init__(self, name, nb, verbose=True):
         self.name = name
         self.code = [i for i, cell in enumerate(nb.cells) if cell.cell_type == "code"]
         self.bar = None
+        self.verbose = verbose
         if sys.stderr.isatty():
             from tqdm import tqdm
 
@@ -166,7 +256,7 @@ class _Progress:
         if self.bar is not None:
             self.bar.set_postfix_str(cell.get("id", ""))
             self.bar.update(k - 1 - self.bar.n)
-        else:
+        elif self.verbose:
             print(f"{self.name}: cell {k}/{len(self.code)} ({cell.get('id', '')})", file=sys.stderr, flush=True)
 
     def close(self):
@@ -224,24 +314,34 @@ def _environment(**values):
                 os.environ[k] = v
 
 
-def execute(nb, timeout=900, cwd=HERE, small=False, impl=None, progress=None):
-    """Run every cell of ``nb`` in place (raises ``nbclient`` errors on a failing cell).
+def execute(nb, timeout=900, cwd=HERE, small=False, impl=None, progress=None, keep_going=False, verbose=True):
+    """Run every cell of ``nb`` in place. A failing cell raises ``nbclient``'s error, or, with
+    ``keep_going``, stays in the notebook as its error output and the next cells run
+    (``failures(nb)`` lists them). Either way an error shows as one short output where
+    ``SHORT_ERRORS`` says so (an unwritten TODO, and the cells after it that need its results).
 
     The kernel inherits ``COURSE_IMPL = impl`` (None: ``default_impl()``),
     ``COURSE_NOTEBOOK_REPEAT`` (1 when
     ``small``, else 5) and ``COURSE_NOTEBOOK_SMALL`` (1 when ``small``: chapters 2, 3 and 3b
     run on small graphs only, chapter 4 on synthetic problems, chapter 5 on a 4-second
     simulation) and starts in ``cwd``. ``progress``, a name: report each
-    cell on stderr under it (see ``_Progress``).
+    cell on stderr under it (see ``_Progress``; ``verbose``: a line per cell off a terminal).
     """
     from nbclient import NotebookClient
 
     with kernel_for_this_interpreter() as kernel_name, \
             _environment(COURSE_IMPL=impl or default_impl(), COURSE_NOTEBOOK_REPEAT=1 if small else 5,
                          COURSE_NOTEBOOK_SMALL=1 if small else 0):
-        report = _Progress(progress, nb) if progress else None
-        client = NotebookClient(nb, timeout=timeout, kernel_name=kernel_name,
-                                resources={"metadata": {"path": str(cwd)}},
+        report = _Progress(progress, nb, verbose) if progress else None
+        client: NotebookClient
+
+        async def short_errors(notebook=None):
+            """Before the first cell: install ``SHORT_ERRORS`` in the kernel (silently: no cell, no count)."""
+            assert client.kc is not None
+            await client.async_wait_for_reply(client.kc.execute(SHORT_ERRORS, silent=True, store_history=False))
+
+        client = NotebookClient(nb, timeout=timeout, kernel_name=kernel_name, allow_errors=keep_going,
+                                resources={"metadata": {"path": str(cwd)}}, on_notebook_start=short_errors,
                                 on_cell_start=report.on_cell_start if report else None)
         try:
             client.execute()
@@ -267,12 +367,17 @@ def _stderr(line):
     print(line, file=sys.stderr, flush=True)
 
 
-def build(execute_notebooks=False, small=False, impl=None, out_dir=HERE, only=None, log=None) -> list:
+def build(execute_notebooks=False, small=False, impl=None, out_dir=HERE, only=None, log=None,
+          outcomes=None, verbose=False) -> list:
     """Write the notebooks (all, or those ``select(only)`` picks) into ``out_dir``; returns the paths.
 
     ``impl`` None: ``default_impl()``. An existing notebook's answer cells keep their
-    source (``keep_answers``). ``log``, when given, is called with one line per notebook
-    started and written (and its run time); executed cells are reported on stderr."""
+    source (``keep_answers``). Executed, a notebook whose cell fails is still written, with that
+    cell's error as its output, and the next cells and notebooks still run (``execute(...,
+    keep_going=True)``); ``outcomes``, a list, receives ``(path, failures(nb))`` per notebook.
+    ``log``, when given, is called with one line per notebook (``outcome``: written, its run time, the
+    cells that stopped at a TODO or failed); ``verbose``: also one line per executed cell on stderr
+    off a terminal."""
     written = []
     from_source = peers.installed("jupytext")
     if not from_source:
@@ -283,15 +388,15 @@ def build(execute_notebooks=False, small=False, impl=None, out_dir=HERE, only=No
         keep_answers(nb, target)
         start = time.perf_counter()
         if execute_notebooks:
-            if log is not None:
-                log(f"{path.name}: executing {sum(c.cell_type == 'code' for c in nb.cells)} code cells")
-            execute(nb, small=small, impl=impl, progress=path.name)
+            execute(nb, small=small, impl=impl, progress=path.name, keep_going=True, verbose=verbose)
         nbformat.validate(nb)
         nbformat.write(nb, target)
         written.append(target)
+        if outcomes is not None:
+            outcomes.append((target, failures(nb)))
         if log is not None:
-            ran = f" (executed in {time.perf_counter() - start:.0f} s)" if execute_notebooks else ""
-            log(f"wrote {target}{ran}")
+            log(outcome(f"wrote {target}", nb, time.perf_counter() - start) if execute_notebooks
+                else f"wrote {target}")
     return written
 
 
@@ -304,8 +409,21 @@ def main(argv=None) -> int:
                         help="implementation the notebooks use (default: solutions when present, else exercises)")
     parser.add_argument("--only", nargs="+", metavar="NAME",
                         help="only these notebooks, by the start of their file name (e.g. chapter2)")
+    parser.add_argument("--verbose", action="store_true", help="with --execute: one line per cell on stderr")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="write the notebooks into DIR (default: notebooks/, beside their sources)")
     args = parser.parse_args(argv)
-    build(args.execute, args.small, args.impl, only=args.only, log=_stderr)
+    outcomes: list = []
+    build(args.execute, args.small, args.impl, out_dir=Path(args.out) if args.out else HERE, only=args.only,
+          log=_stderr, outcomes=outcomes, verbose=args.verbose)
+    todos = sorted({todo_name(line) for _, found in outcomes for _, line in found["todo"]})
+    failed = [path.name for path, found in outcomes if found["error"]]
+    if todos:
+        _stderr(f"not written yet: {', '.join(todos)}; the cells that need them say so, and every other cell "
+                "ran (`python -m autograder --only NAME` grades one exercise)")
+    if failed:
+        _stderr(f"failed: a cell of {', '.join(failed)} raised an error other than a TODO (see its output)")
+        return 1
     return 0
 
 

@@ -39,7 +39,7 @@ from course.app import compare, plot
 from course.notebook_helpers.common import load
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);
-# by default this tree's own: "exercises" where there is no solutions/ folder
+# by default this tree's own: "exercises" in a student tree
 IMPL = os.environ.get("COURSE_IMPL") or (
     "solutions" if (root / "solutions" / "__init__.py").is_file() else "exercises")
 # runs per (back end, method); the table keeps the median-time run (--small sets 1)

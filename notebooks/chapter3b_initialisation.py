@@ -5,7 +5,7 @@
 # basin holds its start. Chapters 2 and 3 started every solve from the poses in the file,
 # which compose the odometry: their drift grows along the whole trajectory, and on mit
 # (chi2 4.4e9 at the start) Gauss-Newton ends in a local minimum. This chapter computes
-# two other starts (`solutions/initialisation.py`, your `exercises/initialisation.py`):
+# two other starts (your `exercises/initialisation.py`):
 #
 # * **tree**: compose the measurements along a breadth-first spanning tree from the fixed
 #   pose, $x_v = x_u \oplus z_{uv}$ (or $x_u \oplus z_{vu}^{-1}$ against the edge's
@@ -60,7 +60,7 @@ from course.notebook_helpers.common import (
 from course.problems.posegraph import dataset as datasets
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);
-# by default this tree's own: "exercises" where there is no solutions/ folder
+# by default this tree's own: "exercises" in a student tree
 IMPL = os.environ.get("COURSE_IMPL") or (
     "solutions" if (root / "solutions" / "__init__.py").is_file() else "exercises")
 # runs per (back end, method); the tables keep the median-time run (--small sets 1)

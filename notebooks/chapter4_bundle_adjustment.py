@@ -87,7 +87,7 @@ from course.problems.bal import outliers
 from course.problems.bal.dataset import load_bal
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);
-# by default this tree's own: "exercises" where there is no solutions/ folder
+# by default this tree's own: "exercises" in a student tree
 IMPL = os.environ.get("COURSE_IMPL") or (
     "solutions" if (root / "solutions" / "__init__.py").is_file() else "exercises")
 # runs per timing; the tables keep the median (--small sets 1)

@@ -96,7 +96,7 @@ from course.notebook_helpers.vio import (
 )
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);
-# by default this tree's own: "exercises" where there is no solutions/ folder
+# by default this tree's own: "exercises" in a student tree
 IMPL = os.environ.get("COURSE_IMPL") or (
     "solutions" if (root / "solutions" / "__init__.py").is_file() else "exercises")
 # 1: the quick setting (a 4-second simulation; the tests run it, --small sets it); else the full one

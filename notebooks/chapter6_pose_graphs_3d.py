@@ -2,8 +2,7 @@
 # # Chapter 6: pose graphs in 3D
 #
 # A pose is now $T = (R, t) \in SE(3)$. The edge $i \to j$ measures $Z = (R_z, t_z)$, pose $j$
-# seen from pose $i$, and its error (`solutions/pose_graph_3d.py`, your
-# `exercises/pose_graph_3d.py`) is, with $D = Z^{-1} T_i^{-1} T_j$,
+# seen from pose $i$, and its error (your `exercises/pose_graph_3d.py`) is, with $D = Z^{-1} T_i^{-1} T_j$,
 #
 # $$e = \begin{bmatrix} R_z^T (R_i^T (t_j - t_i) - t_z) \\ \mathrm{Log}(R_z^T R_i^T R_j) \end{bmatrix}
 #   \in \mathbb{R}^6,$$

@@ -66,9 +66,11 @@ def test_unknown_backend_and_method(capsys):
     assert "unknown method" in capsys.readouterr().err
 
 
-def test_unimplemented_exercises_fail_with_the_todo(capsys):
-    assert main(["compare", "curve", "--impl", "exercises", "--backends", "ours"]) == 1
-    assert "TODO curve_model.residuals_and_jacobian" in capsys.readouterr().err
+def test_unimplemented_exercises_are_rows_naming_the_todo(capsys):
+    assert main(["compare", "curve", "--impl", "exercises", "--backends", "ours"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"^ours +lm-type1 +not implemented: TODO curve_model\.residuals_and_jacobian$", out, flags=re.M)
+    assert "5 run(s) stopped at a TODO of impl exercises (curve_model.residuals_and_jacobian)" in out
 
 
 @pytest.mark.slow

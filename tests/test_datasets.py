@@ -281,9 +281,11 @@ def test_missing_data_folder(tmp_path, monkeypatch):
     with pytest.raises(DatasetError, match="COURSE_DATA") as err:
         load_dataset("m3500")
     assert str(tmp_path / "absent") in str(err.value)
+    # how to get it, and what works without it
+    assert "your instructor ships it" in str(err.value) and "`python -m course demo`" in str(err.value)
     info = {i.name: i for i in datasets.list_datasets()}["m3500"]
     assert (info.poses, info.edges, info.available) == (3500, 5453, False)
-    assert "COURSE_DATA" in info.reason
+    assert "data folder" in info.reason and "not found" in info.reason  # the listing's row: short
 
 
 def test_the_other_chapters_data_are_listed_and_missing_ones_say_why(tmp_path, monkeypatch):
@@ -293,5 +295,9 @@ def test_the_other_chapters_data_are_listed_and_missing_ones_say_why(tmp_path, m
     assert rows["ladybug-49"][0] == "49 cameras, 7776 points, 31843 obs"
     monkeypatch.setenv("COURSE_DATA", str(tmp_path / "absent"))
     rows = {name: reason for name, _, _, reason in list_other_data()}
-    assert "not found" in rows["ladybug-49"] and "COURSE_DATA" in rows["euroc-mh05"]
+    assert "not found" in rows["ladybug-49"] and "missing" in rows["euroc-mh05"]
+    with pytest.raises(DatasetError, match="COURSE_DATA"):
+        from course.problems.vio import ape
+
+        ape.euroc_mh05_files()
     assert rows["vio-sim[:seconds[:seed]]"] == ""

@@ -366,3 +366,46 @@ def test_a_core_only_install_grades_all_but_the_checks_that_need_a_missing_libra
     assert lost == {t["name"] for t in tests if t["output"].startswith("not run: ")}
     assert {name.split(": ")[0] for name in lost} == {"ceres_edge_cost.SE2EdgeCost",
                                                       "sparse_solve.SparseCholeskySolver"}
+
+
+# ---------------------------------------------------------------- no instructor words, and data it can get
+
+#: words that are the instructor's alone: the reference's folder, its markers, notes to instructors, the release
+INSTRUCTOR_WORDS = ("solutions/", rel.BEGIN, rel.END, "Instructors:", "python -m course release")
+
+
+def test_what_a_student_reads_has_no_instructor_words(tree):
+    """exercises/, notebooks/ (sources and shipped notebooks, outputs included), course/ and the README."""
+    found = []
+    paths = [tree / "README.md"] + [p for folder in ("exercises", "notebooks", "course")
+                                    for p in _files(tree / folder)]
+    for path in paths:
+        text = path.read_text(errors="replace")
+        for number, line in enumerate(text.splitlines(), start=1):
+            found += [f"{path.relative_to(tree)}:{number}: {word!r}" for word in INSTRUCTOR_WORDS if word in line]
+    assert not found, "\n".join(found)
+    assert not (tree / "course" / "release").exists()  # the release tooling is the instructor's
+    assert (tree / "exercises" / "__init__.py").read_text().startswith('"""Your implementations')
+
+
+def test_the_students_command_line_has_no_release(tree, python, tmp_path):
+    out = _run(python, tree, "-m", "course", "--help")
+    assert out.returncode == 0, out.stderr
+    assert "release" not in out.stdout and "compare" in out.stdout
+    assert "release" in subprocess.run([sys.executable, "-m", "course", "--help"], cwd=REPO_ROOT,
+                                       capture_output=True, text=True).stdout
+
+
+def test_missing_data_says_how_to_get_it_and_what_works_without(tree, python, tmp_path):
+    env_data = str(tmp_path / "absent")
+    run = lambda *args: subprocess.run(  # noqa: E731
+        [python, "-m", "course", *args], cwd=tree, capture_output=True, text=True, timeout=300,
+        env={**{k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "COURSE_IMPL"))},
+             "PYTHONPATH": str(tree), "COURSE_DATA": env_data})
+    out = run("compare", "intel")
+    assert out.returncode == 1
+    for words in ("data folder", "not found", "your instructor ships it", "COURSE_DATA", "python -m course demo",
+                  "compare curve"):
+        assert words in out.stderr, (words, out.stderr)
+    listing = run("datasets")
+    assert listing.returncode == 0 and "your instructor ships it" in listing.stdout

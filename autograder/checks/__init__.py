@@ -49,6 +49,20 @@ def present() -> tuple:
     return tuple(name for name in ORDER if (here / f"{name}.py").is_file())
 
 
+#: each check module's chapter, and each chapter's lesson (its notebook, ``make notebooks``): where the
+#: grader sends a student whose exercise is at full marks (``autograder.report.next_step``)
+CHAPTER = {"curve_model": "1", "gauss_newton": "1", "damping": "1", "end_to_end": "1",
+           "pose_graph_edge": "2", "pose_graph_assembly": "2", "sparse_solve": "2", "ceres_edge_cost": "2",
+           "pose_graph_fast": "2", "pose_graph": "2", "dogleg": "3", "initialisation": "3b",
+           "bundle_adjustment": "4", "robust_kernels": "4", "gauge": "4", "parallel_assembly": "4",
+           "marginalisation": "5", "imu_preintegration": "5",
+           "pose_graph_3d": "6", "pose_graph_3d_assembly": "6", "chordal_3d": "6", "gnc": "6"}
+LESSONS = {"1": "notebooks/chapter1_curve_fitting.ipynb", "2": "notebooks/chapter2_pose_graphs.ipynb",
+           "3": "notebooks/chapter3_dogleg.ipynb", "3b": "notebooks/chapter3b_initialisation.ipynb",
+           "4": "notebooks/chapter4_bundle_adjustment.ipynb", "5": "notebooks/chapter5_vio.ipynb",
+           "6": "notebooks/chapter6_pose_graphs_3d.ipynb"}
+
+
 def modules() -> list:
     """``(name, module)`` of every check module, in report order."""
     return [(name, importlib.import_module(f"{__name__}.{name}")) for name in present()]

@@ -105,24 +105,9 @@ def build_parser() -> argparse.ArgumentParser:
     listing = sub.add_parser("datasets", help="list the named datasets, their sizes and where each comes from")
     listing.set_defaults(func=cmd_datasets)
 
-    release = sub.add_parser("release", help="regenerate exercises/ from solutions/")
-    release.add_argument("--check", action="store_true",
-                         help="only check: exit 1 and list the stale files when exercises/ is out of date")
-    release.add_argument("--student", metavar="DIR", help="also write a student tree (no solutions/) to DIR")
-    release.add_argument("--root", metavar="DIR", default=None,
-                         help="repository holding solutions/ and exercises/ (default: this checkout)")
-    release.add_argument("--gradescope", metavar="FILE.zip", default=None,
-                         help="also write the Gradescope autograder zip (setup.sh, run_autograder, the grader "
-                              "and the reference) to FILE.zip; with --check, only when nothing is stale")
-    release.add_argument("--hidden-seed", type=int, default=None,
-                         help="seed of the hidden checks' inputs in the Gradescope zip (default: a random one)")
-    release.add_argument("--assignment", metavar="NAME", default=None,
-                         help="hand out one assignment of the course configuration: --student and --gradescope "
-                              "then hold and grade NAME only (its stubs, the files it gives solved, its points, "
-                              "visibilities and late policy); without it, the whole course")
-    release.add_argument("--config", metavar="FILE", default=None,
-                         help="the course configuration (default: autograder/course.toml of the repository)")
-    release.set_defaults(func=cmd_release)
+    release = _release_command()
+    if release is not None:  # the instructor's tree: exercises from solutions, the student tree, the zip
+        release.add_parser(sub)
 
     bench = sub.add_parser("benchmark", help="our time per iteration and to solution against the peers' on pose "
                                              "graphs, bundle adjustment and the VIO window, medians "
@@ -169,6 +154,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _release_command():
+    """``course.release.command`` (the ``release`` subcommand) where this tree has it: the instructor's
+    does, a student tree (``course/release`` is the instructor's alone) does not."""
+    try:
+        from course.release import command
+    except ImportError:
+        return None
+    return command
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -210,6 +205,7 @@ def cmd_demo(args) -> int:
     from course.problems.curve.problem import generate
 
     impl = args.impl or default_impl()
+    _DATA_HELP_SAID.clear()  # how to get the data folder: once per demo
     peers.announce_missing(("pyceres", "g2opy", "gtsam", "pycolmap", "qdldl"))  # up front, once, whatever runs
     data = generate(num_points=args.points, seed=args.seed)
     methods, backends = _names(args.methods), _names(args.backends)
@@ -221,6 +217,7 @@ def cmd_demo(args) -> int:
              f"start {tuple(data.start.tolist())}, truth {tuple(data.truth.tolist())}; impl {impl}; "
              f"median of {args.repeat} runs")
     print(compare.format_table(runs, title=title))
+    _advise(runs, "curve", impl)
     out = Path(args.out)
     lm_runs = [r for r in _ran(runs) if r.backend == "ours" and r.method.startswith("lm-type")]
     written = [out / "curve_chi2.png", out / "curve_lambda.png", out / "curve_fit.png"]
@@ -247,6 +244,20 @@ def cmd_demo(args) -> int:
     return 0
 
 
+#: the demo says how to get the data folder once, after the first dataset it skips for want of it
+_DATA_HELP_SAID: list = []
+
+
+def _skipped(name, exc) -> None:
+    """``NAME skipped: why`` in the demo; where the data folder is missing, how to get it, once."""
+    short = getattr(exc, "short", None)
+    if short is None or str(exc) == short or _DATA_HELP_SAID:
+        print(f"\n{name} skipped: {short or exc}")
+        return
+    _DATA_HELP_SAID.append(name)
+    print(f"\n{name} skipped: {exc}")
+
+
 #: w10000 in the demo: Gauss-Newton and dogleg of every back end but Ceres, whose
 #: Python cost takes about 0.5 s per iteration there (see `compare w10000` for all)
 DEMO_W10000 = {"methods": ["gauss-newton", "dogleg"], "backends": ["ours", "g2o", "gtsam"]}
@@ -265,7 +276,7 @@ def _demo_pose_graphs(impl, out, init="file") -> tuple:
         try:
             plans.append((name, datasets.load_dataset(name), plan))
         except DatasetError as exc:
-            print(f"\n{name} skipped: {exc}")
+            _skipped(name, exc)
     for name, graph, plan in plans:
         progress = _progress("posegraph", plan.get("methods"), plan.get("backends"), name)
         runs = compare.run_posegraph(graph, impl=impl, unimplemented="row", progress=progress, init=init, **plan)
@@ -276,6 +287,7 @@ def _demo_pose_graphs(impl, out, init="file") -> tuple:
                                     f"`python -m course compare {name}` runs everything)")
         print("\n" + compare.format_table(
             runs, title=f"{name}: {graph.num_poses} poses, {graph.num_edges} edges; impl {impl}; init {init}{note}"))
+        _advise(runs, "posegraph", impl)
         json_path = write_json(out / f"{name}.json", compare.to_json(name, runs))
         ran = _ran(runs)
         if ran:  # the first run that ran: ours when written, else a peer
@@ -310,7 +322,7 @@ def _demo_pose_graphs_3d(impl, out) -> tuple:
         try:
             graph = datasets.load_dataset(name)
         except DatasetError as exc:
-            print(f"\n{name} skipped: {exc}")
+            _skipped(name, exc)
             continue
         progress = _progress("posegraph3d", plan.get("methods"), None, name)
         runs = compare.run_posegraph3d(graph, impl=impl, unimplemented="row", progress=progress, init=init, **plan)
@@ -319,6 +331,7 @@ def _demo_pose_graphs_3d(impl, out) -> tuple:
         note = f"; methods {', '.join(plan['methods'])}" if plan else ""
         print("\n" + compare.format_table(runs, title=f"{name} (3D): {graph.num_poses} poses, {graph.num_edges} edges; "
                                                       f"impl {impl}; init {init}{note}"))
+        _advise(runs, "posegraph3d", impl)
         print(NOTE_3D)
         written.append(write_json(out / f"{name}.json", compare.to_json(name, runs)))
     return written, todo
@@ -340,6 +353,7 @@ def _demo_bundle_adjustment(impl, out) -> tuple:
     print("\n" + compare.format_table(runs, title=f"{DEMO_BAL}: {problem.num_cameras} cameras, {problem.num_points} "
                                                   f"points, {problem.num_observations} observations; impl {impl}; "
                                                   "ours with the gauge fixed"))
+    _advise(runs, "bal", impl)
     if compare.format_bal(runs):
         print("\n" + compare.format_bal(runs))
     name = DEMO_BAL.replace(":", "_")
@@ -386,11 +400,12 @@ def cmd_compare(args) -> int:
                          f"{args.dataset} is not one (leave --information out)")
     progress = _progress(runner.kind, methods, backends, args.dataset)
     runs = runner.run(args.dataset, impl=impl, methods=methods, backends=backends, repeat=args.repeat,
-                      max_iterations=args.max_iterations, progress=progress, **init)
+                      max_iterations=args.max_iterations, progress=progress, unimplemented="row", **init)
     progress.close()
     where = f"impl {impl}; init {args.init}" if init else f"impl {impl}"
     notes = list(dict.fromkeys(r.note for r in runs if r.note))
     print(compare.format_table(runs, title=f"{args.dataset} ({where}{''.join(f'; {n}' for n in notes)})"))
+    _say_what_to_check(runs, runner.kind, impl)
     if runner.kind == "posegraph3d":
         print(NOTE_3D)
     if runner.kind == "posegraph":
@@ -409,6 +424,8 @@ def cmd_compare(args) -> int:
         if runner.kind == "posegraph":
             from course.problems.posegraph import dataset as datasets
 
+            if not _ran(runs):
+                raise ValueError(f"--plot: no run finished on {args.dataset}, nothing to plot")
             best = min(_ran(runs), key=lambda r: (r.backend != "ours", r.final_chi2))
             graph = datasets.load_dataset(args.dataset, information=args.information)
             plot.pose_graph_before_after(_start(graph, args.init, impl), best, args.plot)
@@ -416,6 +433,27 @@ def cmd_compare(args) -> int:
             plot.chi2_per_iteration(_ran(runs), args.plot, title=f"{args.dataset}: chi2 per iteration")
         print(f"wrote {args.plot}")
     return 0
+
+
+def _advise(runs, kind, impl) -> None:
+    """Under a table: the lines of ``compare.advice`` (the student's runs that look wrong), if any."""
+    from course.app import compare
+
+    for line in compare.advice(runs, kind, impl):
+        print(line)
+
+
+def _say_what_to_check(runs, kind, impl) -> None:
+    """Under a table: the runs of the student's that look wrong (``compare.advice``), and the TODOs
+    that stopped runs with how to select what is written (``compare.todo_hint``)."""
+    from course.app import compare
+
+    lines = compare.advice(runs, kind, impl)
+    hint = compare.todo_hint(runs, impl)
+    if hint:
+        lines.append(hint)
+    if lines:
+        print("\n".join(lines))
 
 
 def cmd_outliers3d(args) -> int:
@@ -440,83 +478,13 @@ def cmd_datasets(args) -> int:
     print(f"\n{'name':28} {'size':36} where")
     from course.app.datasets import list_other_data
 
-    for name, size, where, reason in list_other_data():
+    other = list_other_data()
+    for name, size, where, reason in other:
         print(f"{name:28} {size:36} {where}{f' (missing: {reason})' if reason else ''}")
-    return 0
+    if not data_dir().is_dir() or any(reason for *_, reason in other):
+        from course.core.data import missing_data_help
 
-
-def cmd_release(args) -> int:
-    from course.core.impl import REPO_ROOT
-    from course.release.stubs import release
-
-    root = Path(args.root) if args.root else REPO_ROOT
-    if not (root / "solutions").is_dir():
-        print(f"error: {root} has no solutions/ folder to release from", file=sys.stderr)
-        return 2
-    assignment = None
-    if args.assignment:
-        from autograder.course_config import ConfigError, load
-
-        try:
-            course = load(args.config or root / "autograder" / "course.toml")
-            assignment = course.assignment(args.assignment)
-        except ConfigError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
-    data_stale = []
-    if root.resolve() == REPO_ROOT.resolve():  # the public checks' data, before a student tree copies it
-        from autograder.oracle import release_expected
-
-        data_stale = [f"autograder/{rel}" for rel in release_expected(check=args.check)]
-    stale = release(check=args.check, student_dir=None if assignment else args.student, root=root)
-    overlay = None
-    if assignment is not None:
-        from course.release import assignment as handout
-        from course.release.stubs import ReleaseError, render
-
-        stubs = render(root / "solutions")
-        overlay = handout.bundle_overlay(course, assignment, stubs, root)
-        if args.student and not args.check:
-            try:
-                handout.write_student_tree(args.student, course, assignment, stubs, root)
-            except ReleaseError as exc:
-                print(f"error: {exc}", file=sys.stderr)
-                return 2
-    if args.check:
-        if data_stale:
-            print("the public checks' data is out of date; run `python -m course release`. Stale files:")
-            print("\n".join(f"  {rel}" for rel in data_stale))
-        if stale:
-            print("exercises/ is out of date with solutions/; run `python -m course release`. Stale files:")
-            for rel in stale:
-                print(f"  exercises/{rel}")
-            return 1
-        if data_stale:
-            return 1
-        print("exercises/ is up to date")
-        return _write_gradescope(args.gradescope, root, args.hidden_seed, overlay)
-    print("rewrote exercises/: " + ", ".join(stale) if stale else "exercises/ was already up to date")
-    if data_stale:
-        print("rewrote the public checks' data: " + ", ".join(data_stale))
-    what = f" of assignment {assignment.name}" if assignment is not None else ""
-    if args.student:
-        print(f"wrote the student tree{what} to {args.student}")
-    return _write_gradescope(args.gradescope, root, args.hidden_seed, overlay, what)
-
-
-def _write_gradescope(target, root, hidden_seed=None, overlay=None, what="") -> int:
-    """``release --gradescope FILE.zip``: the autograder bundle (course.release.gradescope)."""
-    if not target:
-        return 0
-    from course.release.gradescope import BundleError, build_bundle
-
-    try:
-        bundle = build_bundle(target, root, hidden_seed, overlay)
-    except BundleError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    print(f"wrote the Gradescope autograder{what} to {bundle.path} ({bundle.size / 2**20:.2f} MiB, "
-          f"{len(bundle.members)} files); upload it as the assignment's autograder zip")
+        print(f"\n{missing_data_help()}.")
     return 0
 
 

@@ -13,12 +13,15 @@ definite, ``course.solver.information``; ``repeat`` = solves per pair, the media
 and returns ``list[RunResult]`` with ``final_chi2`` evaluated by our own error, whatever the
 back end; where the reader repaired edges, every result says how many (``RunResult.note``).
 
-``impl=None`` means this tree's own implementation: ``solutions`` where ``solutions/``
-exists, else ``exercises`` (a student tree). ``unimplemented="row"`` (the demo's choice)
+``impl=None`` means this tree's own implementation: ``solutions`` in the course's repository,
+``exercises`` in a student tree. ``unimplemented="row"`` (the demo's choice)
 turns a pair that stops at an unwritten TODO (``NotImplementedError``) into a row saying
-so (``RunResult.not_run``) instead of stopping the whole comparison; the default
-``"raise"`` lets the error through. A peer whose library is not installed here is always
-a row (``not run: gtsam is not installed here``), said once on stderr (``course.core.peers``).
+so (``RunResult.not_run``) instead of stopping the whole comparison (``compare`` and ``demo`` always
+ask for it; ``todo_hint`` says how to select what is written); the default ``"raise"`` lets the
+error through. ``advice`` gives the lines naming the exercise to look at when a run of the
+student's ends above the peers' best chi2 or at the iteration limit. A peer whose library is not
+installed here is always a row (``not run: gtsam is not installed here``), said once on stderr
+(``course.core.peers``).
 """
 
 from collections.abc import Callable
@@ -510,15 +513,43 @@ def _params_text(params) -> str | None:
     return " ".join(f"{v:.6f}" for v in p)
 
 
+#: scipy's ``least_squares`` status codes, as the stop column names them
+SCIPY_STATUS = {"-1": "failed", "0": "max_iterations", "1": "gradient_tolerance", "2": "cost_tolerance",
+                "3": "step_tolerance", "4": "cost+step_tolerance"}
+
+
+#: Ceres' messages, as the stop column names them
+CERES_MESSAGES = (("Function tolerance", "function_tolerance"), ("Gradient tolerance", "gradient_tolerance"),
+                  ("Parameter tolerance", "parameter_tolerance"), ("Maximum number of iterations", "max_iterations"))
+
+
+def short_stop_reason(reason) -> str:
+    """A run's ``stop_reason`` as the table's ``stop`` column prints it: ours as it is
+    (``cost_tolerance``, ``max_iterations``, ...), scipy's status by name, a peer's longer text
+    up to its first ``:`` or ``;`` (``convergence``, ``max_iterations``)."""
+    text = str(getattr(reason, "value", reason) or "").strip()
+    for words, short in CERES_MESSAGES:  # Ceres' termination type says less than its message
+        if words in text:
+            return short
+    if text.startswith("status "):
+        code = text[len("status "):].split(":", 1)[0].strip()
+        return SCIPY_STATUS.get(code, f"status {code}")
+    for mark in (":", ";", " ("):
+        text = text.split(mark, 1)[0]
+    text = text.strip().replace(" ", "_").lower()
+    return text[:24] if text else "-"
+
+
 def format_table(runs, title: str = "") -> str:
     """A plain-text table: backend, method, iterations, initial and final chi2, total
-    and per-iteration time (milliseconds), and the parameters when they are few (the curve).
+    and per-iteration time (milliseconds), why the run stopped (``short_stop_reason``), and
+    the parameters when they are few (the curve).
     A run that did not run (``not_run``) is a row with its backend, method and the reason.
     Runs started from an initialisation (``RunResult.init`` other than ``file``) get a note
     line under the table naming it and its time. Where a run's data had edges repaired
     (``RunResult.note``), a last column ``note`` says so on every row (after the reason on a
     row that did not run)."""
-    header = ["backend", "method", "iters", "initial chi2", "final chi2", "total ms", "ms/iter"]
+    header = ["backend", "method", "iters", "initial chi2", "final chi2", "total ms", "ms/iter", "stop"]
     ran = [r for r in runs if not r.not_run]
     params = [_params_text(r.params) for r in ran]
     show_params = bool(ran) and all(p is not None for p in params)
@@ -537,6 +568,7 @@ def format_table(runs, title: str = "") -> str:
             f"{r.final_chi2:.10g}",
             f"{1e3 * r.seconds:.3f}",
             f"{1e3 * r.seconds_per_iteration:.4f}",
+            short_stop_reason(r.stop_reason),
         ]
         if show_params:
             row.append(p)
@@ -563,6 +595,113 @@ def format_table(runs, title: str = "") -> str:
     out += [lines[k] for k in range(len(runs))]
     out += _init_notes(runs)
     return "\n".join(out)
+
+
+#: the exercise each of our methods stands on (its strategy's pieces), for ``advice``
+METHOD_EXERCISES = {
+    "gauss-newton": "gauss_newton.solve_step",
+    "lm-type1": "damping.GavinType1",
+    "lm-type2": "damping.GavinType2",
+    "lm-type3": "damping.GavinType3",
+    "lm-scaled-nielsen": "damping.GavinType1.damping_diagonal and damping.GavinType3.update",
+    "dogleg": "dogleg (cauchy_point, dogleg_step, update_radius)",
+}
+#: the exercises every method of ours uses on a kind of problem (its model and normal equations)
+MODEL_EXERCISES = {
+    "curve": "curve_model and gauss_newton.normal_equations",
+    "posegraph": "pose_graph_edge and pose_graph_assembly (pose_graph_fast on large graphs)",
+    "posegraph3d": "pose_graph_3d and pose_graph_3d_assembly",
+    "bal": "bundle_adjustment",
+}
+#: how far above the peers' best chi2 a run of the student's may end (relative)
+ABOVE_PEERS = 1e-6
+
+
+#: the kinds of method a run of ours is compared within (a pose graph far from its minimum can lead
+#: Gauss-Newton and Levenberg-Marquardt to different local minima, and ours and the peers' alike)
+FAMILIES = {"gauss-newton": "gauss-newton", "dogleg": "dogleg"}
+
+
+def _family(method: str) -> str:
+    """``gauss-newton``, ``dogleg`` or, for every damped method (ours and the peers'), ``levenberg-marquardt``."""
+    return FAMILIES.get(method, "levenberg-marquardt")
+
+
+def advice(runs, kind: str, impl) -> list:
+    """Lines for under the table when one of the student's runs looks wrong: ours ending above the
+    best chi2 of the peers' runs of the same kind of method (``_family``; of every peer when none
+    ran) by more than ``ABOVE_PEERS`` (relative), or at the iteration
+    limit. Each names the exercise to look at (``METHOD_EXERCISES``), and the problem's model
+    (``MODEL_EXERCISES``) when every method of ours is off. None for the reference (``solutions``)."""
+    if str(impl) == "solutions":
+        return []
+    ours = [r for r in runs if r.backend == "ours" and not r.not_run]
+    peers = [r for r in runs if r.backend != "ours" and not r.not_run and np.isfinite(r.final_chi2)]
+    flagged = []
+    for r in ours:
+        reasons = []
+        family = [p.final_chi2 for p in peers if _family(p.method) == _family(r.method)]
+        best, whose = (min(family), f"the peers' best {_family(r.method)}") if family else \
+            (min(p.final_chi2 for p in peers), "the peers' best") if peers else (None, "")
+        if not np.isfinite(r.final_chi2):
+            reasons.append(f"ended at chi2 {r.final_chi2}")
+        elif best is not None and r.final_chi2 > best * (1 + ABOVE_PEERS) + 1e-300:
+            reasons.append(f"ended at chi2 {r.final_chi2:.10g}, above {whose} {best:.10g} "
+                           f"(relative {(r.final_chi2 - best) / max(abs(best), 1e-300):.2g})")
+        if short_stop_reason(r.stop_reason) == "max_iterations":
+            reasons.append(f"stopped at the iteration limit ({r.iterations} step attempts)")
+        if reasons:
+            flagged.append((r, reasons))
+    if not flagged:
+        return []
+    lines = []
+    model = MODEL_EXERCISES.get(kind)
+    everyone = len(flagged) == len(ours) > 1
+    for r, reasons in flagged:
+        look = METHOD_EXERCISES.get(r.method, r.method)
+        if reasons[-1].startswith("stopped at the iteration limit"):  # it may only be slow: more iterations first
+            lines.append(f"check: ours {r.method} {' and '.join(reasons)} without converging: if more iterations "
+                         f"(--max-iterations) do not end it at the peers' chi2, look at {look}")
+        else:
+            lines.append(f"check: ours {r.method} {' and '.join(reasons)}: look at {look}")
+    if model and everyone:
+        lines.append(f"check: every method of ours is off: look first at {model}, which every method uses "
+                     "on this problem")
+    lines.append("(`python -m autograder --only NAME` grades one exercise)")
+    return lines
+
+
+def todo_names(runs) -> list:
+    """The TODOs the runs stopped at (``not implemented: TODO dogleg.cauchy_point``), once each, sorted."""
+    return sorted({r.not_run.split("TODO ", 1)[-1].split(" ")[0].rstrip(":") for r in runs
+                   if r.not_run.startswith("not implemented")})
+
+
+def todo_hint(runs, impl) -> str:
+    """For under the table when runs stopped at an unwritten TODO: which, how to grade them, and the
+    ``--methods``/``--backends`` that select only what runs (empty when none stopped)."""
+    names = todo_names(runs)
+    if not names:
+        return ""
+    stopped = [r for r in runs if r.not_run.startswith("not implemented")]
+    ran = [r for r in runs if not r.not_run]
+    select = []
+    ours_ran = list(dict.fromkeys(r.method for r in ran if r.backend == "ours"))
+    ours_stopped = any(r.backend == "ours" for r in stopped)
+    if ours_stopped and ours_ran:
+        select.append(f"--methods {','.join(ours_ran)}")
+    peers_stopped = {r.backend for r in stopped if r.backend != "ours"}
+    if peers_stopped or (ours_stopped and not ours_ran):
+        keep = [b for b in dict.fromkeys(r.backend for r in ran) if b not in peers_stopped]
+        if keep:
+            select.append(f"--backends {','.join(keep)}")
+    modules = sorted({name.split(".")[0] for name in names})
+    them = "it" if len(names) == 1 else "them"
+    text = (f"{len(stopped)} run(s) stopped at a TODO of impl {impl} ({', '.join(names)}); write {them} "
+            f"(`python -m autograder --only {modules[0]}` grades {'it' if len(modules) == 1 else 'one exercise'})")
+    if select:
+        text += f", or select what is written: {' or '.join(select)}"
+    return text
 
 
 def _init_notes(runs) -> list:

@@ -14,7 +14,7 @@ def list_other_data() -> list[tuple[str, str, str, str]]:
         ape.euroc_mh05_files()
         reason = ""
     except DatasetError as e:
-        reason = str(e)
+        reason = getattr(e, "short", str(e))
     rows.append(("euroc-mh05", "EuRoC CSV truth + a TUM estimate", f"data folder: {', '.join(ape.EUROC_MH05)}",
                  reason))
     rows.append(("vio-sim[:seconds[:seed]]", "IMU 200 Hz, camera 20 Hz, 480 pts", "generator course.problems.vio.sim",

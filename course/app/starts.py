@@ -4,7 +4,7 @@ information matrices are diagonal); in 3D (:func:`initialise_3d`), the file's po
 relaxation or GTSAM's ``InitializePose3`` (``course.backends.posegraph3d.gtsam_initialize``).
 
 ``initialise(graph, method, impl) -> (graph with new poses, seconds)`` runs the
-implementation's ``initialisation`` module (chapter 3b: ``solutions/initialisation.py``, or a
+implementation's ``initialisation`` module (chapter 3b's exercise: the reference's or a
 student's), so a student's initialiser goes through every comparison. The first fixed pose
 ``graph.fixed[0]`` anchors the gauge at its file pose; every fixed pose keeps its file pose
 (the solvers hold them there). ``seconds`` is the initialisation alone, for time-to-solution

@@ -8,8 +8,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from course.core import peers
-from course.core.errors import DatasetError
+from course.core.errors import DatasetError, MissingDataError
 from course.core.impl import REPO_ROOT
+
+#: what runs without the data folder: generated data and the graphs in the gtsam wheel
+WITHOUT_DATA = ("`python -m course demo`, `python -m course compare curve` (or manhattan:N, bal-synthetic:C:P, "
+                "w10000, sphere_smallnoise), `python -m course vio` and `make notebooks` (each notebook skips what "
+                "is missing)")
 
 
 @dataclass(frozen=True)
@@ -31,6 +36,17 @@ def data_dir() -> Path:
     if env:
         return Path(env)
     return REPO_ROOT.parent / "shared" / "data"
+
+
+def missing_data_help() -> str:
+    """How to get the data folder, and what works without it: the sentence every message about
+    missing data ends with."""
+    default = REPO_ROOT.parent / "shared" / "data"
+    where = f"COURSE_DATA is {os.environ['COURSE_DATA']}" if os.environ.get("COURSE_DATA") else \
+        f"the course looks for it at {default}, next to this folder"
+    return (f"The data folder holds third-party datasets the course does not copy; your instructor ships it: "
+            f"unpack it at {default}, or set the environment variable COURSE_DATA to where it is ({where}). "
+            f"Without it these work: {WITHOUT_DATA}; `python -m course datasets` lists what is here")
 
 
 def gtsam_data_dir() -> Path | None:
@@ -57,11 +73,12 @@ def locate(what: str, where: str, rel: str, exists=Path.is_file) -> Path:
     else:
         folder = data_dir()
         if not folder.is_dir():
-            raise DatasetError(f"{what}: data folder {folder} not found "
-                               "(set the environment variable COURSE_DATA to a folder with the same layout)")
+            raise MissingDataError(f"{what}: data folder {folder} not found", missing_data_help())
     path = folder / rel
     if not exists(path):
-        raise DatasetError(f"{what}: {path} not found in {folder}")
+        if where == "gtsam":
+            raise MissingDataError(f"{what}: {path} not found in the gtsam wheel's {folder}")
+        raise MissingDataError(f"{what}: {rel} not found in the data folder {folder}", missing_data_help())
     return path
 
 

@@ -41,3 +41,13 @@ def check_array(value, shape, where: str, what: str):
 
 class DatasetError(CourseError, ValueError):
     """A dataset that cannot be found or read; the message names the file and line."""
+
+
+class MissingDataError(DatasetError):
+    """A named dataset whose file is not on this machine. ``short`` says what is missing (for a
+    listing's row); the message adds how to get it and what works without it
+    (``course.core.data.missing_data_help``)."""
+
+    def __init__(self, short: str, help_text: str = ""):
+        super().__init__(f"{short}. {help_text}" if help_text else short)
+        self.short = short

@@ -68,7 +68,7 @@ def load(name_or_path="solutions") -> Implementation:
 
 
 def default_impl() -> str:
-    """``solutions`` in the course repository, ``exercises`` in a student tree (no solutions/)."""
+    """``solutions`` in the course repository, ``exercises`` in a student tree (which has no reference)."""
     return "solutions" if (REPO_ROOT / "solutions" / "__init__.py").is_file() else "exercises"
 
 

@@ -7,8 +7,8 @@ out of the student tree (e.g. reference answers to written questions, the refere
 of the autograder), wherever it is.
 
 ``write_student_tree`` writes the tree a student receives: the repository without
-``solutions/``, ``tests/``, ``.ci/``, ``autograder/mistakes/``, omitted files and
-local clutter (``.git``, ``.venv``, ``out``, caches), with the student's ``README.md``
+``solutions/``, ``tests/``, ``.ci/``, ``autograder/mistakes/``, ``course/release/`` (this tooling),
+omitted files and local clutter (``.git``, ``.venv``, ``out``, caches), with the student's ``README.md``
 and ``Makefile`` from ``course/release/student_tree/`` in place of the instructor's.
 """
 
@@ -23,7 +23,12 @@ BEGIN, END, OMIT = "# BEGIN SOLUTION", "# END SOLUTION", "# RELEASE: omit"
 #: the student's README.md and Makefile, copied over the instructor's
 STUDENT_TEMPLATES = Path(__file__).resolve().parent / "student_tree"
 #: paths (relative to the repository) that are the instructor's alone
-INSTRUCTOR_ONLY = ("solutions", "tests", ".ci", "autograder/mistakes", "CONTRIBUTING.md", "docs/teaching.md")
+INSTRUCTOR_ONLY = ("solutions", "tests", ".ci", "autograder/mistakes", "CONTRIBUTING.md", "course/release",
+                   "docs/teaching.md")
+#: the docstring of the student's ``exercises/__init__.py`` (the reference's speaks of the release)
+STUDENT_INIT = ('"""Your implementations of the course\'s exercises: replace each '
+                '``raise NotImplementedError("TODO ...")``\nwith your code and keep the signatures; '
+                '``python -m autograder`` grades them."""\n')
 #: names skipped at any depth: version control, environments, outputs, caches
 LOCAL_CLUTTER = (".git", ".venv", "out", "build", "__pycache__", ".pytest_cache", ".mypy_cache",
                  ".import_linter_cache", ".ruff_cache", ".ipynb_checkpoints", "*.egg-info", "*.pyc")
@@ -96,8 +101,8 @@ def render(solutions_dir: Path) -> dict:
         if path.suffix == ".py":
             module = ".".join(rel.with_suffix("").parts)
             text = strip_solutions(text, module, path)
-            if rel.name == "__init__.py":
-                text = text.replace("Reference implementations", "Your implementations", 1)
+            if str(rel) == "__init__.py":
+                text = STUDENT_INIT
         files[str(rel)] = text
     return files
 

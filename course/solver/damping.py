@@ -23,7 +23,7 @@ class DampingState:
 
 
 class DampingStrategy:
-    """Interface the loop calls; the exercises implement it (see ``solutions/damping.py``)."""
+    """Interface the loop calls; the exercises implement it (see ``exercises/damping.py``)."""
 
     name = "damping"
     #: step acceptance threshold on rho (Gavin's eps_4 = 1e-1, lm.m default)

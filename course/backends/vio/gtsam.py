@@ -32,7 +32,7 @@ The problem is ``course.problems.vio.problem``'s on the keyframes of ``course.pr
   ``PriorFactorConstantBias`` on B(0).
 
 IMU samples. GTSAM integrates each interval with its left sample (Euler: ``a_k``, ``omega_k``);
-ours with both ends (``solutions.imu_preintegration``, "midpoint"). On this loop the two differ
+ours with both ends (the ``imu_preintegration`` exercise, "midpoint"). On this loop the two differ
 by 0.007 to 0.017 m/s in Delta v over a 0.25-s keyframe interval, 7 to 17 times the preintegrated
 velocity sigma (1e-3 m/s; Delta p likewise): not the same problem. ``imu_samples="midpoint"`` (the default) hands
 GTSAM's integrator, per interval ``[t_k, t_k+1]`` of the raw samples, the rate

@@ -409,7 +409,7 @@ def catalogue() -> list[tuple[str, str, str, str]]:
             _locate(name)
             reason = ""
         except DatasetError as e:
-            reason = str(e)
+            reason = getattr(e, "short", str(e))
         rows.append((name, f"{cams} cameras, {points} points, {obs} obs", origin(where, rel), reason))
     rows.append(("bal-synthetic:C:P[:seed]", "C cameras, P points", "generator course.problems.bal.dataset.synthetic",
                  ""))

@@ -1,7 +1,7 @@
 """The gauge of bundle adjustment, seen in the spectrum of H (small problems: H is formed densely).
 
 An unanchored BA's H has 7 eigenvalues that are zero up to rounding (the scene's rotation,
-translation and scale, ``solutions/gauge.py``); ``BundleAdjustmentProblem(fix_gauge=True)``
+translation and scale: the ``gauge`` exercise); ``BundleAdjustmentProblem(fix_gauge=True)``
 holds 7 unknowns and leaves none.
 """
 

@@ -385,7 +385,7 @@ def list_datasets() -> list[DatasetInfo]:
             _locate(name)
             out.append(DatasetInfo(name, n, m, fmt, origin(where, rel), True))
         except DatasetError as e:
-            out.append(DatasetInfo(name, n, m, fmt, origin(where, rel), False, str(e)))
+            out.append(DatasetInfo(name, n, m, fmt, origin(where, rel), False, getattr(e, "short", str(e))))
     out.append(DatasetInfo("manhattan:N[:seed]", None, None, "synthetic",
                            "generator course.problems.posegraph.dataset.manhattan", True))
     return out

@@ -312,7 +312,7 @@ def list_datasets() -> list[DatasetInfo]:
             locate(f"dataset {name!r}", where, rel)
             out.append(DatasetInfo(name, n, m, fmt, origin(where, rel), True))
         except DatasetError as e:
-            out.append(DatasetInfo(name, n, m, fmt, origin(where, rel), False, str(e)))
+            out.append(DatasetInfo(name, n, m, fmt, origin(where, rel), False, getattr(e, "short", str(e))))
     return out
 
 

@@ -226,15 +226,14 @@ EVO_SE3_ROW = {"rmse": 0.245723, "median": 0.244383, "mean": 0.231451, "std": 0.
 
 def euroc_mh05_files(folder=None):
     """(ground truth, estimate) paths of MH_05 in ``folder`` (default: the data folder); raise if absent."""
-    from course.core.data import data_dir
-    from course.core.errors import DatasetError
+    from course.core.data import data_dir, missing_data_help
+    from course.core.errors import MissingDataError
 
     root = data_dir() if folder is None else folder
     paths = tuple(root / rel for rel in EUROC_MH05)
     missing = [str(p) for p in paths if not p.is_file()]
     if missing:
-        raise DatasetError(f"euroc-mh05: missing {', '.join(missing)} (data folder {root}; set COURSE_DATA "
-                           "to a folder holding euroc_mh05/)")
+        raise MissingDataError(f"euroc-mh05: missing {', '.join(missing)} (data folder {root})", missing_data_help())
     return paths
 
 

@@ -16,7 +16,7 @@ are well triangulated.
 Factors (every residual whitened, so chi2 is a plain sum of squares, as in the course:
 ``chi2 = sum_k rho_k``, ``H = J^T W J``, ``b = J^T W r``, the step solves ``H h = -b``):
 
-- IMU between consecutive frames i, j (``solutions.imu_preintegration``): ``r_imu`` (9,) of
+- IMU between consecutive frames i, j (the ``imu_preintegration`` exercise): ``r_imu`` (9,) of
   ``imu_factor_residual`` whitened by the preintegrated covariance ``Sigma`` (9, 9):
   ``L^T r_imu`` with ``L L^T = Sigma^-1``; and the bias random walk
   ``((b_g,j - b_g,i) / (sigma_g sqrt(dT)), (b_a,j - b_a,i) / (sigma_a sqrt(dT)))`` (6,).

@@ -6,7 +6,7 @@ pitch oscillations); an IMU samples it at ``imu_rate`` (200 Hz) and a camera at
 ``camera_rate`` (20 Hz) sees a fixed set of 3D landmarks on the walls of a box around the
 loop. Everything is seeded: ``load_vio_sim("vio-sim:20:3")`` is 20 seconds from seed 3.
 
-Conventions (those of ``solutions/imu_preintegration.py``):
+Conventions (those of the ``imu_preintegration`` exercise):
 
 - world frame W with gravity ``g = (0, 0, -9.81)`` m/s^2; body frame B = the IMU's frame;
   ``R_wb`` (3, 3) rotates body coordinates into the world's, ``p``, ``v`` are the body's
