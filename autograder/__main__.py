@@ -1,6 +1,7 @@
 """``python -m autograder [--impl exercises|solutions|PATH] [--only NAME] [--set public|hidden|all] [--json FILE]``,
 or a whole class: ``python -m autograder batch SUBMISSIONS --out DIR`` and ``python -m autograder
-merge PART... --out DIR`` (:mod:`autograder.classroom`).
+merge PART... --out DIR`` (:mod:`autograder.classroom`); an exercise's hints, one level at a time:
+``python -m autograder hint NAME [LEVEL]`` (:mod:`autograder.hints`).
 
 Exit status 0 whenever grading ran, whatever the score; 2 for usage errors.
 """
@@ -43,6 +44,10 @@ def main(argv=None) -> int:
         from autograder.classroom import batch
 
         return batch.main(argv[1:])
+    if argv[:1] == ["hint"]:
+        from autograder import hints
+
+        return hints.main(argv[1:])
     if argv[:1] == ["merge"]:
         from autograder.classroom import merge
 

@@ -114,6 +114,10 @@ def build_parser() -> argparse.ArgumentParser:
     release.add_argument("--gradescope", metavar="FILE.zip", default=None,
                          help="also write the Gradescope autograder zip (setup.sh, run_autograder, the grader "
                               "and the reference) to FILE.zip; with --check, only when nothing is stale")
+    release.add_argument("--hints", type=int, choices=(0, 1, 2, 3), default=None,
+                         help="hint levels printed into the stubs' docstrings: 0 none, 1 the approach, 2 and the "
+                              "key identity, 3 and the result (the formulas); default: the level exercises/ records "
+                              "(0 when none). Students get every level from `python -m autograder hint NAME LEVEL`")
     release.add_argument("--hidden-seed", type=int, default=None,
                          help="seed of the hidden checks' inputs in the Gradescope zip (default: a random one)")
     release.set_defaults(func=cmd_release)
@@ -452,7 +456,7 @@ def cmd_release(args) -> int:
         from autograder.oracle import release_expected
 
         data_stale = [f"autograder/{rel}" for rel in release_expected(check=args.check)]
-    stale = release(check=args.check, student_dir=args.student, root=root)
+    stale = release(check=args.check, student_dir=args.student, root=root, hints=args.hints)
     if args.check:
         if data_stale:
             print("the public checks' data is out of date; run `python -m course release`. Stale files:")

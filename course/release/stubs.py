@@ -6,6 +6,11 @@ docstrings and hints stay. A file whose first lines hold ``# RELEASE: omit`` is 
 out of the student tree (e.g. reference answers to written questions, the reference side
 of the autograder), wherever it is.
 
+Hints (``course.core.hints``): ``render(..., hints=N)`` prints levels 1 to N of each module's
+``HINTS`` into the docstrings they belong to (0: none) and records N in ``exercises/__init__.py``;
+``release`` without a level keeps the one ``exercises/`` records, so ``release --check`` compares
+with the level the committed exercises were released with.
+
 ``write_student_tree`` writes the tree a student receives: the repository without
 ``solutions/``, ``tests/``, ``.ci/``, ``autograder/mistakes/``, omitted files and
 local clutter (``.git``, ``.venv``, ``out``, caches), with the student's ``README.md``
@@ -16,6 +21,7 @@ import ast
 import shutil
 from pathlib import Path
 
+from course.core.hints import HintError, insert_hints, record_level, recorded_level
 from course.core.impl import REPO_ROOT
 
 BEGIN, END, OMIT = "# BEGIN SOLUTION", "# END SOLUTION", "# RELEASE: omit"
@@ -83,8 +89,9 @@ def _omitted(text: str) -> bool:
     return any(line.strip() == OMIT for line in text.splitlines()[:5])
 
 
-def render(solutions_dir: Path) -> dict:
-    """``{relative path: text}`` of the student tree for ``solutions_dir``."""
+def render(solutions_dir: Path, hints: int = 0) -> dict:
+    """``{relative path: text}`` of the student tree for ``solutions_dir``, hints 1..``hints`` in
+    the docstrings."""
     files = {}
     for path in sorted(solutions_dir.rglob("*")):
         if path.is_dir() or "__pycache__" in path.parts or path.suffix == ".pyc":
@@ -95,9 +102,15 @@ def render(solutions_dir: Path) -> dict:
             continue
         if path.suffix == ".py":
             module = ".".join(rel.with_suffix("").parts)
+            try:
+                text = insert_hints(text, hints, path)
+            except HintError as exc:
+                raise ReleaseError(str(exc)) from None
             text = strip_solutions(text, module, path)
             if rel.name == "__init__.py":
                 text = text.replace("Reference implementations", "Your implementations", 1)
+                if rel.parent == Path("."):
+                    text = record_level(text, hints)
         files[str(rel)] = text
     return files
 
@@ -123,13 +136,20 @@ def stale_files(target: Path, files: dict) -> list:
     return sorted(stale + sorted(present - set(files)))
 
 
-def release(check=False, student_dir=None, root: Path = REPO_ROOT) -> list:
+def hints_level(root: Path = REPO_ROOT) -> int:
+    """The hint level ``root``'s ``exercises/`` was released with (0 when there is none)."""
+    init = Path(root) / "exercises" / "__init__.py"
+    return recorded_level(init.read_text()) if init.is_file() else 0
+
+
+def release(check=False, student_dir=None, root: Path = REPO_ROOT, hints: int | None = None) -> list:
     """Regenerate ``exercises/`` (or only check it); optionally write a student tree.
 
-    Returns the list of stale paths (empty when up to date).
+    ``hints``: the level printed into the docstrings (0-3); None keeps the level ``exercises/``
+    records. Returns the list of stale paths (empty when up to date).
     """
-    files = render(root / "solutions")
     exercises = root / "exercises"
+    files = render(root / "solutions", hints_level(root) if hints is None else hints)
     stale = stale_files(exercises, files)
     if not check and stale:
         write(exercises, files)
