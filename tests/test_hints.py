@@ -16,6 +16,7 @@ from course.release import stubs as rel
 DERIVED = {
     "pose_graph_edge": ["edge_error_and_jacobians"],
     "curve_model": ["residuals_and_jacobian"],
+    "gauss_newton": ["normal_equations"],
     "damping": ["GavinType1.gain_denominator", "GavinType2.gain_denominator", "GavinType3.gain_denominator"],
     "dogleg": ["cauchy_point", "dogleg_step"],
     "pose_graph_3d": ["edge_errors_and_jacobians"],
