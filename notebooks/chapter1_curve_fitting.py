@@ -181,9 +181,10 @@ check("damping")
 
 # %% id="run"
 data = generate()  # seed 0, 100 points, sigma 1
-runs = compare.run_curve(impl=IMPL, data=data, repeat=REPEAT)
+# a method whose exercise is not written yet (dogleg: chapter 3) is a row naming its TODO
+runs = compare.run_curve(impl=IMPL, data=data, repeat=REPEAT, unimplemented="row")
 print(compare.format_table(runs))
-runs = ran(runs)  # below, the runs that ran (a peer not installed here is only a row above)
+runs = ran(runs)  # below, the runs that ran (a peer not installed here, or a TODO, is only a row above)
 
 # %% [markdown] id="source-md"
 # ## Against the source's figures
@@ -217,9 +218,9 @@ for method, r in ours.items():
 
 print()
 print("looser stopping (relative chi2 change 1e-3, gradient and step 1e-3, as in Gavin's lm.m):")
-loose = compare.run_curve(impl=IMPL, data=data, backends=["ours"],
-                          solver_options=SolverOptions(gradient_tolerance=1e-3, step_tolerance=1e-3,
-                                                       cost_tolerance=1e-3))
+loose = ran(compare.run_curve(impl=IMPL, data=data, backends=["ours"], unimplemented="row",
+                              solver_options=SolverOptions(gradient_tolerance=1e-3, step_tolerance=1e-3,
+                                                           cost_tolerance=1e-3)))
 for r in loose:
     accepted = sum(record.accepted for record in r.trace[1:])
     print(f"{r.method:12} {r.iterations:>3} attempts, {accepted:>3} accepted, chi2 {r.final_chi2:.6f}, "
