@@ -21,6 +21,8 @@ DERIVED = {
     "dogleg": ["cauchy_point", "dogleg_step"],
     "pose_graph_3d": ["edge_errors_and_jacobians"],
     "bundle_adjustment": ["reprojection_residuals_and_jacobians", "schur_solve"],
+    "robust_kernels": ["huber", "cauchy", "tukey", "robust_information"],
+    "marginalisation": ["marginalise"],
 }
 
 
