@@ -9,7 +9,7 @@ pytestmark = pytest.mark.slow
 
 #: the exercises these variants touch
 ONLY = ("curve_model", "pose_graph_edge", "damping", "dogleg", "pose_graph_3d.edge_errors_and_jacobians",
-        "bundle_adjustment.reprojection_residuals_and_jacobians")
+        "bundle_adjustment.reprojection_residuals_and_jacobians", "robust_kernels.cauchy", "robust_kernels.tukey")
 
 
 @pytest.fixture(scope="module")

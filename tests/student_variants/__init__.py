@@ -1335,6 +1335,12 @@ ALTERNATIVES_DERIVED = {
         "bundle_adjustment.py", [], "J_cam[:, :, :3] = -np.matmul(AR, np.matmul(skew(X), Jr))",
         "J_cam[:, :, :3] = -np.matmul(A, np.matmul(skew(np.matmul(R, X[:, :, None])[:, :, 0]), "
         "(eye + b[:, None, None] * Wx + c[:, None, None] * Wx2)[camera_index]))", set()),
+    "derived_cauchy_second_from_first": V(
+        "robust_kernels.py", ["def cauchy"], "return a2 * np.log1p(s / a2), 1.0 / t, -1.0 / (a2 * t * t)",
+        "return a2 * np.log1p(s / a2), 1.0 / t, -((1.0 / t) ** 2) / a2", set()),
+    "derived_tukey_second_by_s": V(
+        "robust_kernels.py", ["def tukey"], "-2.0 * u / a2 + 0.0",
+        "np.where(inner, 2.0 * s / (a2 * a2) - 2.0 / a2, 0.0)", set()),
 }
 
 VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION,
