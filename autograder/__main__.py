@@ -18,7 +18,9 @@ BUILTIN = ("solutions", "exercises")
 def parser():
     p = argparse.ArgumentParser(prog="python -m autograder", description=(
         "Grade an implementation of the exercises. Student code runs in child processes "
-        "under a time and memory limit; one failure costs one check."))
+        "under a time and memory limit; one failure costs one check."),
+        epilog="Also: `python -m autograder hint NAME [LEVEL]` prints an exercise's hints, one level at a time "
+               "(1 the approach, 2 the key identity, 3 the result); `batch` and `merge` grade a whole class.")
     p.add_argument("--impl", default="exercises",
                    help="solutions, exercises (default), or a directory laid out like exercises/")
     p.add_argument("--only", action="append", metavar="NAME",
