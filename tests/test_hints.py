@@ -15,6 +15,7 @@ from course.release import stubs as rel
 #: the exercises whose derived results are hints (their docstrings say what to derive)
 DERIVED = {
     "pose_graph_edge": ["edge_error_and_jacobians"],
+    "pose_graph_assembly": ["assemble_normal_equations"],
     "curve_model": ["residuals_and_jacobian"],
     "gauss_newton": ["normal_equations"],
     "damping": ["GavinType1.gain_denominator", "GavinType2.gain_denominator", "GavinType3.gain_denominator"],
