@@ -16,6 +16,7 @@ from course.release import stubs as rel
 DERIVED = {
     "pose_graph_edge": ["edge_error_and_jacobians"],
     "pose_graph_assembly": ["assemble_normal_equations"],
+    "ceres_edge_cost": ["SE2EdgeCost"],
     "curve_model": ["residuals_and_jacobian"],
     "gauss_newton": ["normal_equations"],
     "damping": ["GavinType1.gain_denominator", "GavinType2.gain_denominator", "GavinType3.gain_denominator"],
