@@ -137,3 +137,22 @@ def test_the_hints_are_read_from_the_stubs_without_a_reference(tmp_path):
     shutil.copytree(REPO_ROOT / "exercises", tmp_path / "exercises", ignore=shutil.ignore_patterns("__pycache__"))
     text = hint_cli.text("residuals_and_jacobian", 3, root=tmp_path)
     assert "y_hat_k (x_k^2, x_k, 1)" in text
+
+
+def test_no_result_of_a_hint_is_left_in_the_default_stubs():
+    """Every line of every level-3 hint (beyond a few words) is absent from the default release's code
+    and docstrings, and present in the release with --hints 3."""
+    from course.core.hints import level_text
+
+    default = rel.render(REPO_ROOT / "solutions")
+    given = rel.render(REPO_ROOT / "solutions", hints=3)
+    for name, text in default.items():
+        if not name.endswith(".py"):
+            continue
+        body, body_given = text.split("\nHINTS = {")[0], given[name].split("\nHINTS = {")[0]
+        for owner, levels in read_hints(text).items():
+            for line in level_text(levels[2]).splitlines():
+                words = line.strip().strip("`:").strip()
+                if len(words) > 25:
+                    assert words not in body, (name, owner, words)
+                    assert words in body_given, (name, owner, words)
