@@ -3,29 +3,37 @@
 NAME is an exercise (``pose_graph_edge``), a function or method (``edge_errors_and_jacobians``,
 ``GavinType3.update``, ``damping.GavinType3.update``) or a class (``GavinType3``: its methods'
 hints). LEVEL is 1 (the approach, the default), 2 (the key identity) or 3 (the result).
-The hints are read from the source text of the exercises (``solutions/`` where this tree has
-it, else ``exercises/``; see :mod:`course.core.hints`), never imported.
+The hints are read from the reference's source text where this tree has ``solutions/``, else from
+``exercises/hints.json``, which the release writes (:mod:`course.core.hints`); nothing is imported.
 """
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
-from course.core.hints import LEVELS, HintError, format_levels, read_hints
+from course.core.hints import HINTS_FILE, LEVELS, HintError, format_levels, read_hints
 from course.core.impl import REPO_ROOT
 
 
 def hint_sources(root: Path = REPO_ROOT) -> dict:
-    """``{exercise: {owner: levels}}`` of every module with hints (the reference's, else the stubs')."""
-    folder = root / "solutions" if (root / "solutions" / "__init__.py").is_file() else root / "exercises"
-    found = {}
-    for path in sorted(folder.glob("*.py")):
-        if path.name == "__init__.py":
-            continue
-        hints = read_hints(path.read_text(), path)
-        if hints:
-            found[path.stem] = hints
-    return found
+    """``{exercise: {owner: levels}}`` of every module with hints: the reference's ``HINTS`` where this
+    tree has ``solutions/``, else the released ``exercises/hints.json``."""
+    if (root / "solutions" / "__init__.py").is_file():
+        found = {}
+        for path in sorted((root / "solutions").glob("*.py")):
+            hints = read_hints(path.read_text(), path) if path.name != "__init__.py" else {}
+            if hints:
+                found[path.stem] = hints
+        return found
+    path = root / "exercises" / HINTS_FILE
+    if not path.is_file():
+        raise HintError(f"{path} is missing: it ships with the exercises (python -m course release writes it)")
+    try:
+        data = json.loads(path.read_text())
+    except ValueError as exc:
+        raise HintError(f"{path}: not the hints file the release writes ({exc})") from None
+    return {module: {owner: tuple(levels) for owner, levels in owners.items()} for module, owners in data.items()}
 
 
 def lookup(name: str, sources: dict) -> list:

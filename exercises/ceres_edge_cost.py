@@ -48,19 +48,3 @@ class SE2EdgeCost(pyceres.CostFunction):
         """Fill ``residuals[:] = U e`` and, where not None, ``jacobians[0][:] = (U A).ravel()``,
         ``jacobians[1][:] = (U B).ravel()``; ``parameters[0]``, ``parameters[1]`` are x_i, x_j (3,)."""
         raise NotImplementedError("TODO ceres_edge_cost.SE2EdgeCost.Evaluate: not implemented yet")
-
-
-#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
-#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
-HINTS = {
-    "SE2EdgeCost": (
-        """Combine the two rotations first: ``R_ij^T R_i^T = R(theta_i + theta_ij)^T``, so e_t depends on
-        theta_i through one angle. Then differentiate as in ``pose_graph_edge``.""",
-        """With ``phi = theta_i + theta_ij`` and ``d = t_j - t_i``: ``e_t = R(phi)^T d - R_ij^T t_ij``, and
-        ``d R(phi)^T / d phi = [[-sin phi, cos phi], [-cos phi, -sin phi]]``.""",
-        """Writing ``Q = R(phi)^T`` and ``d = (dx, dy)``::
-
-            de/dx_i = [[-Q, (-sin phi dx + cos phi dy, -cos phi dx - sin phi dy)^T], [0 0 -1]]
-            de/dx_j = [[ Q, 0], [0 0 1]]""",
-    ),
-}

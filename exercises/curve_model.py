@@ -24,16 +24,3 @@ def residuals_and_jacobian(params, x, y):
     Hint: compute ``y_hat`` once and reuse it for every column; no Python loop.
     """
     raise NotImplementedError("TODO curve_model.residuals_and_jacobian: not implemented yet")
-
-
-#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
-#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
-HINTS = {
-    "residuals_and_jacobian": (
-        """``y_k`` is data, so ``dr_k/dp = d y_hat_k / dp``. Write ``y_hat_k = exp(u_k)`` with the
-        exponent ``u_k = a x_k^2 + b x_k + c``, which is linear in the parameters, and use the chain
-        rule.""",
-        """``d exp(u) / dp = exp(u) du/dp``, and ``du_k/d(a, b, c) = (x_k^2, x_k, 1)``.""",
-        """Jacobian row: ``dr_k/d(a, b, c) = y_hat_k (x_k^2, x_k, 1)``.""",
-    ),
-}

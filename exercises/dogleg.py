@@ -57,34 +57,3 @@ def update_radius(radius, rho, step_norm):
     otherwise unchanged.
     """
     raise NotImplementedError("TODO dogleg.update_radius: not implemented yet")
-
-
-#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
-#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
-HINTS = {
-    "cauchy_point": (
-        """Restrict the model to the line ``h = -alpha g``: ``L(-alpha g)`` is a parabola in alpha.
-        Set its derivative to zero.""",
-        """``L(-alpha g) = F - alpha |g|^2 + alpha^2 g^T H g / 2``.""",
-        """``alpha = |g|^2 / g^T H g`` and ``h_cp = -alpha g``.""",
-    ),
-    "dogleg_step": (
-        """For each case, put the step into ``L(0) - L(h) = -g^T h - h^T H h / 2`` and use what is
-        known about it: ``H h_gn = -g``; ``alpha g^T H g = |g|^2``. For beta, write ``|a + beta (h_gn -
-        a)|^2 = radius^2`` as a quadratic in beta and take the root in (0, 1).""",
-        """With ``diff = h_gn - a``, ``c = a^T diff``: ``|diff|^2 beta^2 + 2 c beta + |a|^2 - radius^2 = 0``,
-        whose positive root is ``(-c + d) / |diff|^2``, ``d = sqrt(c^2 + |diff|^2 (radius^2 - |a|^2))``;
-        when ``c > 0`` the numerator cancels: multiply by ``(d + c) / (d + c)``. For the decreases:
-        ``L(0) - L(h_gn) = -g^T h_gn / 2``, and along ``-t g``,
-        ``L(0) - L(-t g) = t |g|^2 - t^2 |g|^2 / (2 alpha)``.""",
-        """::
-
-            1. |h_gn| <= radius: L(0) - L(h) = -g^T h_gn / 2
-            2. |a| >= radius:    h = -(radius / |g|) g,  L(0) - L(h) = radius (2 |a| - radius) / (2 alpha)
-            3. otherwise:        h = a + beta (h_gn - a),
-                                 L(0) - L(h) = alpha (1 - beta)^2 |g|^2 / 2 + beta (2 - beta) (-g^T h_gn / 2)
-
-        with ``c = a^T (h_gn - a)``, ``d = sqrt(c^2 + |h_gn - a|^2 (radius^2 - |a|^2))``,
-        ``beta = (d - c) / |h_gn - a|^2`` if ``c <= 0`` else ``(radius^2 - |a|^2) / (d + c)``.""",
-    ),
-}

@@ -44,16 +44,3 @@ def solve_step(H, b, damping=None):
     ``H = L L^T`` and two triangular solves beat a general inverse.
     """
     raise NotImplementedError("TODO gauss_newton.solve_step: not implemented yet")
-
-
-#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
-#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
-HINTS = {
-    "normal_equations": (
-        """Expand the product ``(r + J h)^T W (r + J h)`` term by term and match the terms of degree 0, 1
-        and 2 in h. W is symmetric.""",
-        """``(J h)^T W r = r^T W J h`` (a scalar equals its transpose), so the linear term is
-        ``2 (J^T W r)^T h``; the quadratic term is ``h^T (J^T W J) h``.""",
-        """``H = J^T W J`` (n, n) and ``b = J^T W r`` (n,).""",
-    ),
-}

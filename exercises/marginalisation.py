@@ -157,16 +157,3 @@ def prior_update(J, e0, x_lin, x):
     x_lin = _vector(x_lin, J.shape[1], "x_lin")
     x = _vector(x, J.shape[1], "x")
     raise NotImplementedError("TODO marginalisation.prior_update: not implemented yet")
-
-
-#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
-#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
-HINTS = {
-    "marginalise": (
-        """Reorder the unknowns as (kept r, removed m): ``[[H_rr, H_rm], [H_mr, H_mm]] [dx_r; dx_m] = -[b_r; b_m]``.
-        Solve the second block row for ``dx_m`` and put it into the first.""",
-        """``dx_m = -H_mm^+ (b_m + H_mr dx_r)``, so ``(H_rr - H_rm H_mm^+ H_mr) dx_r = -(b_r - H_rm H_mm^+ b_m)``:
-        the Schur complement of ``H_mm``.""",
-        """``H_prior = H_rr - H_rm H_mm^+ H_mr`` and ``b_prior = b_r - H_rm H_mm^+ b_m``.""",
-    ),
-}

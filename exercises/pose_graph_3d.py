@@ -50,27 +50,3 @@ def retract(t, R, delta):
     """The poses moved by ``delta`` (N, 6), one ``(rho, phi)`` per pose: ``(t + R rho, R Exp(phi))``,
     shapes (N, 3) and (N, 3, 3)."""
     raise NotImplementedError("TODO pose_graph_3d.retract: not implemented yet")
-
-
-#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
-#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
-HINTS = {
-    "edge_errors_and_jacobians": (
-        """Perturb one pose at a time: replace ``T_i`` by ``T_i (+) delta_i`` in ``d`` and in ``R_z^T R_i^T R_j``,
-        keep the terms of first order in ``rho_i`` and ``phi_i`` (``Exp(phi) = I + [phi]x + ...``), and
-        read off the blocks. The translation error is a vector; the rotation error is a ``Log``,
-        so for it move the perturbation to the right of ``D_R`` and use the right Jacobian.""",
-        """Three identities: ``[phi]x v = -[v]x phi``; ``R^T Exp(phi) R = Exp(R^T phi)`` (moving a
-        perturbation through a rotation); ``Log(Exp(e) Exp(dphi)) = e + J_r^-1(e) dphi`` to first order.
-        So ``D_R Exp(phi_j)`` gives ``J_r^-1(e_phi) phi_j``, and
-        ``R_z^T Exp(-phi_i) R_i^T R_j = D_R Exp(-R_j^T R_i phi_i)``.""",
-        """::
-
-            A = de/d delta_i = [[-R_z^T,  R_z^T [d]x              ],
-                                [ 0,      -J_r^-1(e_phi) R_j^T R_i  ]]             (M, 6, 6)
-            B = de/d delta_j = [[ D_R,    0                        ],
-                                [ 0,      J_r^-1(e_phi)             ]]             (M, 6, 6)
-
-        with ``D_R = R_z^T R_i^T R_j`` and ``e_phi = e[3:]``.""",
-    ),
-}

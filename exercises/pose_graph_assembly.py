@@ -32,20 +32,3 @@ def assemble_normal_equations(poses, edges_i, edges_j, measurements, information
         positive definite; fixed: (K,) int indices of fixed poses.
     """
     raise NotImplementedError("TODO pose_graph_assembly.assemble_normal_equations: not implemented yet")
-
-
-#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
-#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
-HINTS = {
-    "assemble_normal_equations": (
-        """Write one edge's rows of J as a block row ``J_k = [0 ... A ... B ... 0]`` (A at pose i, B at
-        pose j) and multiply out ``J_k^T Omega J_k`` and ``J_k^T Omega e`` block by block; H and b are
-        the sums over the edges.""",
-        """``(J_k^T Omega J_k)[p, q] = J_k[:, p]^T Omega J_k[:, q]``, nonzero only for p, q in {i, j}.""",
-        """::
-
-            H[i,i] += A^T Omega A    H[i,j] += A^T Omega B
-            H[j,i] += B^T Omega A    H[j,j] += B^T Omega B
-            b[i]   += A^T Omega e    b[j]   += B^T Omega e       chi2 += e^T Omega e""",
-    ),
-}

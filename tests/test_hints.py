@@ -1,6 +1,7 @@
 """The exercises' hints: three levels in each module's HINTS, printed by ``python -m autograder hint``,
 and into the stubs' docstrings by ``release --hints N`` (0 by default, recorded in exercises/)."""
 
+import json
 import shutil
 
 import pytest
@@ -53,13 +54,19 @@ def test_the_default_stubs_do_not_print_the_results_and_level_3_does():
     assert "Hint 1 (the approach)" in first and "Hint 2" not in first and "A_ij = [[" not in first
 
 
-def test_hints_survive_the_release_and_the_stubs_still_compile():
+def test_the_hints_move_to_hints_json_and_the_stubs_still_compile():
     for level in range(4):
-        for rel_path, text in rel.render(REPO_ROOT / "solutions", hints=level).items():
+        files = rel.render(REPO_ROOT / "solutions", hints=level)
+        shipped = json.loads(files["hints.json"])
+        assert sorted(shipped) == sorted(DERIVED)
+        for rel_path, text in files.items():
             if rel_path.endswith(".py"):
                 compile(text, rel_path, "exec")
+                assert "HINTS = {" not in text and "the derived results, in three levels" not in text, rel_path
+                assert read_hints(text) == {}
                 if rel_path[:-3] in DERIVED:
-                    assert read_hints(text) == read_hints((REPO_ROOT / "solutions" / rel_path).read_text())
+                    reference = read_hints((REPO_ROOT / "solutions" / rel_path).read_text())
+                    assert shipped[rel_path[:-3]] == {owner: list(levels) for owner, levels in reference.items()}
 
 
 def test_the_level_is_recorded_and_check_compares_with_it(tmp_path):

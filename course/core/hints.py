@@ -9,8 +9,10 @@ owner (``""`` for the module, ``"function"`` or ``"Class.method"``) to three tex
 2. the key identity (the one step the derivation turns on);
 3. the result (the formulas, as the reference uses them).
 
-``HINTS`` sits outside the solution blocks, so it ships in ``exercises/`` with the stubs;
-``python -m autograder hint NAME [LEVEL]`` prints one level at a time, and
+``HINTS`` sits outside the solution blocks; the release takes it out of the stubs and writes every
+module's hints to ``exercises/hints.json`` (:data:`HINTS_FILE`), so that they ship in the student
+tree without sitting under the TODO; ``python -m autograder hint NAME [LEVEL]`` prints one level
+at a time, and
 ``python -m course release --hints N`` prints levels 1 to N into the stubs' docstrings (0, the
 default, none). Everything here reads source text: nothing imports the student's code.
 """
@@ -21,6 +23,8 @@ import textwrap
 
 #: the levels, in order, and what each gives
 LEVELS = {1: "the approach", 2: "the key identity", 3: "the result"}
+#: the file of ``exercises/`` that holds every module's hints: ``{module: {owner: [l1, l2, l3]}}``
+HINTS_FILE = "hints.json"
 #: how ``exercises/__init__.py`` records the level its docstrings were released with
 LEVEL_LINE = "HINTS_LEVEL = "
 
@@ -41,6 +45,21 @@ def read_hints(source: str, path="<source>") -> dict:
             _validate(hints, path)
             return hints
     return {}
+
+
+def without_hints(source: str, path="<source>") -> str:
+    """``source`` without its ``HINTS`` assignment and the comment lines right above it (the release
+    ships the hints in a file of their own, so the stubs do not show the results below the TODO)."""
+    tree = ast.parse(source, filename=str(path))
+    lines = source.splitlines(keepends=True)
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "HINTS" for t in node.targets):
+            start = node.lineno - 1
+            while start > 0 and lines[start - 1].lstrip().startswith("#"):
+                start -= 1
+            kept = lines[:start] + lines[node.end_lineno or start:]
+            return "".join(kept).rstrip("\n") + "\n"
+    return source
 
 
 def _validate(hints, path) -> None:

@@ -7,7 +7,8 @@ out of the student tree (e.g. reference answers to written questions, the refere
 of the autograder), wherever it is.
 
 Hints (``course.core.hints``): ``render(..., hints=N)`` prints levels 1 to N of each module's
-``HINTS`` into the docstrings they belong to (0: none) and records N in ``exercises/__init__.py``;
+``HINTS`` into the docstrings they belong to (0: none), moves ``HINTS`` out of the stubs into
+``exercises/hints.json`` (read by ``python -m autograder hint``) and records N in ``exercises/__init__.py``;
 ``release`` without a level keeps the one ``exercises/`` records, so ``release --check`` compares
 with the level the committed exercises were released with.
 
@@ -18,10 +19,19 @@ and ``Makefile`` from ``course/release/student_tree/`` in place of the instructo
 """
 
 import ast
+import json
 import shutil
 from pathlib import Path
 
-from course.core.hints import HintError, insert_hints, record_level, recorded_level
+from course.core.hints import (
+    HINTS_FILE,
+    HintError,
+    insert_hints,
+    read_hints,
+    record_level,
+    recorded_level,
+    without_hints,
+)
 from course.core.impl import REPO_ROOT
 
 BEGIN, END, OMIT = "# BEGIN SOLUTION", "# END SOLUTION", "# RELEASE: omit"
@@ -91,8 +101,9 @@ def _omitted(text: str) -> bool:
 
 def render(solutions_dir: Path, hints: int = 0) -> dict:
     """``{relative path: text}`` of the student tree for ``solutions_dir``, hints 1..``hints`` in
-    the docstrings."""
-    files = {}
+    the docstrings, and every module's ``HINTS`` in ``hints.json`` instead of the module."""
+    files: dict = {}
+    collected: dict = {}
     for path in sorted(solutions_dir.rglob("*")):
         if path.is_dir() or "__pycache__" in path.parts or path.suffix == ".pyc":
             continue
@@ -103,15 +114,20 @@ def render(solutions_dir: Path, hints: int = 0) -> dict:
         if path.suffix == ".py":
             module = ".".join(rel.with_suffix("").parts)
             try:
-                text = insert_hints(text, hints, path)
+                found = read_hints(text, path)
+                text = without_hints(insert_hints(text, hints, path), path)
             except HintError as exc:
                 raise ReleaseError(str(exc)) from None
+            if found:
+                collected[module] = {owner: list(levels) for owner, levels in found.items()}
             text = strip_solutions(text, module, path)
             if rel.name == "__init__.py":
                 text = text.replace("Reference implementations", "Your implementations", 1)
                 if rel.parent == Path("."):
                     text = record_level(text, hints)
         files[str(rel)] = text
+    if collected:
+        files[HINTS_FILE] = json.dumps(collected, indent=1, sort_keys=True) + "\n"
     return files
 
 
