@@ -26,6 +26,7 @@ DERIVED = {
     "bundle_adjustment": ["reprojection_residuals_and_jacobians", "schur_solve"],
     "robust_kernels": ["huber", "cauchy", "tukey", "robust_information"],
     "marginalisation": ["marginalise"],
+    "imu_preintegration": ["preintegrate"],
 }
 
 
