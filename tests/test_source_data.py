@@ -75,3 +75,11 @@ def test_without_the_cap_type_3_parts_from_the_source_after_the_fourth_step():
     _, lam_capped = accepted(minimize(CurveProblem(source_data()), "lm-source"))
     # lambda after the third accepted step, printed beside the fourth chi2 (7273.96)
     assert f"{lam_after[2]:.2f}" == "1864.17" and f"{lam_capped[2]:.2f}" == "1242.76"
+
+
+def test_compare_runs_the_source_data_by_name():
+    from course.app import compare
+
+    (run,) = compare.run("curve:source", impl="solutions", methods=["lm-source"], backends=["ours"])
+    assert f"{run.initial_chi2:g}" == "36048.3" and f"{run.final_chi2:g}" == "91.3959"
+    assert compare.find_runner("curve:source").kind == "curve"
