@@ -2,7 +2,8 @@
 [--json FILE] [--metadata submission_metadata.json]``,
 or a whole class: ``python -m autograder batch SUBMISSIONS --out DIR``, ``python -m autograder
 merge PART... --out DIR`` and ``python -m autograder export DIR... --canvas|--moodle OUT.csv``
-(:mod:`autograder.classroom`).
+(:mod:`autograder.classroom`); an exercise's hints, one level at a time:
+``python -m autograder hint NAME [LEVEL]`` (:mod:`autograder.hints`).
 
 Exit status 0 whenever grading ran, whatever the score; 2 for usage errors.
 """
@@ -19,7 +20,9 @@ BUILTIN = ("solutions", "exercises")
 def parser():
     p = argparse.ArgumentParser(prog="python -m autograder", description=(
         "Grade an implementation of the exercises. Student code runs in child processes "
-        "under a time and memory limit; one failure costs one check."))
+        "under a time and memory limit; one failure costs one check."),
+        epilog="Also: `python -m autograder hint NAME [LEVEL]` prints an exercise's hints, one level at a time "
+               "(1 the approach, 2 the key identity, 3 the result); `batch` and `merge` grade a whole class.")
     p.add_argument("--impl", default="exercises",
                    help="solutions, exercises (default), or a directory laid out like exercises/")
     p.add_argument("--only", action="append", metavar="NAME",
@@ -86,6 +89,10 @@ def main(argv=None) -> int:
         from autograder.classroom import export
 
         return export.main(argv[1:])
+    if argv[:1] == ["hint"]:
+        from autograder import hints
+
+        return hints.main(argv[1:])
     if argv[:1] == ["merge"]:
         from autograder.classroom import merge
 

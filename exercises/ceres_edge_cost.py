@@ -28,13 +28,9 @@ class SE2EdgeCost(pyceres.CostFunction):
 
         e = [R_ij^T (R_i^T (t_j - t_i) - t_ij); wrap(theta_j - theta_i - theta_ij)]
 
-    With ``phi = theta_i + theta_ij`` and ``d = t_j - t_i`` this is
-    ``e_t = R(phi)^T d - R_ij^T t_ij``, so, writing ``Q = R(phi)^T``:
-
-        de/dx_i = [[-Q, (-sin phi dx + cos phi dy, -cos phi dx - sin phi dy)^T], [0 0 -1]]
-        de/dx_j = [[ Q, 0], [0 0 1]]
-
-    and the Jacobians Ceres receives are ``U de/dx_i``, ``U de/dx_j`` (3x3, row-major).
+    The Jacobians Ceres receives are ``U de/dx_i``, ``U de/dx_j`` (3x3, row-major): derive
+    ``de/dx_i`` and ``de/dx_j`` in scalars (Ceres calls this often: no small numpy matrices), as in
+    ``pose_graph_edge`` (``python -m autograder hint SE2EdgeCost``).
 
     Args:
         measurement: (3,) ``z_ij = (dx, dy, dtheta)``, pose j in the frame of pose i.

@@ -11,7 +11,8 @@ def residuals_and_jacobian(params, x, y):
     """Residuals and Jacobian of the exponential model, vectorized over the points.
 
     Model: ``y_hat_k = exp(a x_k^2 + b x_k + c)`` with ``params = (a, b, c)``.
-    Residual: ``r_k = y_hat_k - y_k``. Jacobian row: ``dr_k/d(a, b, c) = y_hat_k (x_k^2, x_k, 1)``.
+    Residual: ``r_k = y_hat_k - y_k``. Derive the Jacobian row ``dr_k/d(a, b, c)`` yourself
+    (``python -m autograder hint residuals_and_jacobian 1``, then 2 and 3, if you are stuck).
 
     Args:
         params: (3,) the parameters ``a, b, c``.

@@ -49,9 +49,10 @@ class GavinType1(DampingStrategy):
         raise NotImplementedError("TODO damping.GavinType1.damping_diagonal: not implemented yet")
 
     def gain_denominator(self, h, b, diag_H, lam):
-        """Gavin eq. 16: ``h^T (lambda diag(H) h + J^T W (y - y_hat))`` = ``h^T (lambda diag(H) h - b)``.
-
-        This is the decrease of chi2 that the quadratic model predicts for h.
+        """The decrease of chi2 that the quadratic model ``chi2(p) + 2 b^T h + h^T H h`` predicts for
+        the step ``h``, which solves this type's damped system (Gavin eq. 16). Derive it in terms of
+        ``h``, ``b``, ``lambda`` and ``diag(H)`` (no H: the strategy is not given it);
+        ``python -m autograder hint GavinType1.gain_denominator``.
         """
         raise NotImplementedError("TODO damping.GavinType1.gain_denominator: not implemented yet")
 
@@ -91,7 +92,9 @@ class GavinType2(DampingStrategy):
         raise NotImplementedError("TODO damping.GavinType2.step_scale: not implemented yet")
 
     def gain_denominator(self, h, b, diag_H, lam):
-        """Gavin eq. 15: ``h^T (lambda h - b)`` (h is already the scaled step alpha h)."""
+        """The decrease of chi2 the quadratic model predicts for ``h`` (Gavin eq. 15), in ``h``, ``b``
+        and ``lambda``, as for type 1 but with this type's system (h is already the scaled step alpha h);
+        ``python -m autograder hint GavinType2.gain_denominator``."""
         raise NotImplementedError("TODO damping.GavinType2.gain_denominator: not implemented yet")
 
     def update(self, state, rho, accepted, alpha=1.0, dchi2=0.0):
@@ -121,7 +124,8 @@ class GavinType3(DampingStrategy):
         raise NotImplementedError("TODO damping.GavinType3.damping_diagonal: not implemented yet")
 
     def gain_denominator(self, h, b, diag_H, lam):
-        """Gavin eq. 15: ``h^T (lambda h - b)``."""
+        """The decrease of chi2 the quadratic model predicts for ``h`` (Gavin eq. 15), in ``h``, ``b``
+        and ``lambda`` (this type's system is type 2's); ``python -m autograder hint GavinType3.gain_denominator``."""
         raise NotImplementedError("TODO damping.GavinType3.gain_denominator: not implemented yet")
 
     def update(self, state, rho, accepted, alpha=1.0, dchi2=0.0):

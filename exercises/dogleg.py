@@ -21,10 +21,11 @@ GAUSS_NEWTON, STEEPEST_DESCENT, DOGLEG = "gauss-newton", "steepest-descent", "do
 
 
 def cauchy_point(g, Hg):
-    """The minimizer of the model along steepest descent.
+    """The minimizer of the model ``L`` along steepest descent (the Cauchy point).
 
-    Args: g (n,) the gradient; Hg (n,) the product ``H g``.
-    Returns: ``(h_cp, alpha)``: ``alpha = |g|^2 / g^T H g`` and ``h_cp = -alpha g`` (n,).
+    Args: g (n,) the gradient; Hg (n,) the product ``H g`` (g^T H g > 0).
+    Returns: ``(h_cp, alpha)``: ``h_cp = -alpha g`` (n,) with ``alpha > 0`` the step length that
+    minimizes ``L(-alpha g)``; derive it (``python -m autograder hint cauchy_point``).
     """
     raise NotImplementedError("TODO dogleg.cauchy_point: not implemented yet")
 
@@ -33,17 +34,13 @@ def dogleg_step(g, h_gn, alpha, radius):
     """The dogleg step for trust-region ``radius``, its predicted decrease and its case.
 
     Cases (Madsen et al., algorithm 3.21), with ``a = -alpha g`` the Cauchy point:
-    1. ``|h_gn| <= radius``: the Gauss-Newton step; ``L(0) - L(h) = -g^T h_gn / 2``.
-    2. ``|a| >= radius``: steepest descent clipped to the boundary,
-       ``h = -(radius / |g|) g``; ``L(0) - L(h) = radius (2 |a| - radius) / (2 alpha)``.
-    3. otherwise ``h = a + beta (h_gn - a)`` with ``|h| = radius``;
-       ``L(0) - L(h) = alpha (1 - beta)^2 |g|^2 / 2 + beta (2 - beta) (-g^T h_gn / 2)``.
-    Solve the quadratic for beta without cancellation: with ``c = a^T (h_gn - a)``,
-    ``d = sqrt(c^2 + |h_gn - a|^2 (radius^2 - |a|^2))``,
-    ``beta = (d - c) / |h_gn - a|^2`` if ``c <= 0`` else ``(radius^2 - |a|^2) / (d + c)``.
-
-    Madsen et al. write ``F(x)`` where this uses ``-g^T h_gn / 2 = L(0) - L(h_gn)``:
-    the two agree only when the linearized residual vanishes; this is exact.
+    1. ``|h_gn| <= radius``: the Gauss-Newton step.
+    2. ``|a| >= radius``: steepest descent clipped to the boundary, ``h = -(radius / |g|) g``.
+    3. otherwise ``h = a + beta (h_gn - a)`` with ``0 < beta < 1`` such that ``|h| = radius``.
+    In every case the predicted decrease is ``L(0) - L(h)``, exact for the quadratic model (not
+    Madsen et al.'s ``F(x)`` shortcut, which holds only when the linearized residual vanishes).
+    Derive the three decreases and beta, the root of a quadratic, computed without cancellation
+    (``python -m autograder hint dogleg_step 1``, then 2 and 3).
 
     Args: g (n,), g != 0, h_gn (n,) the Gauss-Newton step (``H h_gn = -g``), alpha from
     ``cauchy_point``, radius > 0. The ties belong to the cases above: ``|h_gn| = radius`` is

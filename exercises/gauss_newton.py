@@ -12,12 +12,17 @@ import numpy as np
 def normal_equations(J, r, w):
     """The Gauss-Newton normal equations.
 
+    Linearize the residuals, ``r(p + h) ~ r + J h``, and write the weighted cost of the linearized
+    residuals as a quadratic in h: ``(r + J h)^T W (r + J h) = chi2 + 2 b^T h + h^T H h``. Derive
+    H and b (``python -m autograder hint normal_equations 1``); the Gauss-Newton step, the
+    minimizer of that quadratic, then solves ``H h = -b``.
+
     Args:
         J: (m, n) Jacobian ``dr/dp``; r: (m,) residuals; w: (m,) weights (W = diag(w));
         m, n >= 1 (one residual or one parameter included).
 
     Returns:
-        H: (n, n) ``J^T W J``; b: (n,) ``J^T W r``.
+        H: (n, n) symmetric; b: (n,), as defined above.
 
     Hint: scale the rows of J by w instead of building the m x m matrix W.
     """

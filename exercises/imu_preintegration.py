@@ -32,19 +32,10 @@ Linearisation. The error state is ``delta = (delta phi, delta v, delta p)`` (9,)
 ``Delta R_true = Delta R Exp(delta phi)``, ``Delta v_true = Delta v + delta v``, likewise p.
 One step maps it linearly, ``delta_{k+1} = A_k delta_k + B_k eta_k``, where ``eta_k =
 (eta_g, eta_a)`` (6,) is the measurement noise of the interval, entering as the biases do
-(``w_k - eta_g``, every ``a_. - b_a - eta_a``). With ``E = Exp(w_k dt)``,
-``J_r = J_r(w_k dt)`` (the right Jacobian of SO(3)), ``R = Delta R_k``, ``R' = Delta R_{k+1}``,
-``[x]`` the skew matrix, and for the scheme's acceleration
-
-- Euler:    ``D_phi = -R [a~_k]``,  ``D_g = 0``,  ``D_a = -R``  (``a~ = a - b_a``),
-- midpoint: ``D_phi = -(R [a~_k] + R' [a~_{k+1}] E^T) / 2``,  ``D_g = R' [a~_{k+1}] J_r dt / 2``,
-  ``D_a = -(R + R') / 2``,
-
-(the derivatives of the rotated acceleration by delta phi, eta_g and eta_a)::
-
-    A_k = [[E^T,             0,      0],      B_k = [[-J_r dt,          0         ],
-           [D_phi dt,        I,      0],             [D_g dt,           D_a dt     ],
-           [D_phi dt^2 / 2,  I dt,   I]]             [D_g dt^2 / 2,     D_a dt^2 / 2]]
+(``w_k - eta_g``, every ``a_. - b_a - eta_a``). Derive ``A_k`` (9, 9) and ``B_k`` (9, 6) for each
+scheme by perturbing the three updates above and keeping the first-order terms
+(``python -m autograder hint preintegrate 1``, then 2 and 3); the grader compares the covariance
+and the bias Jacobians with the reference's values, so any correct form scores.
 
 Covariance (9, 9), from ``Sigma_0 = 0``: ``Sigma_{k+1} = A_k Sigma_k A_k^T + B_k Q_k B_k^T`` with
 ``Q_k = diag(gyro_noise^2 I, accel_noise^2 I) / dt_k`` (the noise densities made discrete).

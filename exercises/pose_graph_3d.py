@@ -12,21 +12,17 @@ A step ``delta = (rho, phi)`` (6,) moves a pose on the right::
 
     T (+) delta = (R Exp(phi), t + R rho)
 
-and the Jacobians are taken in that perturbation (``J_r^-1`` is the inverse right Jacobian
-of SO(3), at ``e_phi = e[3:]``)::
-
-    A = de/d delta_i = [[-R_z^T,  R_z^T [d]x              ],
-                        [ 0,      -J_r^-1(e_phi) R_j^T R_i  ]]             (M, 6, 6)
-    B = de/d delta_j = [[ D_R,    0                        ],
-                        [ 0,      J_r^-1(e_phi)             ]]             (M, 6, 6)
-
-with ``D_R = R_z^T R_i^T R_j``. g2o's ``EdgeSE3`` error is ``[D_t; vec(q(D_R))]``, about
+and the Jacobians ``A = de/d delta_i`` and ``B = de/d delta_j`` (M, 6, 6) are taken in that
+perturbation, at ``delta = 0``: derive them (``python -m autograder hint edge_errors_and_jacobians 1``,
+then 2 and 3). The grader compares values and finite differences, so any correct form scores.
+With ``D_R = R_z^T R_i^T R_j``, g2o's ``EdgeSE3`` error is ``[D_t; vec(q(D_R))]``, about
 half our rotation part (``vec(q) = sin(theta/2) u``); GTSAM's ``BetweenFactor<Pose3>`` is
 ``Logmap(D)``, rotation first, whose translation part ``V(phi)^-1 D_t`` equals ours to
 first order.
 
 Given (``course.geometry``): ``so3.skew`` (K, 3) -> (K, 3, 3), ``so3.exp_many``,
-``so3.log_many`` and ``so3.right_jacobian_inverse_many``, all vectorized over K.
+``so3.log_many`` and ``so3.right_jacobian_inverse_many`` (``J_r^-1``, the inverse right Jacobian of
+SO(3)), all vectorized over K.
 
 Inputs at the edges of the contract (each is a check input):
 - edge_errors_and_jacobians: one edge (M = 1)
@@ -46,7 +42,7 @@ from course.geometry.so3 import exp_many, log_many, right_jacobian_inverse_many,
 
 def edge_errors_and_jacobians(t, R, edges_i, edges_j, t_z, R_z):
     """``e`` (M, 6), ``A = de/d delta_i`` (M, 6, 6), ``B = de/d delta_j`` (M, 6, 6) of all
-    edges at once, no Python loop over edges (formulas in the module docstring)."""
+    edges at once, no Python loop over edges (definitions in the module docstring)."""
     raise NotImplementedError("TODO pose_graph_3d.edge_errors_and_jacobians: not implemented yet")
 
 

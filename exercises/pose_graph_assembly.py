@@ -17,14 +17,12 @@ from . import pose_graph_edge
 def assemble_normal_equations(poses, edges_i, edges_j, measurements, information, fixed):
     """Dense ``H`` (3N, 3N), ``b`` (3N,) and ``chi2`` of a pose graph, edge by edge.
 
-    For each edge k from pose i to pose j, with ``e, A, B`` from
-    ``pose_graph_edge.edge_error_and_jacobians`` and ``Omega = information[k]``::
-
-        H[i,i] += A^T Omega A    H[i,j] += A^T Omega B
-        H[j,i] += B^T Omega A    H[j,j] += B^T Omega B
-        b[i]   += A^T Omega e    b[j]   += B^T Omega e       chi2 += e^T Omega e
-
-    where ``H[i,j]`` is the 3x3 block at rows ``3i:3i+3``, columns ``3j:3j+3``.
+    ``H = J^T Omega J``, ``b = J^T Omega e`` and ``chi2 = e^T Omega e`` summed over the edges, where edge
+    k from pose i to pose j has ``e, A, B`` from ``pose_graph_edge.edge_error_and_jacobians`` and
+    ``Omega = information[k]``: its rows of the Jacobian J are zero but for A in pose i's three
+    columns and B in pose j's. Derive which 3x3 blocks of H and 3-blocks of b one edge adds to, and
+    what (``python -m autograder hint assemble_normal_equations``); ``H[i,j]`` is the 3x3 block at
+    rows ``3i:3i+3``, columns ``3j:3j+3``.
     Then hold every pose in ``fixed`` still: zero its rows and columns of H and its
     entries of b, and put the identity on its diagonal block, so that its step is 0.
 

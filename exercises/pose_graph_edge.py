@@ -17,12 +17,10 @@ def edge_error_and_jacobians(x_i, x_j, z_ij):
         e_t     = R_ij^T (R_i^T (t_j - t_i) - t_ij)
         e_theta = wrap(theta_j - theta_i - theta_ij)      wrapped to [-pi, pi): pi wraps to -pi
 
-        A_ij = [[-R_ij^T R_i^T,  R_ij^T dR_i^T/dtheta_i (t_j - t_i)],
-                [ 0    0,        -1                               ]]
-        B_ij = [[ R_ij^T R_i^T,  0],
-                [ 0    0,        1]]
-
-    Hint: ``dR^T/dtheta = [[-sin, cos], [-cos, -sin]]``; ``course.geometry.se2.wrap_angle``
-    wraps angles.
+    Derive ``A_ij`` and ``B_ij`` yourself: the derivatives of ``e`` in the ordinary coordinates
+    ``(x, y, theta)`` of each pose (the poses are updated by plain addition), rows ``(e_t, e_theta)``,
+    columns ``(x, y, theta)``. The grader compares values, so any correct way of writing them
+    scores. ``course.geometry.se2.wrap_angle`` wraps angles.
+    ``python -m autograder hint edge_error_and_jacobians 1`` (then 2, 3) if you are stuck.
     """
     raise NotImplementedError("TODO pose_graph_edge.edge_error_and_jacobians: not implemented yet")

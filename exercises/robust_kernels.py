@@ -20,13 +20,12 @@ here every kernel has ``rho'(0) = 1``, so that an inlier costs what it costs wit
 
 Each kernel function returns ``(rho, d_rho, dd_rho)``: the value ``rho(s)`` and the
 derivatives ``rho'(s)``, ``rho''(s)`` *in s* (not in |e|), every one an array (K,), one entry
-per residual. Gauss-Newton with a kernel (Triggs, McLauchlan, Hartley, Fitzgibbon, "Bundle
-Adjustment - A Modern Synthesis", 1999, section 4.3): with ``e(x)`` and ``J = de/dx``::
-
-    d chi2 / dx = 2 rho' J^T Omega e
-    H ~ J^T (rho' Omega + 2 rho'' (Omega e)(Omega e)^T) J        (the Gauss-Newton part)
-
-:func:`robust_information` gives that weighted information. No Python loop over residuals.
+per residual: derive them from the definitions above (``python -m autograder hint huber 1``, and
+``cauchy``, ``tukey``). Gauss-Newton with a kernel (Triggs, McLauchlan, Hartley, Fitzgibbon,
+"Bundle Adjustment - A Modern Synthesis", 1999, section 4.3) differentiates ``rho(e(x)^T Omega
+e(x))`` twice by the chain rule, keeping only first derivatives of ``e``:
+:func:`robust_information` gives the weighted information that takes Omega's place in
+``H = J^T Omega J``. No Python loop over residuals.
 K >= 1 residuals everywhere.
 
 Inputs at the edges of the contract (each is a check input):
@@ -78,11 +77,11 @@ def huber(s, scale):
 
     With ``a = scale`` (the branch ``s <= a^2`` includes the threshold itself)::
 
-        s <= a^2:  rho = s,                  rho' = 1,            rho'' = 0
-        s >  a^2:  rho = 2 a sqrt(s) - a^2,  rho' = a / sqrt(s),  rho'' = -a / (2 s^(3/2))
+        s <= a^2:  rho = s
+        s >  a^2:  rho = 2 a sqrt(s) - a^2
 
-    ``rho`` and ``rho'`` are continuous at ``s = a^2`` (``rho' = 1`` on both sides); ``rho''``
-    jumps there from 0 to ``-1 / (2 a^2)``. The robust branch is the linear ``2 a |e| - a^2`` in
+    Derive ``rho'`` and ``rho''`` in s on each branch (``python -m autograder hint huber``); ``rho``
+    and ``rho'`` are continuous at ``s = a^2``, ``rho''`` is not. The robust branch is the linear ``2 a |e| - a^2`` in
     ``|e| = sqrt(s)``. Hint: ``np.where`` on both branches, with ``sqrt(s)`` replaced by 1 where
     it is not used, so that s = 0 never divides by zero.
     """
@@ -93,9 +92,8 @@ def huber(s, scale):
 def cauchy(s, scale):
     """Cauchy's (Lorentzian) kernel: ``(rho, d_rho, dd_rho)`` (K,) each at ``s`` (K,), scale ``a``.
 
-    With ``t = 1 + s / a^2``::
-
-        rho = a^2 log(t),   rho' = 1 / t,   rho'' = -1 / (a^2 t^2)
+    With ``t = 1 + s / a^2``: ``rho = a^2 log(t)``; derive ``rho'`` and ``rho''`` in s
+    (``python -m autograder hint cauchy``).
 
     Hint: ``np.log1p(s / a^2)`` keeps full precision for small s.
     """
@@ -108,10 +106,11 @@ def tukey(s, scale):
 
     With ``u = 1 - s / a^2``::
 
-        s <= a^2:  rho = a^2 / 3 (1 - u^3),  rho' = u^2,  rho'' = -2 u / a^2
-        s >  a^2:  rho = a^2 / 3,            rho' = 0,    rho'' = 0
+        s <= a^2:  rho = a^2 / 3 (1 - u^3)
+        s >  a^2:  rho = a^2 / 3
 
-    All three are continuous at ``s = a^2`` (u = 0): a residual beyond the threshold has no
+    Derive ``rho'`` and ``rho''`` in s (``python -m autograder hint tukey``); all three are
+    continuous at ``s = a^2`` (u = 0): a residual beyond the threshold has no
     influence at all. Note ``1 - u^3 = (s / a^2)(1 + u + u^2)``, exact for small s.
     (Ceres' ``TukeyLoss`` is half of this, with ``rho'(0) = 1/2``: here ``rho'(0) = 1``.)
     """
@@ -125,13 +124,10 @@ def robust_information(e, Omega, d_rho, dd_rho):
     Args: residuals ``e`` (K, n); information ``Omega`` (K, n, n), or (n, n) shared by all;
     ``d_rho``, ``dd_rho`` (K,): a kernel's ``rho'(s_k)``, ``rho''(s_k)`` at ``s_k = e_k^T Omega_k e_k``.
 
-    The Gauss-Newton part of the Hessian of ``rho(e^T Omega e)`` in e (halved, like chi2's
-    ``H = J^T Omega J``) is the *corrected* form, with ``v = Omega e`` (n,)::
-
-        corrected  = rho' Omega + 2 rho'' v v^T
-        first-order = rho' Omega
-
-    (the gradient is ``rho' Omega e`` either way). The rank-one term changes the curvature
+    The *corrected* form is the Hessian of ``rho(e^T Omega e)`` in e, halved like chi2's
+    ``H = J^T Omega J``: derive it (``python -m autograder hint robust_information``); it is
+    ``rho' Omega`` plus a rank-one term along ``v = Omega e`` (n,). The *first-order* form is
+    ``rho' Omega`` alone (the halved gradient is ``rho' Omega e`` either way). The rank-one term changes the curvature
     along one direction only: for Omega positive definite the corrected form is positive
     semi-definite exactly when ``rho' + 2 rho'' s >= 0`` (its eigenvalue along that direction,
     in the metric of Omega, is ``rho' + 2 rho'' s``; the others are ``rho'``). Use, per residual::

@@ -9,7 +9,9 @@
     python -m notebooks.build --only chapter2 chapter3   # only those notebooks
     python -m notebooks.build --execute --out /tmp/nb    # write them elsewhere
 
-Chapter 1 compares damping strategies on the curve, chapter 2 pose graphs (dense against
+Chapter 1 is a lesson (the theory derived, a ``check("...")`` cell after each exercise's theory,
+the experiments: damping strategies on the curve and the C++ source's run on its own data, then
+written questions), chapter 2 pose graphs (dense against
 sparse, every back end on every named dataset, the written questions), chapter 3 the
 dogleg against Levenberg-Marquardt, chapter 3b the starts (file, spanning tree, chordal)
 and the time to solution, chapter 4 bundle adjustment (the sparsity of J, H and S, ours

@@ -59,17 +59,13 @@ def reprojection_residuals_and_jacobians(cameras, points, camera_index, point_in
         R(w) = I + a W + b W^2,   a = sin(theta) / theta,  b = (1 - cos(theta)) / theta^2
 
     Near theta = 0 (below ``SMALL_ANGLE``) use ``a = 1 - theta^2 / 6``, ``b = 1/2 - theta^2 / 24``
-    (never divide by theta). The exact derivative of the rotated point in w::
+    (never divide by theta).
 
-        d (R(w) X) / d w = -R(w) [X]_x J_r(w),
-        J_r(w) = I - b W + c W^2,  c = (theta - sin(theta)) / theta^3   (1/6 - theta^2 / 120 near 0)
-
-    Chain rule, per observation (all (K, ...) arrays, batched with ``np.matmul``):
-
-    - ``dp/dP = [[-1/P_z, 0, P_x/P_z^2], [0, -1/P_z, P_y/P_z^2]]`` (2, 3)
-    - ``d predicted/dp = f (d I + (2 k1 + 4 k2 |p|^2) p p^T)`` (2, 2); call ``A = (d predicted/dp) (dp/dP)`` (2, 3)
-    - camera columns: ``A d(RX)/dw`` (w), ``A`` (t), ``d p`` (f), ``f |p|^2 p`` (k1), ``f |p|^4 p`` (k2)
-    - point columns: ``A R(w)``
+    Derive the Jacobians by the chain rule, per observation, through ``P``, then ``p``, then the
+    prediction ``f d p``: ``J_cam`` columns in the order ``(w, t, f, k1, k2)``, ``J_point`` the
+    derivative in ``X``. The derivative of ``R(w) X`` in w is the hard part; the grader compares
+    values and finite differences, so any correct form scores (``python -m autograder hint
+    reprojection_residuals_and_jacobians 1``, then 2 and 3). Batch the (K, ...) arrays with ``np.matmul``.
 
     Hint: gather the cameras and points of the observations first (``cameras[camera_index]``).
     """
@@ -160,20 +156,18 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
     """The step ``(dx_cam (C, 9), dx_point (P, 3))`` of ``(H + D) dx = -g`` by the Schur complement.
 
     With the damping diagonals added first (``U_c += diag(damping_cam[c])`` (C, 9),
-    ``V_p += diag(damping_point[p])`` (P, 3); None means no damping), eliminate the points::
-
-        S = U - sum_k sum_l W_k V_p^-1 W_l^T    at block (c_k, c_l), over pairs k, l of
-                                                 observations of the same point p
-        rhs = -g_cam + sum_k W_k V_{p_k}^-1 g_point_{p_k}    (into block c_k)
-        S dx_cam = rhs                         ((9C, 9C), symmetric positive definite)
-        dx_point_p = V_p^-1 (-g_point_p - sum over p's observations of W_k^T dx_cam_{c_k})
+    ``V_p += diag(damping_point[p])`` (P, 3); None means no damping), eliminate the points: derive the
+    reduced camera system ``S dx_cam = rhs`` ((9C, 9C), symmetric positive definite) from the block
+    rows of ``(H + D) dx = -g``, and the points' step from ``dx_cam`` (``python -m autograder hint
+    schur_solve 1``, then 2 and 3).
 
     Solve S by a dense Cholesky factorization when 9C <= ``DENSE_LIMIT`` or at least
     ``DENSE_FILL`` of its entries are nonzero, else sparse (``scipy.sparse.linalg.splu``).
     Raise ``course.core.errors.SingularSystemError`` naming the block when some damped V_p or S
     is not positive definite.
 
-    Hint: with ``Y_k = W_k V_{p_k}^-1`` (K, 9, 3), the sum over pairs is ``Ys @ Ws^T`` where Ys
+    Hint: with ``Y_k = W_k V_{p_k}^-1`` (K, 9, 3), the sum over pairs of observations of one point
+    is ``Ys @ Ws^T`` where Ys
     and Ws are the sparse (9C, 3P) matrices holding the blocks Y_k and W_k at (c_k, p_k)
     (``scipy.sparse.csr_matrix((data, (rows, cols)), shape)``): no loop over pairs. Faster:
     ``scipy.sparse.bsr_matrix((blocks, block_columns, block_row_pointers), shape)``, which
@@ -248,3 +242,44 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
     dx_point = np.matmul(V_inv, (-np.asarray(g_point, dtype=float) - back)[:, :, None])[:, :, 0]
     return dx_cam, dx_point
     # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "reprojection_residuals_and_jacobians": (
+        """Chain rule through the stages: ``(w, t, X) -> P -> p -> f d p``. The camera's t and the point
+        X enter only through P (``dP/dt = I``, ``dP/dX = R(w)``); f, k1, k2 only at the last stage.
+        For ``d (R(w) X) / d w`` compare ``R(w + dw)`` with ``R(w) Exp(J_r(w) dw)``: a small change of
+        the angle-axis vector is a right perturbation through the right Jacobian of SO(3).""",
+        """``R(w + dw) = R(w) Exp(J_r(w) dw)`` to first order and ``[phi]x X = -[X]x phi``, so::
+
+            d (R(w) X) / d w = -R(w) [X]_x J_r(w),
+            J_r(w) = I - b W + c W^2,  c = (theta - sin(theta)) / theta^3   (1/6 - theta^2 / 120 near 0)
+
+        and ``d predicted / dp = f (d I + p (d d/dp))`` with ``d d/dp = (2 k1 + 4 k2 |p|^2) p^T``.""",
+        """Chain rule, per observation (all (K, ...) arrays, batched with ``np.matmul``):
+
+        - ``dp/dP = [[-1/P_z, 0, P_x/P_z^2], [0, -1/P_z, P_y/P_z^2]]`` (2, 3)
+        - ``d predicted/dp = f (d I + (2 k1 + 4 k2 |p|^2) p p^T)`` (2, 2); call ``A = (d predicted/dp) (dp/dP)`` (2, 3)
+        - camera columns: ``A d(RX)/dw`` (w), ``A`` (t), ``d p`` (f), ``f |p|^2 p`` (k1), ``f |p|^4 p`` (k2)
+        - point columns: ``A R(w)``
+
+        with ``d (R(w) X) / d w = -R(w) [X]_x J_r(w)``, ``J_r(w) = I - b W + c W^2``,
+        ``c = (theta - sin(theta)) / theta^3`` (``1/6 - theta^2 / 120`` near 0).""",
+    ),
+    "schur_solve": (
+        """Order the unknowns cameras first, points second: ``[[U, W], [W^T, V]] [dx_cam; dx_point] =
+        [-g_cam; -g_point]`` with U and V block diagonal. Solve the second block row for ``dx_point``
+        (V is block diagonal: one 3x3 inverse per point) and put it into the first.""",
+        """``dx_point = V^-1 (-g_point - W^T dx_cam)``, so ``(U - W V^-1 W^T) dx_cam = -g_cam + W V^-1 g_point``.
+        In blocks, ``W V^-1 W^T`` couples two cameras only through a point they both see.""",
+        """::
+
+            S = U - sum_k sum_l W_k V_p^-1 W_l^T    at block (c_k, c_l), over pairs k, l of
+                                                     observations of the same point p
+            rhs = -g_cam + sum_k W_k V_{p_k}^-1 g_point_{p_k}    (into block c_k)
+            S dx_cam = rhs                         ((9C, 9C), symmetric positive definite)
+            dx_point_p = V_p^-1 (-g_point_p - sum over p's observations of W_k^T dx_cam_{c_k})""",
+    ),
+}

@@ -53,9 +53,10 @@ class GavinType1(DampingStrategy):
         # END SOLUTION
 
     def gain_denominator(self, h, b, diag_H, lam):
-        """Gavin eq. 16: ``h^T (lambda diag(H) h + J^T W (y - y_hat))`` = ``h^T (lambda diag(H) h - b)``.
-
-        This is the decrease of chi2 that the quadratic model predicts for h.
+        """The decrease of chi2 that the quadratic model ``chi2(p) + 2 b^T h + h^T H h`` predicts for
+        the step ``h``, which solves this type's damped system (Gavin eq. 16). Derive it in terms of
+        ``h``, ``b``, ``lambda`` and ``diag(H)`` (no H: the strategy is not given it);
+        ``python -m autograder hint GavinType1.gain_denominator``.
         """
         # BEGIN SOLUTION
         return float(h @ (lam * np.asarray(diag_H) * h - b))
@@ -108,7 +109,9 @@ class GavinType2(DampingStrategy):
         # END SOLUTION
 
     def gain_denominator(self, h, b, diag_H, lam):
-        """Gavin eq. 15: ``h^T (lambda h - b)`` (h is already the scaled step alpha h)."""
+        """The decrease of chi2 the quadratic model predicts for ``h`` (Gavin eq. 15), in ``h``, ``b``
+        and ``lambda``, as for type 1 but with this type's system (h is already the scaled step alpha h);
+        ``python -m autograder hint GavinType2.gain_denominator``."""
         # BEGIN SOLUTION
         return float(h @ (lam * h - b))
         # END SOLUTION
@@ -148,7 +151,8 @@ class GavinType3(DampingStrategy):
         # END SOLUTION
 
     def gain_denominator(self, h, b, diag_H, lam):
-        """Gavin eq. 15: ``h^T (lambda h - b)``."""
+        """The decrease of chi2 the quadratic model predicts for ``h`` (Gavin eq. 15), in ``h``, ``b``
+        and ``lambda`` (this type's system is type 2's); ``python -m autograder hint GavinType3.gain_denominator``."""
         # BEGIN SOLUTION
         return float(h @ (lam * h - b))
         # END SOLUTION
@@ -164,3 +168,30 @@ class GavinType3(DampingStrategy):
 
 
 STRATEGIES = {cls.name: cls for cls in (GavinType1, GavinType2, GavinType3)}
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints). The update rules
+#: and type 2's alpha are Gavin's definitions, graded to the value: they stay in the docstrings.
+HINTS = {
+    "GavinType1.gain_denominator": (
+        """Write the predicted decrease ``chi2(p) - L(h)`` with ``L(h) = chi2(p) + 2 b^T h + h^T H h``
+        (the linearized residual ``r + J h``, squared and weighted), then use the damped system
+        the step solves to remove ``H``: the strategy knows ``diag(H)`` only.""",
+        """The step solves ``(H + lambda diag(diag(H))) h = -b``, so ``H h = -b - lambda diag(H) * h``
+        and ``h^T H h = -h^T b - lambda h^T (diag(H) * h)``.""",
+        """Gavin eq. 16: ``h^T (lambda diag(H) h + J^T W (y - y_hat))`` = ``h^T (lambda diag(H) h - b)``.""",
+    ),
+    "GavinType2.gain_denominator": (
+        """As for type 1: ``chi2(p) - L(h)`` with ``L(h) = chi2(p) + 2 b^T h + h^T H h``, and the
+        damped system ``(H + lambda I) h = -b`` to remove ``H``.""",
+        """``H h = -b - lambda h``, so ``h^T H h = -h^T b - lambda h^T h``.""",
+        """Gavin eq. 15: ``h^T (lambda h - b)`` (h is already the scaled step alpha h).""",
+    ),
+    "GavinType3.gain_denominator": (
+        """The same system as type 2, so the same derivation: ``chi2(p) - L(h)`` with the damped
+        system ``(H + lambda I) h = -b`` to remove ``H``.""",
+        """``H h = -b - lambda h``, so ``h^T H h = -h^T b - lambda h^T h``.""",
+        """Gavin eq. 15: ``h^T (lambda h - b)``.""",
+    ),
+}

@@ -21,10 +21,11 @@ GAUSS_NEWTON, STEEPEST_DESCENT, DOGLEG = "gauss-newton", "steepest-descent", "do
 
 
 def cauchy_point(g, Hg):
-    """The minimizer of the model along steepest descent.
+    """The minimizer of the model ``L`` along steepest descent (the Cauchy point).
 
-    Args: g (n,) the gradient; Hg (n,) the product ``H g``.
-    Returns: ``(h_cp, alpha)``: ``alpha = |g|^2 / g^T H g`` and ``h_cp = -alpha g`` (n,).
+    Args: g (n,) the gradient; Hg (n,) the product ``H g`` (g^T H g > 0).
+    Returns: ``(h_cp, alpha)``: ``h_cp = -alpha g`` (n,) with ``alpha > 0`` the step length that
+    minimizes ``L(-alpha g)``; derive it (``python -m autograder hint cauchy_point``).
     """
     # BEGIN SOLUTION
     alpha = float(g @ g) / float(g @ Hg)
@@ -36,17 +37,13 @@ def dogleg_step(g, h_gn, alpha, radius):
     """The dogleg step for trust-region ``radius``, its predicted decrease and its case.
 
     Cases (Madsen et al., algorithm 3.21), with ``a = -alpha g`` the Cauchy point:
-    1. ``|h_gn| <= radius``: the Gauss-Newton step; ``L(0) - L(h) = -g^T h_gn / 2``.
-    2. ``|a| >= radius``: steepest descent clipped to the boundary,
-       ``h = -(radius / |g|) g``; ``L(0) - L(h) = radius (2 |a| - radius) / (2 alpha)``.
-    3. otherwise ``h = a + beta (h_gn - a)`` with ``|h| = radius``;
-       ``L(0) - L(h) = alpha (1 - beta)^2 |g|^2 / 2 + beta (2 - beta) (-g^T h_gn / 2)``.
-    Solve the quadratic for beta without cancellation: with ``c = a^T (h_gn - a)``,
-    ``d = sqrt(c^2 + |h_gn - a|^2 (radius^2 - |a|^2))``,
-    ``beta = (d - c) / |h_gn - a|^2`` if ``c <= 0`` else ``(radius^2 - |a|^2) / (d + c)``.
-
-    Madsen et al. write ``F(x)`` where this uses ``-g^T h_gn / 2 = L(0) - L(h_gn)``:
-    the two agree only when the linearized residual vanishes; this is exact.
+    1. ``|h_gn| <= radius``: the Gauss-Newton step.
+    2. ``|a| >= radius``: steepest descent clipped to the boundary, ``h = -(radius / |g|) g``.
+    3. otherwise ``h = a + beta (h_gn - a)`` with ``0 < beta < 1`` such that ``|h| = radius``.
+    In every case the predicted decrease is ``L(0) - L(h)``, exact for the quadratic model (not
+    Madsen et al.'s ``F(x)`` shortcut, which holds only when the linearized residual vanishes).
+    Derive the three decreases and beta, the root of a quadratic, computed without cancellation
+    (``python -m autograder hint dogleg_step 1``, then 2 and 3).
 
     Args: g (n,), g != 0, h_gn (n,) the Gauss-Newton step (``H h_gn = -g``), alpha from
     ``cauchy_point``, radius > 0. The ties belong to the cases above: ``|h_gn| = radius`` is
@@ -85,3 +82,34 @@ def update_radius(radius, rho, step_norm):
         return radius / 2.0
     return radius
     # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "cauchy_point": (
+        """Restrict the model to the line ``h = -alpha g``: ``L(-alpha g)`` is a parabola in alpha.
+        Set its derivative to zero.""",
+        """``L(-alpha g) = F - alpha |g|^2 + alpha^2 g^T H g / 2``.""",
+        """``alpha = |g|^2 / g^T H g`` and ``h_cp = -alpha g``.""",
+    ),
+    "dogleg_step": (
+        """For each case, put the step into ``L(0) - L(h) = -g^T h - h^T H h / 2`` and use what is
+        known about it: ``H h_gn = -g``; ``alpha g^T H g = |g|^2``. For beta, write ``|a + beta (h_gn -
+        a)|^2 = radius^2`` as a quadratic in beta and take the root in (0, 1).""",
+        """With ``diff = h_gn - a``, ``c = a^T diff``: ``|diff|^2 beta^2 + 2 c beta + |a|^2 - radius^2 = 0``,
+        whose positive root is ``(-c + d) / |diff|^2``, ``d = sqrt(c^2 + |diff|^2 (radius^2 - |a|^2))``;
+        when ``c > 0`` the numerator cancels: multiply by ``(d + c) / (d + c)``. For the decreases:
+        ``L(0) - L(h_gn) = -g^T h_gn / 2``, and along ``-t g``,
+        ``L(0) - L(-t g) = t |g|^2 - t^2 |g|^2 / (2 alpha)``.""",
+        """::
+
+            1. |h_gn| <= radius: L(0) - L(h) = -g^T h_gn / 2
+            2. |a| >= radius:    h = -(radius / |g|) g,  L(0) - L(h) = radius (2 |a| - radius) / (2 alpha)
+            3. otherwise:        h = a + beta (h_gn - a),
+                                 L(0) - L(h) = alpha (1 - beta)^2 |g|^2 / 2 + beta (2 - beta) (-g^T h_gn / 2)
+
+        with ``c = a^T (h_gn - a)``, ``d = sqrt(c^2 + |h_gn - a|^2 (radius^2 - |a|^2))``,
+        ``beta = (d - c) / |h_gn - a|^2`` if ``c <= 0`` else ``(radius^2 - |a|^2) / (d + c)``.""",
+    ),
+}

@@ -12,12 +12,17 @@ import numpy as np
 def normal_equations(J, r, w):
     """The Gauss-Newton normal equations.
 
+    Linearize the residuals, ``r(p + h) ~ r + J h``, and write the weighted cost of the linearized
+    residuals as a quadratic in h: ``(r + J h)^T W (r + J h) = chi2 + 2 b^T h + h^T H h``. Derive
+    H and b (``python -m autograder hint normal_equations 1``); the Gauss-Newton step, the
+    minimizer of that quadratic, then solves ``H h = -b``.
+
     Args:
         J: (m, n) Jacobian ``dr/dp``; r: (m,) residuals; w: (m,) weights (W = diag(w));
         m, n >= 1 (one residual or one parameter included).
 
     Returns:
-        H: (n, n) ``J^T W J``; b: (n,) ``J^T W r``.
+        H: (n, n) symmetric; b: (n,), as defined above.
 
     Hint: scale the rows of J by w instead of building the m x m matrix W.
     """
@@ -46,3 +51,16 @@ def solve_step(H, b, damping=None):
     L = np.linalg.cholesky(A)
     return -np.linalg.solve(L.T, np.linalg.solve(L, b))
     # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "normal_equations": (
+        """Expand the product ``(r + J h)^T W (r + J h)`` term by term and match the terms of degree 0, 1
+        and 2 in h. W is symmetric.""",
+        """``(J h)^T W r = r^T W J h`` (a scalar equals its transpose), so the linear term is
+        ``2 (J^T W r)^T h``; the quadratic term is ``h^T (J^T W J) h``.""",
+        """``H = J^T W J`` (n, n) and ``b = J^T W r`` (n,).""",
+    ),
+}

@@ -32,19 +32,10 @@ Linearisation. The error state is ``delta = (delta phi, delta v, delta p)`` (9,)
 ``Delta R_true = Delta R Exp(delta phi)``, ``Delta v_true = Delta v + delta v``, likewise p.
 One step maps it linearly, ``delta_{k+1} = A_k delta_k + B_k eta_k``, where ``eta_k =
 (eta_g, eta_a)`` (6,) is the measurement noise of the interval, entering as the biases do
-(``w_k - eta_g``, every ``a_. - b_a - eta_a``). With ``E = Exp(w_k dt)``,
-``J_r = J_r(w_k dt)`` (the right Jacobian of SO(3)), ``R = Delta R_k``, ``R' = Delta R_{k+1}``,
-``[x]`` the skew matrix, and for the scheme's acceleration
-
-- Euler:    ``D_phi = -R [a~_k]``,  ``D_g = 0``,  ``D_a = -R``  (``a~ = a - b_a``),
-- midpoint: ``D_phi = -(R [a~_k] + R' [a~_{k+1}] E^T) / 2``,  ``D_g = R' [a~_{k+1}] J_r dt / 2``,
-  ``D_a = -(R + R') / 2``,
-
-(the derivatives of the rotated acceleration by delta phi, eta_g and eta_a)::
-
-    A_k = [[E^T,             0,      0],      B_k = [[-J_r dt,          0         ],
-           [D_phi dt,        I,      0],             [D_g dt,           D_a dt     ],
-           [D_phi dt^2 / 2,  I dt,   I]]             [D_g dt^2 / 2,     D_a dt^2 / 2]]
+(``w_k - eta_g``, every ``a_. - b_a - eta_a``). Derive ``A_k`` (9, 9) and ``B_k`` (9, 6) for each
+scheme by perturbing the three updates above and keeping the first-order terms
+(``python -m autograder hint preintegrate 1``, then 2 and 3); the grader compares the covariance
+and the bias Jacobians with the reference's values, so any correct form scores.
 
 Covariance (9, 9), from ``Sigma_0 = 0``: ``Sigma_{k+1} = A_k Sigma_k A_k^T + B_k Q_k B_k^T`` with
 ``Q_k = diag(gyro_noise^2 I, accel_noise^2 I) / dt_k`` (the noise densities made discrete).
@@ -232,3 +223,33 @@ def imu_factor_residual(state_i, state_j, preintegrated, bias_i, gravity):
     r_p = R_i.T @ (p_j - p_i - v_i * T - 0.5 * g * T * T) - dp
     return np.concatenate([r_R, r_v, r_p])
     # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "preintegrate": (
+        """Write each true quantity as the estimate plus its error (``Delta R_k Exp(delta phi_k)``,
+        ``Delta v_k + delta v_k``, ...) and each sample's noise as the bias does, put them into the three
+        updates, and keep the terms of first order in ``delta`` and ``eta``. Do the rotation first (its
+        error feeds the others), then the scheme's rotated acceleration ``a_k``: its derivatives by
+        ``delta phi``, ``eta_g`` and ``eta_a`` (call them ``D_phi``, ``D_g``, ``D_a``) give the rows of v and p.""",
+        """With ``E = Exp(w_k dt)``, ``J_r = J_r(w_k dt)`` (the right Jacobian of SO(3)), ``R = Delta R_k``,
+        ``R' = Delta R_{k+1}``, ``[x]`` the skew matrix: ``Exp(x + dx) = Exp(x) Exp(J_r(x) dx)``;
+        ``Exp(phi) E = E Exp(E^T phi)`` (moving an error through a rotation); and
+        ``R Exp(phi) a = R a - R [a] phi`` to first order. So ``delta phi_{k+1} = E^T delta phi_k -
+        J_r dt eta_g``, and the rotated acceleration's error is ``D_phi delta phi_k + D_g eta_g + D_a eta_a``.""",
+        """With ``E = Exp(w_k dt)``, ``J_r = J_r(w_k dt)``, ``R = Delta R_k``, ``R' = Delta R_{k+1}``, ``[x]``
+        the skew matrix, and for the scheme's acceleration
+
+        - Euler:    ``D_phi = -R [a~_k]``,  ``D_g = 0``,  ``D_a = -R``  (``a~ = a - b_a``),
+        - midpoint: ``D_phi = -(R [a~_k] + R' [a~_{k+1}] E^T) / 2``,  ``D_g = R' [a~_{k+1}] J_r dt / 2``,
+          ``D_a = -(R + R') / 2``,
+
+        (the derivatives of the rotated acceleration by delta phi, eta_g and eta_a)::
+
+            A_k = [[E^T,             0,      0],      B_k = [[-J_r dt,          0         ],
+                   [D_phi dt,        I,      0],             [D_g dt,           D_a dt     ],
+                   [D_phi dt^2 / 2,  I dt,   I]]             [D_g dt^2 / 2,     D_a dt^2 / 2]]""",
+    ),
+}

@@ -95,10 +95,13 @@ def marginalise(H, b, remove, eps=1e-8):
         remove: (m,) distinct indices in ``[0, n)`` of the variables to marginalise, in any order;
         eps: eigenvalues of ``H_mm`` at or below ``eps`` times its largest are treated as zero.
 
+    Eliminate the removed variables ``dx_m`` from ``H dx = -b`` (block rows r and m): what is left
+    is a system ``H_prior dx_r = -b_prior`` in the kept ones; derive it (``python -m autograder hint
+    marginalise``), with the pseudo-inverse ``H_mm^+`` in place of ``H_mm^-1``.
+
     Returns:
-        ``H_prior`` (n - m, n - m) ``= H_rr - H_rm H_mm^+ H_mr`` and ``b_prior`` (n - m,)
-        ``= b_r - H_rm H_mm^+ b_m``, over the kept indices in increasing (original) order,
-        where ``H_mm^+ = V diag(1 / s) V^T`` over the eigenpairs ``(s, V[:, k])`` of
+        ``H_prior`` (n - m, n - m) and ``b_prior`` (n - m,), over the kept indices in increasing
+        (original) order, where ``H_mm^+ = V diag(1 / s) V^T`` over the eigenpairs ``(s, V[:, k])`` of
         ``(H_mm + H_mm^T) / 2`` with ``s > eps max(s)`` (``np.linalg.eigh``: eigenvectors are
         the columns of V).
     """
@@ -174,3 +177,16 @@ def prior_update(J, e0, x_lin, x):
     # BEGIN SOLUTION
     return e0 + J @ (x - x_lin)
     # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "marginalise": (
+        """Reorder the unknowns as (kept r, removed m): ``[[H_rr, H_rm], [H_mr, H_mm]] [dx_r; dx_m] = -[b_r; b_m]``.
+        Solve the second block row for ``dx_m`` and put it into the first.""",
+        """``dx_m = -H_mm^+ (b_m + H_mr dx_r)``, so ``(H_rr - H_rm H_mm^+ H_mr) dx_r = -(b_r - H_rm H_mm^+ b_m)``:
+        the Schur complement of ``H_mm``.""",
+        """``H_prior = H_rr - H_rm H_mm^+ H_mr`` and ``b_prior = b_r - H_rm H_mm^+ b_m``.""",
+    ),
+}

@@ -12,21 +12,17 @@ A step ``delta = (rho, phi)`` (6,) moves a pose on the right::
 
     T (+) delta = (R Exp(phi), t + R rho)
 
-and the Jacobians are taken in that perturbation (``J_r^-1`` is the inverse right Jacobian
-of SO(3), at ``e_phi = e[3:]``)::
-
-    A = de/d delta_i = [[-R_z^T,  R_z^T [d]x              ],
-                        [ 0,      -J_r^-1(e_phi) R_j^T R_i  ]]             (M, 6, 6)
-    B = de/d delta_j = [[ D_R,    0                        ],
-                        [ 0,      J_r^-1(e_phi)             ]]             (M, 6, 6)
-
-with ``D_R = R_z^T R_i^T R_j``. g2o's ``EdgeSE3`` error is ``[D_t; vec(q(D_R))]``, about
+and the Jacobians ``A = de/d delta_i`` and ``B = de/d delta_j`` (M, 6, 6) are taken in that
+perturbation, at ``delta = 0``: derive them (``python -m autograder hint edge_errors_and_jacobians 1``,
+then 2 and 3). The grader compares values and finite differences, so any correct form scores.
+With ``D_R = R_z^T R_i^T R_j``, g2o's ``EdgeSE3`` error is ``[D_t; vec(q(D_R))]``, about
 half our rotation part (``vec(q) = sin(theta/2) u``); GTSAM's ``BetweenFactor<Pose3>`` is
 ``Logmap(D)``, rotation first, whose translation part ``V(phi)^-1 D_t`` equals ours to
 first order.
 
 Given (``course.geometry``): ``so3.skew`` (K, 3) -> (K, 3, 3), ``so3.exp_many``,
-``so3.log_many`` and ``so3.right_jacobian_inverse_many``, all vectorized over K.
+``so3.log_many`` and ``so3.right_jacobian_inverse_many`` (``J_r^-1``, the inverse right Jacobian of
+SO(3)), all vectorized over K.
 
 Inputs at the edges of the contract (each is a check input):
 - edge_errors_and_jacobians: one edge (M = 1)
@@ -46,7 +42,7 @@ from course.geometry.so3 import exp_many, log_many, right_jacobian_inverse_many,
 
 def edge_errors_and_jacobians(t, R, edges_i, edges_j, t_z, R_z):
     """``e`` (M, 6), ``A = de/d delta_i`` (M, 6, 6), ``B = de/d delta_j`` (M, 6, 6) of all
-    edges at once, no Python loop over edges (formulas in the module docstring)."""
+    edges at once, no Python loop over edges (definitions in the module docstring)."""
     # BEGIN SOLUTION
     Ri, Rj = R[edges_i], R[edges_j]
     RiT, RzT = Ri.transpose(0, 2, 1), R_z.transpose(0, 2, 1)
@@ -74,3 +70,27 @@ def retract(t, R, delta):
     delta = np.asarray(delta, dtype=float).reshape(-1, 6)
     return t + np.einsum("nab,nb->na", R, delta[:, :3]), np.matmul(R, exp_many(delta[:, 3:]))
     # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "edge_errors_and_jacobians": (
+        """Perturb one pose at a time: replace ``T_i`` by ``T_i (+) delta_i`` in ``d`` and in ``R_z^T R_i^T R_j``,
+        keep the terms of first order in ``rho_i`` and ``phi_i`` (``Exp(phi) = I + [phi]x + ...``), and
+        read off the blocks. The translation error is a vector; the rotation error is a ``Log``,
+        so for it move the perturbation to the right of ``D_R`` and use the right Jacobian.""",
+        """Three identities: ``[phi]x v = -[v]x phi``; ``R^T Exp(phi) R = Exp(R^T phi)`` (moving a
+        perturbation through a rotation); ``Log(Exp(e) Exp(dphi)) = e + J_r^-1(e) dphi`` to first order.
+        So ``D_R Exp(phi_j)`` gives ``J_r^-1(e_phi) phi_j``, and
+        ``R_z^T Exp(-phi_i) R_i^T R_j = D_R Exp(-R_j^T R_i phi_i)``.""",
+        """::
+
+            A = de/d delta_i = [[-R_z^T,  R_z^T [d]x              ],
+                                [ 0,      -J_r^-1(e_phi) R_j^T R_i  ]]             (M, 6, 6)
+            B = de/d delta_j = [[ D_R,    0                        ],
+                                [ 0,      J_r^-1(e_phi)             ]]             (M, 6, 6)
+
+        with ``D_R = R_z^T R_i^T R_j`` and ``e_phi = e[3:]``.""",
+    ),
+}

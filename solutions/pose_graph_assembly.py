@@ -17,14 +17,12 @@ from . import pose_graph_edge
 def assemble_normal_equations(poses, edges_i, edges_j, measurements, information, fixed):
     """Dense ``H`` (3N, 3N), ``b`` (3N,) and ``chi2`` of a pose graph, edge by edge.
 
-    For each edge k from pose i to pose j, with ``e, A, B`` from
-    ``pose_graph_edge.edge_error_and_jacobians`` and ``Omega = information[k]``::
-
-        H[i,i] += A^T Omega A    H[i,j] += A^T Omega B
-        H[j,i] += B^T Omega A    H[j,j] += B^T Omega B
-        b[i]   += A^T Omega e    b[j]   += B^T Omega e       chi2 += e^T Omega e
-
-    where ``H[i,j]`` is the 3x3 block at rows ``3i:3i+3``, columns ``3j:3j+3``.
+    ``H = J^T Omega J``, ``b = J^T Omega e`` and ``chi2 = e^T Omega e`` summed over the edges, where edge
+    k from pose i to pose j has ``e, A, B`` from ``pose_graph_edge.edge_error_and_jacobians`` and
+    ``Omega = information[k]``: its rows of the Jacobian J are zero but for A in pose i's three
+    columns and B in pose j's. Derive which 3x3 blocks of H and 3-blocks of b one edge adds to, and
+    what (``python -m autograder hint assemble_normal_equations``); ``H[i,j]`` is the 3x3 block at
+    rows ``3i:3i+3``, columns ``3j:3j+3``.
     Then hold every pose in ``fixed`` still: zero its rows and columns of H and its
     entries of b, and put the identity on its diagonal block, so that its step is 0.
 
@@ -56,3 +54,20 @@ def assemble_normal_equations(poses, edges_i, edges_j, measurements, information
         b[sk] = 0.0
     return H, b, float(chi2)
     # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "assemble_normal_equations": (
+        """Write one edge's rows of J as a block row ``J_k = [0 ... A ... B ... 0]`` (A at pose i, B at
+        pose j) and multiply out ``J_k^T Omega J_k`` and ``J_k^T Omega e`` block by block; H and b are
+        the sums over the edges.""",
+        """``(J_k^T Omega J_k)[p, q] = J_k[:, p]^T Omega J_k[:, q]``, nonzero only for p, q in {i, j}.""",
+        """::
+
+            H[i,i] += A^T Omega A    H[i,j] += A^T Omega B
+            H[j,i] += B^T Omega A    H[j,j] += B^T Omega B
+            b[i]   += A^T Omega e    b[j]   += B^T Omega e       chi2 += e^T Omega e""",
+    ),
+}

@@ -161,7 +161,7 @@ def test_help_lists_every_method_with_what_it_is(command, capsys):
             if backend != "ours":
                 what = registry.describe(kind, backend, method)
                 assert any(line.split() == [backend, method, *what.split()] for line in lines), (kind, backend, method)
-    assert "lm-scaled-nielsen, run only when named" in " ".join(lines)
+    assert "lm-scaled-nielsen, lm-source, run only when named" in " ".join(lines)
 
 
 @pytest.mark.parametrize("dataset, valid, invalid", [

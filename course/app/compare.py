@@ -235,12 +235,20 @@ def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_i
     return _run_pairs(curve_plan(methods, backends), ours, peer, repeat, unimplemented, progress)
 
 
+#: the C++ source's own data (``course.problems.curve.source_data``), as a dataset name
+CURVE_SOURCE = "curve:source"
+
+
 def is_curve_name(name: str) -> bool:
-    """Only ``curve``: the data are generated."""
-    return name == "curve"
+    """``curve`` (generated, seed 0) and ``curve:source`` (the C++ source's draw): no files."""
+    return name in ("curve", CURVE_SOURCE)
 
 
 def _curve_runner(dataset, impl=None, methods=None, backends=None, **options):
+    if dataset == CURVE_SOURCE and options.get("data") is None:
+        from course.problems.curve.source_data import source_data
+
+        options["data"] = source_data()
     return run_curve(impl=impl, methods=methods, backends=backends, **options)
 
 
@@ -474,7 +482,8 @@ def _posegraph3d_runner(dataset, impl=None, methods=None, backends=None, informa
 #: ``find_runner`` takes the first that matches: ``bal`` and ``posegraph3d`` before ``posegraph``,
 #: whose matcher takes any existing path
 RUNNERS: tuple[Runner, ...] = (
-    Runner("curve", is_curve_name, _curve_runner, "y = exp(a x^2 + b x + c), 100 generated points (chapter 1)"),
+    Runner("curve", is_curve_name, _curve_runner, "y = exp(a x^2 + b x + c), 100 generated points (chapter 1); "
+           "curve:source, the C++ source's own 100 points (try --methods lm-source)"),
     Runner("bal", is_bal_name, _bal_runner,
            "a BAL problem: ladybug-49, dubrovnik-3-7, bal-synthetic:CAMS:POINTS[:seed] or a BAL file, "
            "each also as NAME:front (without the points behind a camera at the start)"),

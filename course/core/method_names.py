@@ -16,6 +16,8 @@ OUR_METHODS: dict[str, str] = {
     "lm-scaled-nielsen": "Levenberg-Marquardt with scaled (Marquardt's) damping and Nielsen's update: type 1's "
                          "[H + lambda diag(H)] h = -b with type 3's rule for lambda (Ceres' LM); for parameters of "
                          "very different scales, as bundle adjustment's",
+    "lm-source": "Levenberg-Marquardt as chapter 1's C++ source runs it: Gavin's type 3 with lambda_0 = 1e-5 max "
+                 "diag(H), a step taken when rho > 0, and the decrease factor capped at 2/3",
     "dogleg": "Powell's dogleg: a trust region; the step runs from the Cauchy point towards the Gauss-Newton step",
 }
 #: the ones a comparison runs when no ``--methods`` is given: the chapters' (Gauss-Newton, Gavin's

@@ -18,6 +18,10 @@ def add_parser(sub) -> None:
     release.add_argument("--gradescope", metavar="FILE.zip", default=None,
                          help="also write the Gradescope autograder zip (setup.sh, run_autograder, the grader "
                               "and the reference) to FILE.zip; with --check, only when nothing is stale")
+    release.add_argument("--hints", type=int, choices=(0, 1, 2, 3), default=None,
+                         help="hint levels printed into the stubs' docstrings: 0 none, 1 the approach, 2 and the "
+                              "key identity, 3 and the result (the formulas); default: the level exercises/ records "
+                              "(0 when none). Students get every level from `python -m autograder hint NAME LEVEL`")
     release.add_argument("--hidden-seed", type=int, default=None,
                          help="seed of the hidden checks' inputs in the Gradescope zip (default: a random one)")
     release.add_argument("--assignment", metavar="NAME", default=None,
@@ -54,13 +58,13 @@ def run(args) -> int:
         from autograder.oracle import release_expected
 
         data_stale = [f"autograder/{rel}" for rel in release_expected(check=args.check)]
-    stale = release(check=args.check, student_dir=None if assignment else args.student, root=root)
+    stale = release(check=args.check, student_dir=None if assignment else args.student, root=root, hints=args.hints)
     overlay = None
     if assignment is not None:
         from course.release import assignment as handout
-        from course.release.stubs import ReleaseError, render
+        from course.release.stubs import ReleaseError, hints_level, render
 
-        stubs = render(root / "solutions")
+        stubs = render(root / "solutions", hints_level(root) if args.hints is None else args.hints)
         overlay = handout.bundle_overlay(course, assignment, stubs, root)
         if args.student and not args.check:
             try:

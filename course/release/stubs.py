@@ -6,6 +6,12 @@ docstrings and hints stay. A file whose first lines hold ``# RELEASE: omit`` is 
 out of the student tree (e.g. reference answers to written questions, the reference side
 of the autograder), wherever it is.
 
+Hints (``course.core.hints``): ``render(..., hints=N)`` prints levels 1 to N of each module's
+``HINTS`` into the docstrings they belong to (0: none), moves ``HINTS`` out of the stubs into
+``exercises/hints.json`` (read by ``python -m autograder hint``) and records N in ``exercises/__init__.py``;
+``release`` without a level keeps the one ``exercises/`` records, so ``release --check`` compares
+with the level the committed exercises were released with.
+
 ``write_student_tree`` writes the tree a student receives: the repository without
 ``solutions/``, ``tests/``, ``.ci/``, ``autograder/mistakes/``, ``course/release/`` (this tooling),
 omitted files and local clutter (``.git``, ``.venv``, ``out``, caches), with the student's ``README.md``
@@ -13,9 +19,19 @@ and ``Makefile`` from ``course/release/student_tree/`` in place of the instructo
 """
 
 import ast
+import json
 import shutil
 from pathlib import Path
 
+from course.core.hints import (
+    HINTS_FILE,
+    HintError,
+    insert_hints,
+    read_hints,
+    record_level,
+    recorded_level,
+    without_hints,
+)
 from course.core.impl import REPO_ROOT
 
 BEGIN, END, OMIT = "# BEGIN SOLUTION", "# END SOLUTION", "# RELEASE: omit"
@@ -88,9 +104,11 @@ def _omitted(text: str) -> bool:
     return any(line.strip() == OMIT for line in text.splitlines()[:5])
 
 
-def render(solutions_dir: Path) -> dict:
-    """``{relative path: text}`` of the student tree for ``solutions_dir``."""
-    files = {}
+def render(solutions_dir: Path, hints: int = 0) -> dict:
+    """``{relative path: text}`` of the student tree for ``solutions_dir``, hints 1..``hints`` in
+    the docstrings, and every module's ``HINTS`` in ``hints.json`` instead of the module."""
+    files: dict = {}
+    collected: dict = {}
     for path in sorted(solutions_dir.rglob("*")):
         if path.is_dir() or "__pycache__" in path.parts or path.suffix == ".pyc":
             continue
@@ -100,10 +118,19 @@ def render(solutions_dir: Path) -> dict:
             continue
         if path.suffix == ".py":
             module = ".".join(rel.with_suffix("").parts)
+            try:
+                found = read_hints(text, path)
+                text = without_hints(insert_hints(text, hints, path), path)
+            except HintError as exc:
+                raise ReleaseError(str(exc)) from None
+            if found:
+                collected[module] = {owner: list(levels) for owner, levels in found.items()}
             text = strip_solutions(text, module, path)
             if str(rel) == "__init__.py":
-                text = STUDENT_INIT
+                text = record_level(STUDENT_INIT, hints)
         files[str(rel)] = text
+    if collected:
+        files[HINTS_FILE] = json.dumps(collected, indent=1, sort_keys=True) + "\n"
     return files
 
 
@@ -128,13 +155,20 @@ def stale_files(target: Path, files: dict) -> list:
     return sorted(stale + sorted(present - set(files)))
 
 
-def release(check=False, student_dir=None, root: Path = REPO_ROOT) -> list:
+def hints_level(root: Path = REPO_ROOT) -> int:
+    """The hint level ``root``'s ``exercises/`` was released with (0 when there is none)."""
+    init = Path(root) / "exercises" / "__init__.py"
+    return recorded_level(init.read_text()) if init.is_file() else 0
+
+
+def release(check=False, student_dir=None, root: Path = REPO_ROOT, hints: int | None = None) -> list:
     """Regenerate ``exercises/`` (or only check it); optionally write a student tree.
 
-    Returns the list of stale paths (empty when up to date).
+    ``hints``: the level printed into the docstrings (0-3); None keeps the level ``exercises/``
+    records. Returns the list of stale paths (empty when up to date).
     """
-    files = render(root / "solutions")
     exercises = root / "exercises"
+    files = render(root / "solutions", hints_level(root) if hints is None else hints)
     stale = stale_files(exercises, files)
     if not check and stale:
         write(exercises, files)

@@ -63,7 +63,8 @@ class Problem(Protocol):
 
 def minimize(problem: Problem, method="gauss-newton", impl="solutions", options: SolverOptions | None = None,
              callback: Callable[[IterationRecord], bool | None] | None = None) -> RunResult:
-    """Minimize ``problem`` from ``problem.x0`` with ``method`` (``course.solver.METHODS``).
+    """Minimize ``problem`` from ``problem.x0`` with ``method`` (``course.solver.METHODS``, or a damping
+    rule object: Levenberg-Marquardt with it, named by its ``name``).
 
     The strategy's pieces come from ``impl`` (``solutions``, ``exercises`` or a path).
     ``callback(record)`` is called after every step attempt with its
@@ -114,7 +115,8 @@ def minimize(problem: Problem, method="gauss-newton", impl="solutions", options:
         if reason is not StopReason.MAX_ITERATIONS:
             break
     return RunResult(
-        backend="ours", method=method, params=x, initial_chi2=initial_chi2, final_chi2=problem.chi2(x),
+        backend="ours", method=method if isinstance(method, str) else strategy.name, params=x,
+        initial_chi2=initial_chi2, final_chi2=problem.chi2(x),
         iterations=len(trace) - 1, seconds=time.perf_counter() - start, trace=trace,
         stop_reason=reason, factorizations=strategy.factorizations,
     )

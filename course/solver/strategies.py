@@ -28,6 +28,7 @@ from course.core import impl as impl_loader
 from course.core.errors import CourseError, NonFiniteError, SingularSystemError
 from course.core.method_names import OUR_METHODS
 from course.solver.scaled_nielsen import SCALED_NIELSEN, ScaledNielsen
+from course.solver.source_nielsen import SOURCE_NIELSEN, SOURCE_TAU, SourceNielsen
 
 GAUSS_NEWTON, DOGLEG = "gauss-newton", "dogleg"
 LM_METHODS = ("lm-type1", "lm-type2", "lm-type3")
@@ -250,8 +251,12 @@ def _short(h, x, options) -> bool:
 
 def make_strategy(method: str, impl="solutions", options=None):
     """A fresh strategy for ``method`` (one of :data:`ALL_METHODS`: :data:`METHODS`, and
-    ``lm-scaled-nielsen``, Gavin's types 1 and 3 put together, :mod:`course.solver.scaled_nielsen`)
-    from ``impl``'s pieces."""
+    ``lm-scaled-nielsen``, Gavin's types 1 and 3 put together, :mod:`course.solver.scaled_nielsen`,
+    and ``lm-source``, type 3 with the constants and cap of chapter 1's source,
+    :mod:`course.solver.source_nielsen`) from ``impl``'s pieces; or, for ``method`` a damping rule
+    object (``course.solver.damping.DampingStrategy``), Levenberg-Marquardt with that rule."""
+    if not isinstance(method, str):  # a damping rule object (e.g. SourceNielsen with other constants)
+        return LevenbergMarquardtStrategy(method)
     if method == GAUSS_NEWTON:
         return GaussNewtonStrategy()
     if method == DOGLEG:
@@ -262,6 +267,9 @@ def make_strategy(method: str, impl="solutions", options=None):
     if method in LM_METHODS:
         rules = impl_loader.load(impl).module("damping").STRATEGIES
         return LevenbergMarquardtStrategy(rules[method]())
+    if method == SOURCE_NIELSEN:
+        rules = impl_loader.load(impl).module("damping").STRATEGIES
+        return LevenbergMarquardtStrategy(SourceNielsen(rules["lm-type3"](tau=SOURCE_TAU)))
     if method == SCALED_NIELSEN:
         rules = impl_loader.load(impl).module("damping").STRATEGIES
         return LevenbergMarquardtStrategy(ScaledNielsen(rules["lm-type1"](), rules["lm-type3"]()))

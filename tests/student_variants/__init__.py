@@ -1304,8 +1304,47 @@ ALTERNATIVES_GNC = {
         "gnc.py", [], "return (mu * c2 / (np.asarray(s, dtype=float) + mu * c2)) ** 2",
         "return 1.0 / (1.0 + np.asarray(s, dtype=float) / (mu * c2)) ** 2", set()),
 }
+#: results derived another way than the hints write them (``HINTS`` level 3): full marks, since the
+#: checks compare values and finite differences, never the form
+ALTERNATIVES_DERIVED = {
+    "derived_curve_columns": V(
+        "curve_model.py", [], "J = y_hat[:, None] * np.stack([x**2, x, np.ones_like(x)], axis=1)",
+        "J = np.column_stack([y_hat * x * x, y_hat * x, y_hat])", set()),
+    "derived_edge_one_rotation": V(
+        "pose_graph_edge.py", ["B = np.zeros"], "B[:2, :2] = Rz_T @ Ri_T",
+        "B[:2, :2] = np.array([[np.cos(x_i[2] + z_ij[2]), np.sin(x_i[2] + z_ij[2])], "
+        "[-np.sin(x_i[2] + z_ij[2]), np.cos(x_i[2] + z_ij[2])]])", set()),
+    "derived_edge_quarter_turn": V(
+        "pose_graph_edge.py", [], "A[:2, 2] = Rz_T @ dRi_T @ dt",
+        "A[:2, 2] = np.array([[0.0, 1.0], [-1.0, 0.0]]) @ (Rz_T @ Ri_T @ dt)", set()),
+    "derived_type1_denominator_expanded": V(
+        "damping.py", ["class GavinType1"], "return float(h @ (lam * np.asarray(diag_H) * h - b))",
+        "return float(lam * np.sum(np.asarray(diag_H) * h * h) - b @ h)", set()),
+    "derived_type3_denominator_expanded": V(
+        "damping.py", ["class GavinType3", "def gain_denominator"], "return float(h @ (lam * h - b))",
+        "return float(lam * (h @ h) - h @ b)", set()),
+    "derived_cauchy_dot": V(
+        "dogleg.py", [], "alpha = float(g @ g) / float(g @ Hg)", "alpha = float(np.dot(g, g) / np.dot(Hg, g))", set()),
+    "derived_dogleg_clipped_decrease": V(
+        "dogleg.py", [], "radius * (2.0 * a_norm - radius) / (2.0 * alpha)",
+        "radius * g_norm - radius**2 / (2.0 * alpha)", set()),
+    "derived_p3_rotation_through_d": V(
+        "pose_graph_3d.py", [], "A[:, 3:, 3:] = -np.matmul(Jr_inv, np.matmul(Rj.transpose(0, 2, 1), Ri))",
+        "A[:, 3:, 3:] = -np.matmul(Jr_inv, np.matmul(D_R.transpose(0, 2, 1), RzT))", set()),
+    "derived_ba_left_jacobian": V(
+        "bundle_adjustment.py", [], "J_cam[:, :, :3] = -np.matmul(AR, np.matmul(skew(X), Jr))",
+        "J_cam[:, :, :3] = -np.matmul(A, np.matmul(skew(np.matmul(R, X[:, :, None])[:, :, 0]), "
+        "(eye + b[:, None, None] * Wx + c[:, None, None] * Wx2)[camera_index]))", set()),
+    "derived_cauchy_second_from_first": V(
+        "robust_kernels.py", ["def cauchy"], "return a2 * np.log1p(s / a2), 1.0 / t, -1.0 / (a2 * t * t)",
+        "return a2 * np.log1p(s / a2), 1.0 / t, -((1.0 / t) ** 2) / a2", set()),
+    "derived_tukey_second_by_s": V(
+        "robust_kernels.py", ["def tukey"], "-2.0 * u / a2 + 0.0",
+        "np.where(inner, 2.0 * s / (a2 * a2) - 2.0 / a2, 0.0)", set()),
+}
 
-VARIANTS = {**BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION, **ALTERNATIVES_INITIALISATION,
+VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION,
+            **ALTERNATIVES_INITIALISATION,
             **BUGS_BUNDLE_ADJUSTMENT, **ALTERNATIVES_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS,
             **ALTERNATIVES_ROBUST_KERNELS,
             **BUGS_GAUGE, **ALTERNATIVES_GAUGE, **BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY,
