@@ -12,9 +12,8 @@ owner (``""`` for the module, ``"function"`` or ``"Class.method"``) to three tex
 ``HINTS`` sits outside the solution blocks; the release takes it out of the stubs and writes every
 module's hints to ``exercises/hints.json`` (:data:`HINTS_FILE`), so that they ship in the student
 tree without sitting under the TODO; ``python -m autograder hint NAME [LEVEL]`` prints one level
-at a time, and
-``python -m course release --hints N`` prints levels 1 to N into the stubs' docstrings (0, the
-default, none). Everything here reads source text: nothing imports the student's code.
+at a time, and the release can print levels 1 to N into the stubs' docstrings (``--hints N``;
+0, the default, none). Everything here reads source text: nothing imports the student's code.
 """
 
 import ast
@@ -145,5 +144,5 @@ def recorded_level(init_text: str) -> int:
 def record_level(init_text: str, level: int) -> str:
     """``exercises/__init__.py``'s text with ``level`` recorded (replacing any recorded before)."""
     text = re.sub(rf"\n*#: [^\n]*\n{re.escape(LEVEL_LINE)}\d+\s*$", "", init_text.rstrip("\n"), flags=re.S)
-    return (f"{text}\n\n#: the hint level printed into these docstrings (``python -m course release --hints N``)\n"
+    return (f"{text}\n\n#: the hint level the release printed into these docstrings (``--hints N``)\n"
             f"{LEVEL_LINE}{level}\n")

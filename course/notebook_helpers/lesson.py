@@ -51,7 +51,12 @@ def check(exercise: str, impl: str | None = None, timeout: float | None = None, 
     impl = impl or default_impl()
     notices: list = []
     options = {"timeout": timeout} if timeout is not None else {}
-    results, seconds = run(impl, [exercise], which="public", workers=workers, notices=notices, **options)
+    from autograder.checks import SelectionError
+
+    try:
+        results, seconds = run(impl, [exercise], which="public", workers=workers, notices=notices, **options)
+    except SelectionError as exc:
+        raise ValueError(f"check({exercise!r}): no check or exercise of that name ({exc})") from None
     if not results:
         raise ValueError(f"check({exercise!r}): no check or exercise of that name")
     for line in notices:
