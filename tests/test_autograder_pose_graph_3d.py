@@ -18,7 +18,7 @@ from student_variants import (
 
 BUGS = {**BUGS_POSE_GRAPH_3D, **BUGS_POSE_GRAPH_3D_ASSEMBLY}
 ALTERNATIVES = {**ALTERNATIVES_POSE_GRAPH_3D, **ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY}
-ONLY = ("pose_graph_3d",)  # the edge's checks and the assembly's (their names start alike)
+ONLY = ("pose_graph_3d", "pose_graph_3d_assembly")  # the edge's checks and the assembly's
 
 
 @pytest.fixture(scope="module")

@@ -67,7 +67,7 @@ LOADED_BY = {
     "parallel_assembly.py": ("parallel_assembly",),
     "marginalisation.py": ("marginalisation",),
     "imu_preintegration.py": ("imu_preintegration",),
-    "pose_graph_3d.py": ("pose_graph_3d.",),
+    "pose_graph_3d.py": ("pose_graph_3d",),
     "pose_graph_3d_assembly.py": ("pose_graph_3d_assembly",),
     "chordal_3d.py": ("chordal_3d",),
     "gnc.py": ("gnc",),
