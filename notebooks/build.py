@@ -384,6 +384,7 @@ def build(execute_notebooks=False, small=False, impl=None, out_dir=HERE, only=No
     from_source = peers.installed("jupytext")
     if not from_source:
         peers.announce("jupytext")
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
     for path, source in select(only).items():
         nb = read(source) if from_source else shipped(path)
         target = Path(out_dir) / path.name

@@ -319,7 +319,7 @@ for r in peers:
 # %% id="cpp"
 cpp_data = source_data()
 print(f"chi2 at (0, 0, 0): {CurveProblem(cpp_data, IMPL).chi2(np.zeros(3)):g}")
-cpp_run = minimize(CurveProblem(cpp_data, IMPL), "lm-source")
+cpp_run = minimize(CurveProblem(cpp_data, IMPL), "lm-source", impl=IMPL)
 print(chapter1.cpp_lines(cpp_run))
 print("every chi2 the C++ run prints is ours:", chapter1.matches_cpp(cpp_run))
 print("parameters:", " ".join(f"{v:.6g}" for v in cpp_run.params))
@@ -338,8 +338,8 @@ print("parameters:", " ".join(f"{v:.6g}" for v in cpp_run.params))
 
 # %% id="constants"
 print(chapter1.constant_table(cpp_data, IMPL))
-variants = [cpp_run, minimize(CurveProblem(cpp_data, IMPL), chapter1.source_variant(IMPL, cap=None)),
-            minimize(CurveProblem(cpp_data, IMPL), "lm-type3")]
+variants = [cpp_run, minimize(CurveProblem(cpp_data, IMPL), chapter1.source_variant(IMPL, cap=None), impl=IMPL),
+            minimize(CurveProblem(cpp_data, IMPL), "lm-type3", impl=IMPL)]
 variants[1].method = "lm-source, no cap"
 display(Image(plot.to_png(plot.chi2_per_iteration(variants, title="the source's data: chi2 per attempt"))))
 

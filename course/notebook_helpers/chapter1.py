@@ -131,7 +131,7 @@ def constant_table(data: CurveData, impl="solutions") -> str:
     }
     out = [f"{'variant':42} {'attempts':>8} {'accepted':>8} {'5th chi2':>9} {'final chi2':>11}  C++ printed"]
     for name, change in variants.items():
-        run = minimize(CurveProblem(data, impl), source_variant(impl, **change))
+        run = minimize(CurveProblem(data, impl), source_variant(impl, **change), impl=impl)
         rows = accepted(run)
         same = matches_cpp(run)
         fifth = f"{rows[4][0]:.6g}" if len(rows) > 4 else "-"
