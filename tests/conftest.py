@@ -1,6 +1,13 @@
 """Shared test fixtures."""
 
 import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import venv
+from pathlib import Path
 
 import pytest
 
@@ -40,3 +47,54 @@ def pytest_collection_modifyitems(items):
     for item in items:
         if "graded" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.slow)
+
+
+@pytest.fixture(scope="module")
+def python():
+    """An interpreter with this venv's packages but without the editable install (no ``solutions``
+    on its path: a student's tree is what it finds first).
+
+    It lives in a folder every user can search: as root, the autograder runs students'
+    code as an unprivileged user, who must be able to start this interpreter."""
+    folder = Path(tempfile.mkdtemp(prefix="course-student-venv-"))
+    folder.chmod(0o755)
+    env_dir = folder / "venv"
+    venv.create(env_dir, with_pip=False)
+    exe = env_dir / "bin" / "python"
+    purelib = subprocess.run([str(exe), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+                             capture_output=True, text=True, check=True).stdout.strip()
+    folders = dict.fromkeys([sysconfig.get_path("purelib"), sysconfig.get_path("platlib")])
+    (Path(purelib) / "course_packages.pth").write_text("\n".join(folders) + "\n")
+    yield str(exe)
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def gradescope_zip(base: Path, target: Path, *release_args: str, timeout: float = 180):
+    """Build the Gradescope zip by the CLI from a copy of this tree in ``base/repo`` (so that the release
+    step rewrites nothing here), with ``release_args``; yield ``{"zip", "roots", "bin", "stdout"}``:
+    a root for the autograder runs that the children's unprivileged uid can traverse (as /autograder on
+    Gradescope) and a ``python3`` on PATH for ``run_autograder``. For a module-scoped fixture."""
+    from course.core.impl import REPO_ROOT
+    from course.release import gradescope
+
+    repo = base / "repo"
+    repo.mkdir()
+    for name in gradescope.SOURCE_PATHS:
+        source = REPO_ROOT / name
+        if source.is_dir():
+            shutil.copytree(source, repo / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        else:
+            shutil.copyfile(source, repo / name)
+    run = subprocess.run([sys.executable, "-m", "course", "release", "--root", str(repo), *release_args,
+                          "--gradescope", str(target)], cwd=REPO_ROOT, capture_output=True, text=True,
+                         timeout=timeout)
+    assert run.returncode == 0, run.stdout + run.stderr
+    roots = Path(tempfile.mkdtemp(prefix="gradescope-test-"))
+    os.chmod(roots, 0o755)
+    shim = base / "bin"
+    shim.mkdir()
+    # a wrapper, not a symlink: a symlink to the venv's python resolves to the base interpreter and leaves the venv
+    (shim / "python3").write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n')
+    (shim / "python3").chmod(0o755)
+    yield {"zip": target, "roots": roots, "bin": shim, "stdout": run.stdout}
+    shutil.rmtree(roots, ignore_errors=True)

@@ -7,21 +7,17 @@ import os
 import re
 import shutil
 import subprocess
-import sys
-import sysconfig
-import tempfile
-import venv
 import zipfile
 from datetime import timedelta
 from pathlib import Path
 
 import pytest
+from conftest import gradescope_zip
 
 from autograder.course_config import load, parse
 from autograder.grade import grade
 from course.core.impl import REPO_ROOT
 from course.release import assignment as handout
-from course.release import gradescope
 from course.release.assignment import tomllib  # tomli on Python 3.10
 from course.release.stubs import render
 
@@ -77,22 +73,6 @@ def test_pipelines_take_the_pieces_not_graded_from_the_solved_code(tmp_path):
 
 
 # ---------------------------------------------------------------- the student tree
-
-
-@pytest.fixture(scope="module")
-def python():
-    """An interpreter with this venv's packages but not its editable install (no ``solutions``)."""
-    folder = Path(tempfile.mkdtemp(prefix="course-assignment-venv-"))
-    folder.chmod(0o755)
-    env_dir = folder / "venv"
-    venv.create(env_dir, with_pip=False)
-    exe = env_dir / "bin" / "python"
-    purelib = subprocess.run([str(exe), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
-                             capture_output=True, text=True, check=True).stdout.strip()
-    folders = dict.fromkeys([sysconfig.get_path("purelib"), sysconfig.get_path("platlib")])
-    (Path(purelib) / "course_packages.pth").write_text("\n".join(folders) + "\n")
-    yield str(exe)
-    shutil.rmtree(folder, ignore_errors=True)
 
 
 def _run(python, tree, *args, timeout=300):
@@ -158,27 +138,9 @@ def test_the_ch3_tree_grades_ch3_alone_stubs_zero_reference_every_point(ch3_tree
 def ch1_zip(tmp_path_factory):
     """``release --assignment ch1 --gradescope`` from a copy of this tree, and what runs it."""
     base = tmp_path_factory.mktemp("gradescope-ch1")
-    repo = base / "repo"
-    repo.mkdir()
-    for name in gradescope.SOURCE_PATHS:
-        source = REPO_ROOT / name
-        if source.is_dir():
-            shutil.copytree(source, repo / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
-        else:
-            shutil.copyfile(source, repo / name)
-    target = base / "ch1.zip"
-    run = subprocess.run([sys.executable, "-m", "course", "release", "--root", str(repo), "--assignment", "ch1",
-                          "--gradescope", str(target)], cwd=REPO_ROOT, capture_output=True, text=True, timeout=180)
-    assert run.returncode == 0, run.stdout + run.stderr
-    assert "Gradescope autograder of assignment ch1" in run.stdout
-    roots = Path(tempfile.mkdtemp(prefix="gradescope-ch1-"))
-    os.chmod(roots, 0o755)
-    shim = base / "bin"
-    shim.mkdir()
-    (shim / "python3").write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n')
-    (shim / "python3").chmod(0o755)
-    yield {"zip": target, "roots": roots, "bin": shim}
-    shutil.rmtree(roots, ignore_errors=True)
+    for built in gradescope_zip(base, base / "ch1.zip", "--assignment", "ch1"):
+        assert "Gradescope autograder of assignment ch1" in built["stdout"]
+        yield built
 
 
 def test_the_ch1_zip_holds_ch1s_stubs_and_its_configuration(ch1_zip):

@@ -5,15 +5,13 @@ python3 stands in for the image's)."""
 
 import json
 import os
-import shutil
 import stat
 import subprocess
 import sys
-import tempfile
 import zipfile
-from pathlib import Path
 
 import pytest
+from conftest import gradescope_zip
 
 from autograder import submission as uploads
 from course.core.impl import REPO_ROOT
@@ -48,34 +46,12 @@ def assert_gradescope_results(data) -> None:
 
 @pytest.fixture(scope="module")
 def bundle(tmp_path_factory):
-    """The zip built by the CLI from a copy of this tree (so that the release step
-    rewrites nothing here), and a root for the autograder runs that the children's
-    unprivileged uid can traverse, as /autograder on Gradescope."""
+    """The zip built by the CLI from a copy of this tree, and what runs it (``conftest.gradescope_zip``)."""
     base = tmp_path_factory.mktemp("gradescope")
-    repo = base / "repo"
-    repo.mkdir()
-    for name in gradescope.SOURCE_PATHS:
-        source = REPO_ROOT / name
-        if source.is_dir():
-            shutil.copytree(source, repo / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
-        else:
-            shutil.copyfile(source, repo / name)
     target = base / "out" / "autograder.zip"
-    run = subprocess.run([sys.executable, "-m", "course", "release", "--root", str(repo), "--gradescope", str(target)],
-                         cwd=REPO_ROOT, capture_output=True, text=True, timeout=120)
-    assert run.returncode == 0, run.stdout + run.stderr
-    assert f"wrote the Gradescope autograder to {target}" in run.stdout
-    assert "MiB" in run.stdout
-    roots = Path(tempfile.mkdtemp(prefix="gradescope-test-"))
-    os.chmod(roots, 0o755)
-    shim = base / "bin"
-    shim.mkdir()
-    # a wrapper, not a symlink: a symlink to the venv's python resolves to the base
-    # interpreter and leaves the venv
-    (shim / "python3").write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n')
-    (shim / "python3").chmod(0o755)
-    yield {"zip": target, "roots": roots, "bin": shim}
-    shutil.rmtree(roots, ignore_errors=True)
+    for built in gradescope_zip(base, target, timeout=120):
+        assert f"wrote the Gradescope autograder to {target}" in built["stdout"] and "MiB" in built["stdout"]
+        yield built
 
 
 def test_each_bundle_draws_its_own_hidden_seed(tmp_path):

@@ -17,8 +17,6 @@ import re
 import shutil
 import subprocess
 import sys
-import sysconfig
-import tempfile
 import venv
 from pathlib import Path
 
@@ -44,25 +42,6 @@ def _write_tree(target: Path) -> Path:
 @pytest.fixture(scope="module")
 def tree(tmp_path_factory) -> Path:
     return _write_tree(tmp_path_factory.mktemp("student") / "tree")
-
-
-@pytest.fixture(scope="module")
-def python():
-    """An interpreter with this venv's packages but without the editable install (see the docstring).
-
-    It lives in a folder every user can search: as root, the autograder runs students'
-    code as an unprivileged user, who must be able to start this interpreter."""
-    folder = Path(tempfile.mkdtemp(prefix="course-student-venv-"))
-    folder.chmod(0o755)
-    env_dir = folder / "venv"
-    venv.create(env_dir, with_pip=False)
-    exe = env_dir / "bin" / "python"
-    purelib = subprocess.run([str(exe), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
-                             capture_output=True, text=True, check=True).stdout.strip()
-    folders = dict.fromkeys([sysconfig.get_path("purelib"), sysconfig.get_path("platlib")])
-    (Path(purelib) / "course_packages.pth").write_text("\n".join(folders) + "\n")
-    yield str(exe)
-    shutil.rmtree(folder, ignore_errors=True)
 
 
 def _run(python, tree, *args, timeout=300):
