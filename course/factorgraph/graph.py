@@ -1,0 +1,122 @@
+"""A factor graph: variables keyed by name, and factors grouped by type.
+
+    graph = FactorGraph("two poses")
+    graph.add_variable("x0", SE2, [0, 0, 0])
+    graph.add_variable("x1", SE2, [1, 0, 0.1])
+    graph.fix("x0")
+    graph.add(BETWEEN_SE2, ["x0", "x1"], [1, 0, 0], information=np.eye(3))
+
+Variables are numbered in the order they are added; that is the order of their steps in H.
+Factors of one type are kept together (a group), so that a linearisation evaluates each group
+at once, vectorised over its factors; ``add_many`` adds a whole group.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from course.factorgraph.factor_type import FactorType
+
+
+def symbol(letter: str, index: int) -> str:
+    """The key ``"x12"`` of ``symbol("x", 12)`` (GTSAM's ``Symbol('x', 12)``, written as text)."""
+    return f"{letter}{int(index)}"
+
+
+@dataclass
+class FactorGroup:
+    """M factors of one type: ``keys`` (M, s) variable indices, ``measurements`` (M, ...),
+    ``information`` (M, dim, dim) or None (unit)."""
+
+    type: FactorType
+    keys: list = field(default_factory=list)
+    measurements: list = field(default_factory=list)
+    information: list = field(default_factory=list)
+
+    def arrays(self):
+        """``(keys (M, s) int, z (M, ...), information (M, dim, dim) or None)``."""
+        keys = np.concatenate([np.atleast_2d(k) for k in self.keys]).astype(np.int64)
+        z = np.concatenate(self.measurements)
+        info = None if all(i is None for i in self.information) else np.concatenate(
+            [np.broadcast_to(np.eye(self.type.dim), (len(k), self.type.dim, self.type.dim)) if i is None else i
+             for k, i in zip(self.keys, self.information)])
+        return keys, z, info
+
+
+class FactorGraph:
+    """Variables (``add_variable``), factors (``add``, ``add_many``) and fixed variables (``fix``)."""
+
+    def __init__(self, name: str = "factor graph"):
+        self.name = name
+        self.keys: list = []
+        self.kinds: list = []
+        self.values: list = []
+        self.index: dict = {}
+        self.groups: dict = {}
+        self.fixed: list = []
+
+    @property
+    def num_variables(self) -> int:
+        return len(self.keys)
+
+    @property
+    def num_factors(self) -> int:
+        return sum(sum(len(k) for k in g.keys) for g in self.groups.values())
+
+    def add_variable(self, key, kind, value) -> int:
+        """Add variable ``key`` of ``kind`` (``course.factorgraph.variables``) at ``value``; its index."""
+        if key in self.index:
+            raise ValueError(f"{self.name}: variable {key!r} is added twice")
+        self.index[key] = len(self.keys)
+        self.keys.append(key)
+        self.kinds.append(kind)
+        self.values.append(kind.check(value, f"{self.name}: variable {key!r}"))
+        return self.index[key]
+
+    def fix(self, key) -> None:
+        """Hold variable ``key`` at its value (its step is 0)."""
+        self.fixed.append(self._variable(key, "fix"))
+
+    def add(self, factor_type: FactorType, keys, measurement, information=None) -> None:
+        """One factor of ``factor_type`` on the variables ``keys`` (one per slot)."""
+        z = np.asarray(measurement, dtype=float)[None]
+        info = None if information is None else np.asarray(information, dtype=float)[None]
+        self.add_many(factor_type, [keys], z, info)
+
+    def add_many(self, factor_type: FactorType, keys, measurements, information=None) -> None:
+        """M factors of ``factor_type``: ``keys`` (M, s) variable keys (or indices), ``measurements``
+        (M, ...), ``information`` (M, dim, dim), (dim, dim) or None (unit)."""
+        where = f"{self.name}: {factor_type.name}"
+        indices = np.array([[self._variable(k, where) for k in row] for row in keys], dtype=np.int64) \
+            if len(keys) and not isinstance(keys, np.ndarray) else np.asarray(keys, dtype=np.int64)
+        if indices.ndim != 2 or indices.shape[1] != len(factor_type.kinds):
+            raise ValueError(f"{where}: keys must be (M, {len(factor_type.kinds)}), got {indices.shape}")
+        if indices.size and (indices.min() < 0 or indices.max() >= self.num_variables):
+            bad = int(indices[(indices < 0) | (indices >= self.num_variables)][0])
+            raise ValueError(f"{where}: no variable with index {bad} ({self.num_variables} variables)")
+        for slot, kind in enumerate(factor_type.kinds):
+            wrong = [self.keys[v] for v in indices[:, slot] if self.kinds[v] != kind]
+            if wrong:
+                raise ValueError(f"{where}: slot {slot} takes a {kind.name} variable; {wrong[0]!r} is a "
+                                 f"{self.kinds[self.index[wrong[0]]].name}")
+        z = np.asarray(measurements, dtype=float)
+        if len(z) != len(indices):
+            raise ValueError(f"{where}: {len(indices)} factors but {len(z)} measurements")
+        info = None
+        if information is not None:
+            info = np.asarray(information, dtype=float)
+            if info.shape == (factor_type.dim, factor_type.dim):
+                info = np.broadcast_to(info, (len(indices),) + info.shape)
+        group = self.groups.setdefault(factor_type.name, FactorGroup(factor_type))
+        group.keys.append(indices)
+        group.measurements.append(z)
+        group.information.append(info)
+
+    def _variable(self, key, where) -> int:
+        if isinstance(key, (int, np.integer)) and not isinstance(key, bool) and key not in self.index:
+            if 0 <= key < self.num_variables:
+                return int(key)
+        try:
+            return self.index[key]
+        except KeyError:
+            raise ValueError(f"{self.name}: {where}: no variable {key!r}") from None

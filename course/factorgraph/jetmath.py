@@ -1,0 +1,107 @@
+"""The geometry a residual needs, written once for numpy arrays and for Jets.
+
+Every function here takes arrays or Jets (any class with ``value`` (...,), ``grad`` (..., k), the
+constructor ``type(x)(value, grad)``, indexing and ``reshape``, and the arithmetic and numpy
+functions of chapter 7's ``jets`` exercise) and returns the same kind. The branches that a value
+decides (the small-angle series, the angle wrap) are chosen on the value alone, and the
+derivative follows the branch taken: that is how Ceres' Jets treat ``if``, and why ``Exp`` at
+``delta = 0`` uses its series (the closed form divides 0 by 0 there).
+"""
+
+import numpy as np
+
+#: below this squared angle (rad^2), Exp and Log use their series (exact to rounding there)
+SMALL_ANGLE_SQUARED = 1e-10
+
+
+def is_jet(x) -> bool:
+    return hasattr(x, "grad") and hasattr(x, "value") and not isinstance(x, np.ndarray)
+
+
+def value_of(x) -> np.ndarray:
+    """The value of a Jet, or the array itself."""
+    return np.asarray(x.value if is_jet(x) else x, dtype=float)
+
+
+def where(mask, a, b):
+    """``np.where(mask, a, b)`` for arrays and Jets alike (``mask`` a boolean array of the values'
+    shape): the derivative of the branch taken."""
+    jets = [x for x in (a, b) if is_jet(x)]
+    if not jets:
+        return np.where(mask, a, b)
+    kind, k = type(jets[0]), jets[0].grad.shape[-1]
+
+    def grad(x):
+        return x.grad if is_jet(x) else np.zeros(np.shape(x) + (k,))
+
+    mask = np.asarray(mask)
+    return kind(np.where(mask, value_of(a), value_of(b)), np.where(mask[..., None], grad(a), grad(b)))
+
+
+def wrap_angle(theta):
+    """``theta`` wrapped to ``[-pi, pi)``: a constant multiple of 2 pi subtracted (derivative 1)."""
+    turns = np.floor((value_of(theta) + np.pi) / (2.0 * np.pi))
+    return theta - 2.0 * np.pi * turns
+
+
+def dot3(a, b):
+    """``a . b`` over the last axis of two (..., 3) vectors."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def skew(v):
+    """``[v]_x`` (..., 3, 3) of ``v`` (..., 3): ``[v]_x u = v x u``."""
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    zero = 0.0 * x
+    return np.stack([np.stack([zero, -z, y], axis=-1), np.stack([z, zero, -x], axis=-1),
+                     np.stack([-y, x, zero], axis=-1)], axis=-2)
+
+
+def vee(W):
+    """The vector (..., 3) of the antisymmetric part of ``W`` (..., 3, 3): ``vee((W - W^T) / 2)``."""
+    return 0.5 * np.stack([W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0],
+                           W[..., 1, 0] - W[..., 0, 1]], axis=-1)
+
+
+def matvec(A, v):
+    """``A v`` (..., n) of matrices (..., n, m) and vectors (..., m)."""
+    return (A @ v[..., None])[..., 0]
+
+
+def transpose(A):
+    """The transpose of the last two axes."""
+    return A.mT if is_jet(A) else np.swapaxes(A, -1, -2)
+
+
+def rotation2d(theta):
+    """``R(theta)`` (..., 2, 2)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
+
+
+def so3_exp(phi):
+    """``Exp(phi)`` (..., 3, 3) of rotation vectors (..., 3): ``I + a [phi]_x + b [phi]_x^2`` with
+    ``a = sin t / t``, ``b = (1 - cos t) / t^2``, ``t = |phi|``; their series below
+    ``SMALL_ANGLE_SQUARED``, where the closed forms divide 0 by 0."""
+    t2 = dot3(phi, phi)
+    small = value_of(t2) < SMALL_ANGLE_SQUARED
+    safe = where(small, 1.0, t2)
+    t = np.sqrt(safe)
+    a = where(small, 1.0 - t2 / 6.0, np.sin(t) / t)
+    b = where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(t)) / safe)
+    W = skew(phi)
+    return np.eye(3) + a[..., None, None] * W + b[..., None, None] * (W @ W)
+
+
+def so3_log(R):
+    """``Log(R)`` (..., 3) of rotations (..., 3, 3) with angles below pi: ``w t / sin t`` with ``w =
+    vee(R)``, ``sin t = |w|``, ``cos t = (tr R - 1) / 2``; ``w (1 + |w|^2 / 6)`` for small angles.
+    Within about 1e-3 of pi, ``sin t`` carries no accuracy: use ``course.geometry.so3`` there."""
+    w = vee(R)
+    s2 = dot3(w, w)
+    small = value_of(s2) < SMALL_ANGLE_SQUARED
+    safe = where(small, 1.0, s2)
+    sin_t = np.sqrt(safe)
+    cos_t = 0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0)
+    scale = where(small, 1.0 + s2 / 6.0, np.arctan2(sin_t, cos_t) / sin_t)
+    return w * scale[..., None]

@@ -1,0 +1,146 @@
+"""A factor graph as a problem of the one minimizer: ``x0``, ``chi2``, ``linearize``, ``solve``, ``retract``.
+
+``x`` (n_x,) is every variable's stored value, one after the other in the order they were added;
+a step ``h`` (n,) is every variable's tangent step in the same order. ``linearize`` evaluates each
+group of factors at once: the values of its variables gathered, the residual and its tangent
+Jacobians (``jacobians``: ``"autodiff"`` by the implementation's Jets and ``autodiff_factor``,
+``"numeric"`` by central differences), whitened by the square root of the information, and all
+groups assembled by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a
+pattern found once. The step comes from the implementation's sparse Cholesky solver (chapter 2),
+or SuperLU where qdldl is not installed.
+"""
+
+import numpy as np
+
+from course.core import impl as impl_loader
+from course.core import peers
+from course.core.errors import SingularSystemError, check_array
+from course.factorgraph import noise
+from course.factorgraph.graph import FactorGraph
+from course.factorgraph.numeric import central_differences
+from course.solver.held_still import check_held_still
+from course.solver.linearization import Linearization
+from course.solver.superlu import SuperLUSolver
+
+JACOBIANS = ("autodiff", "numeric")
+
+
+class FactorGraphProblem:
+    """The minimizer's problem for ``graph``, with the Jacobians of ``jacobians`` and ``impl``'s pieces."""
+
+    def __init__(self, graph: FactorGraph, impl="solutions", jacobians: str = "autodiff", solver=None):
+        if jacobians not in JACOBIANS:
+            raise ValueError(f"jacobians must be one of {JACOBIANS}, got {jacobians!r}")
+        self.graph = graph
+        self.impl = impl_loader.load(impl)
+        self.jacobians = jacobians
+        kinds = graph.kinds
+        sizes = np.array([int(np.prod(k.shape)) for k in kinds], dtype=np.int64)
+        dims = np.array([k.dim for k in kinds], dtype=np.int64)
+        self._x_offsets = np.concatenate([[0], np.cumsum(sizes)])
+        self._h_offsets = np.concatenate([[0], np.cumsum(dims)])
+        self.x0 = np.concatenate([v.ravel() for v in graph.values]) if graph.values else np.zeros(0)
+        # per kind: its variables, and the index arrays that gather their values and steps
+        self._by_kind = {}
+        for kind in dict.fromkeys(kinds):
+            members = np.array([v for v, k in enumerate(kinds) if k == kind], dtype=np.int64)
+            size = int(np.prod(kind.shape))
+            self._by_kind[kind] = (members, self._x_offsets[members][:, None] + np.arange(size),
+                                   self._h_offsets[members][:, None] + np.arange(kind.dim))
+        self._groups = [(group.type, *group.arrays()) for group in graph.groups.values()]
+        self._whitening = [noise.whitening(info, ftype.dim, len(keys), f"{graph.name}: {ftype.name}")
+                           for ftype, keys, _, info in self._groups]
+        self._fixed = np.array(sorted(set(graph.fixed)), dtype=np.int64)
+        self._fixed_dof = np.concatenate([np.arange(self._h_offsets[v], self._h_offsets[v + 1])
+                                          for v in self._fixed]) if len(self._fixed) else np.zeros(0, np.int64)
+        self._assembler = self.impl.module("factor_linearisation").BlockSparseAssembler(
+            dims, [keys for _, keys, _, _ in self._groups], self._fixed)
+        if solver is None:
+            if peers.installed("qdldl"):
+                solver = self.impl.module("sparse_solve").SparseCholeskySolver()
+            else:
+                peers.announce("qdldl")
+                solver = SuperLUSolver()
+        self._solver = solver
+        self._held_checked = False
+
+    # ------------------------------------------------------------ values
+
+    def values(self, x, variables) -> np.ndarray:
+        """The stored values (M, *shape) of ``variables`` (M,) (all of one kind) in ``x``."""
+        kind = self.graph.kinds[int(variables[0])]
+        size = int(np.prod(kind.shape))
+        index = self._x_offsets[np.asarray(variables)][:, None] + np.arange(size)
+        return np.asarray(x)[index].reshape((len(variables),) + kind.shape)
+
+    def _slots(self, x, ftype, keys):
+        return [self.values(x, keys[:, a]) for a in range(len(ftype.kinds))]
+
+    def residuals(self, x) -> list:
+        """Per group, the whitened residuals (M_g, m_g) at ``x``."""
+        out = []
+        for (ftype, keys, z, _), W in zip(self._groups, self._whitening):
+            r = np.asarray(ftype.residual(z, *self._slots(x, ftype, keys)), dtype=float)
+            out.append(r if W is None else np.einsum("mab,mb->ma", W, r))
+        return out
+
+    def chi2(self, x) -> float:
+        return float(sum(np.vdot(r, r) for r in self.residuals(x)))
+
+    # ------------------------------------------------------------ the linearisation
+
+    def factor_jacobians(self, x, group: int):
+        """``(r (M, m), [J_a (M, m, d_a)])`` of group ``group`` at ``x``, before whitening."""
+        ftype, keys, z, _ = self._groups[group]
+
+        def residual(*points):
+            return ftype.residual(z, *points)
+
+        retractions = [kind.retract for kind in ftype.kinds]
+        dims = [kind.dim for kind in ftype.kinds]
+        xs = self._slots(x, ftype, keys)
+        if self.jacobians == "numeric":
+            return central_differences(residual, retractions, dims, xs)
+        jet = self.impl.module("jets").Jet
+        r, J = self.impl.module("autodiff_factor").tangent_jacobians(residual, retractions, dims, xs, jet)
+        where = "autodiff_factor.tangent_jacobians"
+        m = ftype.dim
+        r = check_array(r, (len(keys), m), where, "r")
+        if len(J) != len(dims):
+            raise ValueError(f"{where} returned {len(J)} Jacobian blocks for a factor with {len(dims)} variables")
+        return r, [check_array(block, (len(keys), m, d), where, f"J[{a}]") for a, (block, d) in enumerate(zip(J, dims))]
+
+    def linearize(self, x) -> Linearization:
+        blocks = []
+        for group, W in enumerate(self._whitening):
+            r, J = self.factor_jacobians(x, group)
+            blocks.append(noise.whiten(W, r, J))
+        H, b, chi2 = self._assembler.assemble(blocks)
+        n = int(self._h_offsets[-1])
+        b = check_array(b, (n,), "factor_linearisation.BlockSparseAssembler.assemble", "b")
+        if not self._held_checked:  # the structure does not change between iterations: once is enough
+            check_held_still(H, b, self._fixed_dof, "factor_linearisation.BlockSparseAssembler.assemble",
+                             int(max((k.dim for k in self.graph.kinds), default=1)))
+            self._held_checked = True
+        return Linearization(H=H, b=b, chi2=float(chi2), upper=True,
+                             diagonal_positions=getattr(self._assembler, "diagonal_positions", None))
+
+    def solve(self, lin: Linearization, damping=None):
+        """The step (n,) of ``(H + diag(damping)) h = -b``; fixed variables' steps are 0."""
+        h = np.asarray(self._solver.solve(lin.with_diagonal_added(damping), lin.b), dtype=float)
+        if h.shape != lin.b.shape or not np.all(np.isfinite(h)) or (h @ lin.b > 0):
+            raise SingularSystemError(
+                f"{self.graph.name}: the sparse solve gave "
+                + ("a non-finite step" if h.shape == lin.b.shape else f"shape {h.shape}")
+                + " or an ascent direction: H is not positive definite (is a variable fixed?)")
+        h[self._fixed_dof] = 0.0
+        return h
+
+    def retract(self, x, h):
+        """Every variable moved by its step, kind by kind (vectorised)."""
+        out = np.array(x, dtype=float)
+        h = np.asarray(h, dtype=float)
+        for kind, (members, x_index, h_index) in self._by_kind.items():
+            moved = kind.retract(out[x_index].reshape((len(members),) + kind.shape), h[h_index])
+            out[x_index] = np.asarray(moved, dtype=float).reshape(len(members), -1)
+        return out

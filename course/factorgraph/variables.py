@@ -1,0 +1,100 @@
+"""The kinds of variable a factor graph holds: how a value is stored and how a step moves it.
+
+A kind has an ambient shape (how one value is stored, e.g. (12,) for an SE(3) pose: t then R row by
+row), a tangent size ``dim`` (how many numbers a step has) and a retraction ``x (+) delta`` that maps
+a step to a new value, vectorised over a batch: ``x`` (M, *shape), ``delta`` (M, dim). The
+retractions run on arrays and on Jets (a Jet ``delta``), so that a factor's Jacobians with respect to
+the tangent spaces are the derivatives of ``r(x (+) delta)`` at ``delta = 0``. Each matches the
+chapter whose problem it serves, so that the Jacobians compare with that chapter's:
+
+- ``Vector(n)``: ``x + delta``;
+- ``SE2`` (x, y, theta): ``x + delta``, the angle wrapped (chapter 2: plain addition);
+- ``SE3`` (t, R): ``(t + R rho, R Exp(phi))``, ``delta = (rho, phi)`` (chapter 6: on the right);
+- ``SO3`` (R): ``R Exp(phi)``.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from course.factorgraph import jetmath
+
+
+@dataclass(frozen=True)
+class VariableKind:
+    """A kind of variable: ``name``, ambient ``shape``, tangent ``dim``."""
+
+    name: str
+    shape: tuple
+    dim: int
+
+    def retract(self, x, delta):
+        """``x (+) delta``: (M, *shape) from ``x`` (M, *shape) and ``delta`` (M, dim), arrays or Jets."""
+        raise NotImplementedError
+
+    def check(self, value, where: str) -> np.ndarray:
+        """``value`` as a float array of this kind's shape, or a ``ValueError`` naming ``where``."""
+        arr = np.asarray(value, dtype=float)
+        if arr.shape != self.shape:
+            raise ValueError(f"{where}: a {self.name} value has shape {self.shape}, got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{where}: a {self.name} value is not finite: {arr}")
+        return arr
+
+
+class Vector(VariableKind):
+    def __init__(self, n: int):
+        super().__init__(f"Vector{n}", (n,), n)
+
+    def retract(self, x, delta):
+        return x + delta
+
+
+class SE2Kind(VariableKind):
+    def __init__(self):
+        super().__init__("SE2", (3,), 3)
+
+    def retract(self, x, delta):
+        moved = x + delta
+        return np.stack([moved[..., 0], moved[..., 1], jetmath.wrap_angle(moved[..., 2])], axis=-1)
+
+
+class SO3Kind(VariableKind):
+    def __init__(self):
+        super().__init__("SO3", (3, 3), 3)
+
+    def retract(self, x, delta):
+        return x @ jetmath.so3_exp(delta)
+
+
+class SE3Kind(VariableKind):
+    def __init__(self):
+        super().__init__("SE3", (12,), 6)
+
+    def retract(self, x, delta):
+        t, R = se3_parts(x)
+        t_new = t + jetmath.matvec(R, delta[..., :3])
+        R_new = R @ jetmath.so3_exp(delta[..., 3:])
+        return _concatenate_last(t_new, R_new.reshape(R_new.shape[:-2] + (9,)))
+
+
+def se3_parts(x):
+    """``(t (..., 3), R (..., 3, 3))`` of SE(3) values (..., 12)."""
+    return x[..., :3], x[..., 3:].reshape(x.shape[:-1] + (3, 3))
+
+
+def se3_value(t, R) -> np.ndarray:
+    """The stored value (12,) or (M, 12) of a pose ``(t, R)``."""
+    t, R = np.asarray(t, dtype=float), np.asarray(R, dtype=float)
+    return np.concatenate([t, R.reshape(R.shape[:-2] + (9,))], axis=-1)
+
+
+def _concatenate_last(a, b):
+    """``concatenate([a, b], axis=-1)`` of arrays or Jets (column by column: a Jet has no concatenate)."""
+    parts = [a[..., i] for i in range(a.shape[-1])] + [b[..., i] for i in range(b.shape[-1])]
+    return np.stack(parts, axis=-1)
+
+
+SE2 = SE2Kind()
+SO3 = SO3Kind()
+SE3 = SE3Kind()
