@@ -9,6 +9,12 @@ of them in one evaluation: seed every step as Jets at zero, in ``k = d_1 + ... +
 move each variable by its step through its retraction, evaluate the residual once on the moved
 Jets, and read the blocks off its derivative. Derive how the seeds must be laid out so that each
 block comes out where it belongs (``python -m autograder hint tangent_jacobians 1``).
+
+Inputs at the edges of the contract (each is a check input):
+- one factor (M = 1)
+- one variable (s = 1)
+- a variable stored in another shape than its tangent size (SO(3): 3x3 stored, 3 tangent)
+- the same kind in two slots
 """
 
 import numpy as np
@@ -39,3 +45,23 @@ def tangent_jacobians(residual, retractions, dims, xs, jet):
     return (np.asarray(r.value, dtype=float),
             [grad[..., offsets[a]:offsets[a + 1]] for a in range(len(dims))])
     # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "tangent_jacobians": (
+        """Give every scalar of every step its own direction: ``k`` directions in all, variable ``a``'s
+        step taking ``d_a`` of them. Move each variable by its seeded step through its own retraction,
+        evaluate the residual once, and cut the derivative's last axis into the variables' blocks.""",
+        """Variable ``a``'s directions start at ``offset_a = d_1 + ... + d_(a-1)``: ``jet.seed(np.zeros((M,
+        d_a)), offset_a, k)``. By the chain rule, ``r.grad[..., offset_a + j]`` is then ``dr / d delta_a[j]``
+        at ``delta = 0``, the retraction's derivative included.""",
+        """::
+
+            offsets = [0, d_1, d_1 + d_2, ...]
+            moved = [retract_a(x_a, jet.seed(zeros((M, d_a)), offsets[a], k)) for each a]
+            r = residual(*moved)
+            return r.value, [r.grad[..., offsets[a]:offsets[a + 1]] for each a]""",
+    ),
+}

@@ -16,6 +16,14 @@ so find it once, in ``__init__``, and make ``assemble`` a scatter of numbers int
 Fixed variables are held still as in chapters 2 and 6: their rows and columns of H are zero but for
 the identity on their diagonal block, their entries of b zero.
 ``python -m autograder hint BlockSparseAssembler 1`` if you are stuck.
+
+Inputs at the edges of the contract (each is a check input):
+- one factor (M = 1) of one variable (N = 1)
+- a factor of one variable (a prior)
+- a factor from a later variable to an earlier one
+- two factors on the same variables (their blocks add up)
+- no variable fixed
+- a fixed variable that is not the first
 """
 
 import numpy as np
@@ -96,3 +104,28 @@ class BlockSparseAssembler:
         b[self._fixed_dof] = 0.0
         return sp.csc_matrix((data, self._indices, self._indptr), shape=self._shape), b, chi2
         # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "BlockSparseAssembler": (
+        """A factor's J has nonzero blocks only in its variables' columns, so ``J^T J`` has nonzero blocks
+        only at (variable of slot a, variable of slot c). List, once, every entry (row, column) each slot
+        pair of each factor adds to, keep the upper triangle, find the distinct positions in CSC order,
+        and remember where each contribution goes; then ``assemble`` only computes the block values and
+        sums them into those positions.""",
+        """Row ``offsets[key[f, a]] + i``, column ``offsets[key[f, c]] + j`` gets ``(J_a^T J_c)[i, j]``; in
+        CSC order an entry's key is ``column * n + row``, so ``np.unique(keys, return_inverse=True)``
+        gives the pattern (sorted) and every contribution's position; ``np.bincount(positions, weights)``
+        sums them. A pair (a, c) whose variables come in the other order lands below the diagonal:
+        its transpose, from the pair (c, a), is the one above.""",
+        """``__init__``: for each group and each slot pair (a, c), the (M, d_a, d_c) arrays of rows and
+        columns; ``keep = rows <= cols``; concatenate the kept ones and the diagonal (every diagonal entry
+        in the pattern, for the damping); ``unique, inverse = np.unique(cols * n + rows, return_inverse=True)``;
+        ``indices = unique % n``, ``indptr = searchsorted(unique // n, arange(n + 1))``. ``assemble``:
+        ``values = (J_a^T J_c)[keep]`` per pair, ``data = bincount(positions, values)``; ``b`` by
+        ``bincount`` of ``J_a^T r`` at slot a's offsets; ``chi2 = sum r^T r``; then the fixed rows and
+        columns zeroed, their diagonal set to 1, their entries of b zeroed.""",
+    ),
+}

@@ -15,7 +15,7 @@ axis more, the last). An operand that is a plain number or array is a constant (
 Derive each rule from ``f(a + da) = f(a) + f'(a) da`` with ``da`` the operand's ``grad``.
 
 Inputs at the edges of the contract (each is a check input):
-- sqrt at 0 with a zero derivative: value 0, derivative 0 (nothing depends on the seeds)
+- sqrt at 0 with a zero derivative: value 0, derivative 0
 - sqrt at 0 with a nonzero derivative: value 0, derivative +-inf in the sign of the derivative
 - x ** 0: value 1, derivative 0 (also at x = 0)
 - x ** 1 at x = 0 and x ** 2 at x = 0: derivative 1 * dx and 0
@@ -299,3 +299,58 @@ _UFUNCS = {
     np.matmul: matmul,
 }
 _FUNCTIONS = {np.stack: _stack}
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "Jet.__mul__": (
+        """Write both operands as ``a + da eps`` and ``b + db eps`` with ``eps^2 = 0`` and multiply out;
+        a constant operand has ``db = 0``. ``_parts`` splits an operand into value and grad (None for a
+        constant).""",
+        """``(a + da eps)(b + db eps) = ab + (b da + a db) eps``. ``da`` has one axis more than ``a``
+        (the k directions), so the value that multiplies it needs a trailing axis: ``_times(b, da)``.""",
+        """``Jet(a * b, _times(b, da) + _times(a, db))``, the second term only when ``other`` is a Jet.""",
+    ),
+    "Jet.__truediv__": (
+        """Divide ``a + da eps`` by ``b + db eps``: multiply above and below by ``b - db eps``.""",
+        """``1 / (b + db eps) = 1/b - db / b^2 eps``.""",
+        """``Jet(a / b, _times(1 / b, da) - _times(a / b^2, db))``; for a constant numerator
+        (``__rtruediv__``): ``Jet(c / b, _times(-c / b^2, db))``.""",
+    ),
+    "Jet.__pow__": (
+        """Expand ``(x + dx eps)^p`` to first order; then look at ``p = 0`` and ``p = 1`` at ``x = 0``,
+        where the general formula meets ``0 * inf``.""",
+        """``(x + dx eps)^p = x^p + p x^(p-1) dx eps``; ``x^0`` is the constant 1 and ``x^1`` is ``x``.""",
+        """``p == 0``: value 1, grad 0; ``p == 1``: a copy; else ``Jet(x**p, _times(p * x**(p - 1), dx))``.""",
+    ),
+    "sqrt": (
+        """The chain rule with ``f = sqrt``; then decide the value at ``x = 0``, where ``f'`` is infinite.""",
+        """``d sqrt(x) = dx / (2 sqrt(x))``: at ``x = 0`` it is ``dx * inf``: infinite in the sign of ``dx``,
+        and ``0 * inf = nan`` where ``dx = 0`` (set those to 0: nothing depends on the seeds).""",
+        """``root = sqrt(x)``; ``grad = _times(0.5 / root, dx)`` (with numpy's divide warnings off), then
+        ``np.where(dx == 0, 0, grad)``.""",
+    ),
+    "sin": ("""The chain rule: ``f(x + dx eps) = f(x) + f'(x) dx eps``.""", """``sin' = cos``.""",
+            """``Jet(np.sin(x), _times(np.cos(x), dx))``."""),
+    "cos": ("""The chain rule: ``f(x + dx eps) = f(x) + f'(x) dx eps``.""", """``cos' = -sin``.""",
+            """``Jet(np.cos(x), _times(-np.sin(x), dx))``."""),
+    "exp": ("""The chain rule: ``f(x + dx eps) = f(x) + f'(x) dx eps``.""", """``exp' = exp``.""",
+            """``Jet(e, _times(e, dx))`` with ``e = np.exp(x)``."""),
+    "log": ("""The chain rule: ``f(x + dx eps) = f(x) + f'(x) dx eps``.""", """``log' = 1 / x``.""",
+            """``Jet(np.log(x), _times(1 / x, dx))``."""),
+    "arctan2": (
+        """``arctan2(y, x)`` is the angle of (x, y); differentiate it by y and by x (either may be a
+        constant) and add the two terms.""",
+        """``d atan2(y, x) / dy = x / (x^2 + y^2)``, ``d / dx = -y / (x^2 + y^2)``; the value is numpy's
+        ``arctan2`` (the quadrant matters).""",
+        """``Jet(np.arctan2(y, x), _times(x / r2, dy) - _times(y / r2, dx))`` with ``r2 = x^2 + y^2``.""",
+    ),
+    "matmul": (
+        """The product rule for matrices, with the k directions as a last axis of the derivative;
+        handle a vector ``b`` (m,) as a column.""",
+        """``d(A B) = dA B + A dB``; with ``dA`` (..., n, m, k): ``einsum("...ijk,...jl->...ilk", dA, B)``.""",
+        """``value = A @ B``; ``grad = einsum("...ijk,...jl->...ilk", dA, B) + einsum("...ij,...jlk->...ilk", A,
+        dB)`` (each term only for a Jet operand); for a vector ``b`` add a trailing axis and drop it after.""",
+    ),
+}

@@ -27,6 +27,9 @@ DERIVED = {
     "robust_kernels": ["huber", "cauchy", "tukey", "robust_information"],
     "marginalisation": ["marginalise"],
     "imu_preintegration": ["preintegrate"],
+    "jets": ["Jet.__mul__", "Jet.__truediv__", "Jet.__pow__", "sqrt", "sin", "cos", "exp", "log", "arctan2", "matmul"],
+    "autodiff_factor": ["tangent_jacobians"],
+    "factor_linearisation": ["BlockSparseAssembler"],
 }
 
 

@@ -85,12 +85,19 @@ def assemble_each(assembler, blocks, information) -> dict:
     ``csc{k}``; and ``diagonal_ok`` (1 when ``diagonal_positions`` points at the diagonal of
     ``H.data``, 0 when it does not, NaN when there is none).
     """
+    return each_assembly(assembler, [(np.array(e), np.array(A), np.array(B), np.array(information))
+                                     for e, A, B in blocks])
+
+
+def each_assembly(assembler, arguments) -> dict:
+    """``assembler.assemble(*args)`` for each ``args`` of ``arguments``, on one pattern; the fields of
+    :func:`assemble_each`."""
     import scipy.sparse as sp
 
     out: dict = {}
     H: Any = None
-    for k, (e, A, B) in enumerate(blocks):
-        result = assembler.assemble(np.array(e), np.array(A), np.array(B), np.array(information))
+    for k, args in enumerate(arguments):
+        result = assembler.assemble(*args)
         if not isinstance(result, tuple) or len(result) != 3:
             raise OutputError(f"returned {type(result).__name__}, expected a tuple (H, b, chi2)")
         H, b, chi2 = result

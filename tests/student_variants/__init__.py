@@ -71,6 +71,11 @@ LOADED_BY = {
     "pose_graph_3d_assembly.py": ("pose_graph_3d_assembly",),
     "chordal_3d.py": ("chordal_3d",),
     "gnc.py": ("gnc",),
+    # chapter 7: each exercise is graded alone (autodiff_factor with a Jet that carries closed-form
+    # derivatives, the linearisation with given blocks)
+    "jets.py": ("jets",),
+    "autodiff_factor.py": ("autodiff_factor",),
+    "factor_linearisation.py": ("factor_linearisation",),
 }
 
 
@@ -1343,6 +1348,116 @@ ALTERNATIVES_DERIVED = {
         "np.where(inner, 2.0 * s / (a2 * a2) - 2.0 / a2, 0.0)", set()),
 }
 
+J_ARITH = "jets.Jet: product and quotient"
+J_POW = "jets.Jet: powers"
+J_RES = "jets.Jet: a residual written for arrays runs on Jets"
+J_SQRT = "jets.sqrt: sqrt, also at 0"
+J_SIN = "jets.sin: sin"
+J_ATAN = "jets.arctan2: arctan2"
+J_MATMUL = "jets.matmul: matrix products"
+AD = "autodiff_factor.tangent_jacobians: "
+AD_ONE, AD_MANY = AD + "the Jacobian of one variable", AD + "the Jacobians of several variables of different sizes"
+FL = "factor_linearisation.BlockSparseAssembler: "
+FL_2D, FL_3D = FL + "H, b and chi2 of poses and landmarks", FL + "H, b and chi2 of variables of mixed sizes"
+FL_FIXED, FL_ONE = FL + "fixed variables held still", FL + "one factor of one variable"
+
+BUGS_FACTOR_GRAPH = {
+    "jets_product_rule_one_term": V(
+        "jets.py", ["def __mul__"], "grad = grad + _times(self.value, g)", "grad = grad", {J_ARITH, J_RES},
+        "the product rule has two terms"),
+    "jets_quotient_rule_plus": V(
+        "jets.py", ["def __truediv__"], "grad = grad - _times(quotient / v, g)",
+        "grad = grad + _times(quotient / v, g)",
+        {J_ARITH, J_RES}, "the quotient rule subtracts"),
+    "jets_power_naive_at_zero": V(
+        "jets.py", ["def __pow__"], "if p == 0.0:", "if False:", {J_POW}, "x ** 0 is the constant 1"),
+    "jets_sqrt_nan_at_zero": V(
+        "jets.py", ["def sqrt"], "grad = np.where(x.grad == 0.0, 0.0, grad)", "pass", {J_SQRT},
+        "nothing depends on the seeds there"),
+    "jets_sin_minus_cos": V(
+        "jets.py", ["def sin"], "_times(np.cos(x.value), x.grad)", "_times(-np.cos(x.value), x.grad)", {J_SIN, J_RES},
+        "d sin(x) = +cos(x) dx"),
+    "jets_arctan2_dx_added": V(
+        "jets.py", ["def arctan2"], "grad = grad - _times(yv / r2, xg)", "grad = grad + _times(yv / r2, xg)",
+        {J_ATAN, J_RES}, "the dx term is subtracted"),
+    "jets_matmul_one_term": V(
+        "jets.py", ["def matmul"], '        grad = grad + np.einsum("...ij,...jlk->...ilk", av, bg)', "        pass",
+        {J_MATMUL, J_RES}, "both factors vary"),
+    "autodiff_all_at_offset_zero": V(
+        "autodiff_factor.py", [], "delta = jet.seed(np.zeros((len(x), d)), int(offset), k)",
+        "delta = jet.seed(np.zeros((len(x), d)), 0, k)", {AD_MANY}, "give each its own directions"),
+    "autodiff_blocks_from_the_first_columns": V(
+        "autodiff_factor.py", [], "[grad[..., offsets[a]:offsets[a + 1]] for a in range(len(dims))]",
+        "[grad[..., :dims[a]] for a in range(len(dims))]", {AD_MANY}, "not from the first d_a"),
+    "autodiff_negative_step": V(
+        "autodiff_factor.py", [], "moved.append(retract(x, delta))", "moved.append(retract(x, -delta))",
+        {AD_ONE, AD_MANY}, "the opposite sign"),
+    "autodiff_equal_offsets": V(
+        "autodiff_factor.py", [], "offsets = np.concatenate([[0], np.cumsum(dims)]).astype(int)",
+        "offsets = np.array([a * d for a, d in enumerate(dims)] + [int(sum(dims))])", {AD_MANY},
+        "the running sum of the tangent sizes"),
+    "autodiff_blocks_reversed": V(
+        "autodiff_factor.py", [], "[grad[..., offsets[a]:offsets[a + 1]] for a in range(len(dims))])",
+        "[grad[..., offsets[a]:offsets[a + 1]] for a in range(len(dims))][::-1])", {AD_MANY},
+        "in the order of the variables"),
+    "linearisation_b_sign": V(
+        "factor_linearisation.py", ["def assemble"], 'g = np.einsum("mra,mr->ma", J[a], r)',
+        'g = -np.einsum("mra,mr->ma", J[a], r)', {FL_2D, FL_3D, FL_FIXED, FL_ONE}, "the gradient's sign"),
+    "linearisation_half_chi2": V(
+        "factor_linearisation.py", ["def assemble"], "chi2 += float(np.vdot(r, r))",
+        "chi2 += 0.5 * float(np.vdot(r, r))",
+        {FL_2D, FL_3D, FL_FIXED, FL_ONE}, "not half of it"),
+    "linearisation_fixed_not_held": V(
+        "factor_linearisation.py", ["def assemble"], "data[self._dead] = 0.0", "pass", {FL_2D, FL_FIXED},
+        "setting its diagonal to 1 leaves the rest coupled"),
+    "linearisation_b_of_fixed_kept": V(
+        "factor_linearisation.py", ["def assemble"], "b[self._fixed_dof] = 0.0", "pass", {FL_2D, FL_FIXED},
+        "entries of b are zero too"),
+    "linearisation_slot_order_upper": V(
+        "factor_linearisation.py", ["def __init__"], "keep = r <= q  # the upper triangle of H",
+        "keep = (r <= q) if a <= c else np.zeros_like(r, dtype=bool)", {FL_2D, FL_3D, FL_FIXED},
+        "the upper triangle is in the variables' order"),
+}
+
+PER_VARIABLE = """    blocks, r = [], None
+    for a in range(len(dims)):  # one evaluation per variable, the others held as arrays
+        moved = [retract(x, jet.seed(np.zeros((len(x), d)), 0, d)) if b == a else x
+                 for b, (retract, d, x) in enumerate(zip(retractions, dims, xs))]
+        out = residual(*moved)
+        r = out.value
+        blocks.append(np.asarray(out.grad, dtype=float))
+    return np.asarray(r, dtype=float), blocks
+    k = int(sum(dims))"""
+
+DENSE_THEN_TRIANGLE = """        n = self._shape[0]
+        dense, b, chi2 = np.zeros((n, n)), np.zeros(n), 0.0
+        for key, (r, J) in zip(self._keys, blocks):
+            for f in range(len(key)):
+                for a in range(len(J)):
+                    ra = slice(self._offsets[key[f, a]], self._offsets[key[f, a] + 1])
+                    b[ra] += J[a][f].T @ r[f]
+                    for c in range(len(J)):
+                        rc = slice(self._offsets[key[f, c]], self._offsets[key[f, c] + 1])
+                        dense[ra, rc] += J[a][f].T @ J[c][f]
+                chi2 += float(r[f] @ r[f])
+        dense[self._fixed_dof, :] = 0.0
+        dense[:, self._fixed_dof] = 0.0
+        dense[self._fixed_dof, self._fixed_dof] = 1.0
+        b[self._fixed_dof] = 0.0
+        return sp.csc_matrix(np.triu(dense)), b, chi2"""
+
+ALTERNATIVES_FACTOR_GRAPH = {
+    "jets_sqrt_by_power": V(
+        "jets.py", ["def sqrt"], "grad = _times(0.5 / root, x.grad)", "grad = _times(0.5 * root ** -1.0, x.grad)",
+        set()),
+    "jets_arctan2_by_hypot": V(
+        "jets.py", ["def arctan2"], "r2 = xv * xv + yv * yv", "r2 = np.hypot(xv, yv) ** 2", set()),
+    "autodiff_one_evaluation_per_variable": V("autodiff_factor.py", [], "    k = int(sum(dims))", PER_VARIABLE, set()),
+    "linearisation_dense_then_triangle": V(
+        "factor_linearisation.py", ["def assemble"], "        n = self._shape[0]", DENSE_THEN_TRIANGLE, set()),
+}
+
+
 VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION,
             **ALTERNATIVES_INITIALISATION,
             **BUGS_BUNDLE_ADJUSTMENT, **ALTERNATIVES_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS,
@@ -1352,7 +1467,7 @@ VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BU
             **BUGS_IMU_PREINTEGRATION, **ALTERNATIVES_IMU_PREINTEGRATION,
             **BUGS_POSE_GRAPH_3D, **ALTERNATIVES_POSE_GRAPH_3D, **BUGS_POSE_GRAPH_3D_ASSEMBLY,
             **ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY, **BUGS_CHORDAL_3D, **ALTERNATIVES_CHORDAL_3D,
-            **BUGS_GNC, **ALTERNATIVES_GNC}
+            **BUGS_GNC, **ALTERNATIVES_GNC, **BUGS_FACTOR_GRAPH, **ALTERNATIVES_FACTOR_GRAPH}
 
 
 def apply(text: str, variant: Variant) -> str:

@@ -1,0 +1,169 @@
+"""One Jet operation on given values and derivatives, with the student's Jet class
+(``checks/jets.py``), and a factor's tangent Jacobians with a Jet that carries derivatives
+it is told (``checks/autodiff_factor.py``).
+
+An operand is ``("jet", value, grad)`` (a Jet of the implementation's class), ``("array", value)``
+(a constant array) or ``("number", p)`` (a Python float).
+"""
+
+import numpy as np
+
+from autograder.tasks.common import OutputError
+
+#: how each operation is called on the operands (the rules through their methods and functions)
+OPERATIONS = {
+    "mul": lambda m, a, b: a * b,
+    "truediv": lambda m, a, b: a / b,
+    "pow": lambda m, a, p: a**p,
+    "sqrt": lambda m, a: m.sqrt(a),
+    "sin": lambda m, a: m.sin(a),
+    "cos": lambda m, a: m.cos(a),
+    "exp": lambda m, a: m.exp(a),
+    "log": lambda m, a: m.log(a),
+    "arctan2": lambda m, y, x: m.arctan2(y, x),
+    "matmul": lambda m, a, b: m.matmul(a, b),
+}
+
+
+def _operand(module, spec):
+    kind = spec[0]
+    if kind == "jet":
+        return module.Jet(np.asarray(spec[1], dtype=float), np.asarray(spec[2], dtype=float))
+    if kind == "array":
+        return np.asarray(spec[1], dtype=float)
+    return float(spec[1])
+
+
+def apply(operation, operands, impl):
+    """``{"value", "grad"}`` of ``operation`` (a key of :data:`OPERATIONS`) on ``operands``."""
+    module = impl.module("jets")
+    out = OPERATIONS[operation](module, *(_operand(module, spec) for spec in operands))
+    if not (hasattr(out, "value") and hasattr(out, "grad")):
+        raise OutputError(f"returned {type(out).__name__}, expected a Jet (with value and grad)")
+    return {"value": np.asarray(out.value, dtype=float), "grad": np.asarray(out.grad, dtype=float)}
+
+
+def residual_on_jets(factor, z, xs, impl):
+    """``{"value", "grad"}`` of the framework's factor ``factor`` (a name of
+    ``course.factorgraph.factors``) on Jets of the implementation's class seeded at ``xs`` in their
+    stored coordinates (k = the sum of their sizes, in slot order): the residual written once for
+    arrays, run on Jets."""
+    from course.factorgraph import factors
+
+    module = impl.module("jets")
+    ftype = getattr(factors, factor)
+    xs = [np.asarray(x, dtype=float) for x in xs]
+    sizes = [int(np.prod(x.shape[1:])) for x in xs]
+    k, offset, points = int(sum(sizes)), 0, []
+    for x, size in zip(xs, sizes):
+        seeded = module.Jet.seed(x.reshape(len(x), size), offset, k)
+        points.append(seeded.reshape(x.shape) if x.ndim > 2 else seeded)
+        offset += size
+    out = ftype.residual(np.asarray(z, dtype=float), *points)
+    if not (hasattr(out, "value") and hasattr(out, "grad")):
+        raise OutputError(f"the residual returned {type(out).__name__}, expected a Jet")
+    return {"value": np.asarray(out.value, dtype=float), "grad": np.asarray(out.grad, dtype=float)}
+
+
+class TracingJet:
+    """A Jet that carries the derivatives it is given and has no rules of its own: the residual and
+    the retractions of ``tangent_jacobians_task`` compute theirs in closed form, so that the student's
+    ``autodiff_factor`` is graded without their ``jets``."""
+
+    def __init__(self, value, grad):
+        self.value = np.asarray(value, dtype=float)
+        self.grad = np.asarray(grad, dtype=float)
+
+    def __neg__(self):
+        return TracingJet(-self.value, -self.grad)
+
+    def __mul__(self, number):
+        """Scaling by a number (a seed may be scaled); nothing else."""
+        if not np.isscalar(number):
+            return NotImplemented
+        return TracingJet(number * self.value, number * self.grad)
+
+    __rmul__ = __mul__
+
+    @classmethod
+    def seed(cls, value, offset, k):
+        value = np.asarray(value, dtype=float)
+        n = value.shape[-1]
+        grad = np.zeros(value.shape + (int(k),))
+        grad[..., np.arange(n), int(offset) + np.arange(n)] = 1.0
+        return cls(value, grad)
+
+
+def _flat(point, M, size, k):
+    """``(value (M, size), grad (M, size, k) or None)`` of a TracingJet or an array."""
+    if isinstance(point, TracingJet):
+        return point.value.reshape(M, size), point.grad.reshape(M, size, -1)
+    return np.asarray(point, dtype=float).reshape(M, size), None
+
+
+def retraction(kind):
+    """``retract(x, delta)`` of ``kind`` (``vector``, ``se2``, ``so3``, ``se3``), with the derivative
+    of ``vec(x (+) delta)`` by ``delta`` in closed form, applied to ``delta``'s derivative."""
+    from course.geometry.so3 import exp_many, right_jacobian_many, skew
+
+    def retract(x, delta):
+        x = np.asarray(x, dtype=float)
+        M = len(x)
+        d_value = delta.value if isinstance(delta, TracingJet) else np.asarray(delta, dtype=float)
+        d_value = d_value.reshape(M, -1)
+        if kind in ("vector", "se2"):
+            moved = x + d_value
+            D = np.broadcast_to(np.eye(x.shape[1]), (M, x.shape[1], x.shape[1]))
+        else:
+            R = x.reshape(M, 3, 3) if kind == "so3" else x[:, 3:].reshape(M, 3, 3)
+            phi = d_value[:, -3:]
+            R_new = R @ exp_many(phi)
+            # d vec(R Exp(phi)) / d phi_j = vec(R Exp(phi) [J_r(phi) e_j]_x)
+            Jr = right_jacobian_many(phi)
+            dR = np.stack([(R_new @ skew(Jr[:, :, j])).reshape(M, 9) for j in range(3)], axis=2)
+            if kind == "so3":
+                moved, D = R_new.reshape(M, 3, 3), dR
+            else:
+                t_new = x[:, :3] + np.einsum("mab,mb->ma", R, d_value[:, :3])
+                moved = np.concatenate([t_new, R_new.reshape(M, 9)], axis=1)
+                D = np.zeros((M, 12, 6))
+                D[:, :3, :3] = R
+                D[:, 3:, 3:] = dR
+        if not isinstance(delta, TracingJet):
+            return moved
+        grad = np.matmul(D, delta.grad.reshape(M, D.shape[2], -1))
+        return TracingJet(moved, grad.reshape(moved.shape + (grad.shape[-1],)))
+
+    return retract
+
+
+def tangent_jacobians_task(kinds, xs, C, D, impl):
+    """``autodiff_factor.tangent_jacobians`` of ``r = sum_a C_a vec(p_a) + (sum_a D_a vec(p_a))^2``
+    (entrywise square; ``C_a``, ``D_a`` (M, m, size_a)) on variables of ``kinds`` at ``xs``.
+
+    Fields: ``r`` (M, m), ``count`` (how many blocks came back), ``J0``, ``J1``, ... the blocks."""
+    sizes = [int(np.prod(np.shape(x)[1:])) for x in xs]
+    M = len(xs[0])
+    dims = [{"vector": s, "se2": 3, "so3": 3, "se3": 6}[kind] for kind, s in zip(kinds, sizes)]
+
+    def residual(*points):
+        flats = [_flat(p, M, s, None) for p, s in zip(points, sizes)]
+        s_lin = sum(np.einsum("mij,mj->mi", Ca, v) for Ca, (v, _) in zip(C, flats))
+        s_sq = sum(np.einsum("mij,mj->mi", Da, v) for Da, (v, _) in zip(D, flats))
+        value = s_lin + s_sq**2
+        grads = [(np.asarray(Ca) + 2.0 * s_sq[:, :, None] * np.asarray(Da), g)
+                 for Ca, Da, (_, g) in zip(C, D, flats) if g is not None]
+        if not grads:
+            return value
+        return TracingJet(value, sum(np.matmul(A, g) for A, g in grads))
+
+    module = impl.module("autodiff_factor")
+    out = module.tangent_jacobians(residual, [retraction(k) for k in kinds], dims,
+                                   [np.asarray(x, dtype=float) for x in xs], TracingJet)
+    if not isinstance(out, tuple) or len(out) != 2:
+        raise OutputError(f"returned {type(out).__name__}, expected a tuple (r, [J_1, ..., J_s])")
+    r, J = out
+    fields = {"r": np.asarray(r, dtype=float), "count": float(len(J))}
+    for a, block in enumerate(J):
+        fields[f"J{a}"] = np.asarray(block, dtype=float)
+    return fields

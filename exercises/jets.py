@@ -1,0 +1,236 @@
+"""Chapter 7 exercise: Jets, forward-mode automatic differentiation in numpy.
+
+A Jet is a number together with its derivative in ``k`` seeded directions: ``value`` (...,) and
+``grad`` (..., k), ``grad[..., j] = d value / d seed_j``. It is the first-order truncation of
+``value + sum_j grad_j eps_j`` with ``eps_i eps_j = 0`` (a dual number), so every operation obeys
+the chain rule: ``f(a + da) = f(a) + f'(a) da``. A residual written for numpy arrays runs on Jets
+unchanged: numpy's functions (``np.sin(x)``, ``np.sqrt(x)``, ``x @ y``) call :meth:`Jet.__array_ufunc__`,
+which sends them to the rules of this module; an array of Jets is one Jet with ``value`` of
+that shape (a batch of M rotation matrices is ``value`` (M, 3, 3), ``grad`` (M, 3, 3, k)).
+
+What you write: the derivative rules of the arithmetic (``__mul__``, ``__truediv__``, ``__pow__``),
+of ``sqrt``, ``sin``, ``cos``, ``exp``, ``log``, ``arctan2`` and of the matrix product ``matmul``. Each
+returns a new Jet; the operands broadcast as numpy arrays do, on ``value``'s axes (``grad`` has one
+axis more, the last). An operand that is a plain number or array is a constant (derivative 0).
+Derive each rule from ``f(a + da) = f(a) + f'(a) da`` with ``da`` the operand's ``grad``.
+
+Inputs at the edges of the contract (each is a check input):
+- sqrt at 0 with a zero derivative: value 0, derivative 0
+- sqrt at 0 with a nonzero derivative: value 0, derivative +-inf in the sign of the derivative
+- x ** 0: value 1, derivative 0 (also at x = 0)
+- x ** 1 at x = 0 and x ** 2 at x = 0: derivative 1 * dx and 0
+- arctan2 on each axis (y = 0 with x < 0 gives pi)
+- one direction (k = 1) and a scalar Jet (value of shape ())
+"""
+
+import numpy as np
+
+
+def _parts(x):
+    """``(value, grad or None)`` of a Jet or a constant."""
+    if isinstance(x, Jet):
+        return x.value, x.grad
+    return np.asarray(x, dtype=float), None
+
+
+def _times(factor, grad):
+    """``factor[..., None] * grad`` (the chain rule's product), broadcast."""
+    return np.asarray(factor)[..., None] * grad
+
+
+class Jet:
+    """``value`` (...,) and ``grad`` (..., k): a batch of numbers with their derivatives in k directions."""
+
+    __array_priority__ = 1000  # numpy defers ``array * jet`` to ``jet.__rmul__``
+
+    def __init__(self, value, grad):
+        self.value = np.asarray(value, dtype=float)
+        grad = np.asarray(grad, dtype=float)
+        if grad.shape[:-1] != self.value.shape:
+            grad = np.broadcast_to(grad, self.value.shape + grad.shape[-1:])
+        self.grad = grad
+
+    # --------------------------------------------------------------- given: the container
+
+    @classmethod
+    def constant(cls, value, k: int) -> "Jet":
+        """``value`` with a zero derivative in ``k`` directions."""
+        value = np.asarray(value, dtype=float)
+        return cls(value, np.zeros(value.shape + (k,)))
+
+    @classmethod
+    def seed(cls, value, offset: int, k: int) -> "Jet":
+        """``value`` (..., n) as the variables ``offset .. offset + n - 1`` of ``k``: the derivative of
+        its entry ``[..., i]`` is the unit vector ``offset + i``."""
+        value = np.asarray(value, dtype=float)
+        n = value.shape[-1]
+        grad = np.zeros(value.shape + (k,))
+        grad[..., np.arange(n), offset + np.arange(n)] = 1.0
+        return cls(value, grad)
+
+    @property
+    def shape(self):
+        return self.value.shape
+
+    @property
+    def ndim(self):
+        return self.value.ndim
+
+    @property
+    def k(self) -> int:
+        return self.grad.shape[-1]
+
+    def __len__(self):
+        return len(self.value)
+
+    def __getitem__(self, index):
+        index = index if isinstance(index, tuple) else (index,)
+        if any(i is Ellipsis for i in index):
+            return Jet(self.value[index], self.grad[index + (slice(None),)])
+        return Jet(self.value[index], self.grad[index + (Ellipsis,)] if index else self.grad)
+
+    def reshape(self, *shape) -> "Jet":
+        """``value`` reshaped (as ``ndarray.reshape``); each entry keeps its derivative."""
+        value = self.value.reshape(*shape)
+        return Jet(value, self.grad.reshape(value.shape + (self.k,)))
+
+    def swapaxes(self, a: int, b: int) -> "Jet":
+        """Axes ``a`` and ``b`` of ``value`` swapped (negative axes count from ``value``'s last)."""
+        a, b = (axis % self.ndim for axis in (a, b))
+        return Jet(np.swapaxes(self.value, a, b), np.swapaxes(self.grad, a, b))
+
+    @property
+    def mT(self) -> "Jet":
+        """The matrix transpose of the last two axes (as ``ndarray.mT``)."""
+        return self.swapaxes(-1, -2)
+
+    def sum(self, axis=None) -> "Jet":
+        """The sum over ``value``'s ``axis`` (an int, or all of them)."""
+        axes = tuple(range(self.ndim)) if axis is None else (axis % self.ndim,)
+        return Jet(self.value.sum(axis=axes), self.grad.sum(axis=axes))
+
+    def __repr__(self):
+        return f"Jet(value={self.value!r}, grad={self.grad!r})"
+
+    def __neg__(self):
+        return Jet(-self.value, -self.grad)
+
+    def __pos__(self):
+        return self
+
+    def __add__(self, other):
+        v, g = _parts(other)
+        return Jet(self.value + v, self.grad if g is None else self.grad + g)
+
+    __radd__ = __add__
+
+    def __sub__(self, other):
+        return self + (-other)
+
+    def __rsub__(self, other):
+        return (-self) + other
+
+    # --------------------------------------------------------------- yours: the derivative rules
+
+    def __mul__(self, other):
+        """``self * other``."""
+        raise NotImplementedError("TODO jets.Jet.__mul__: not implemented yet")
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, other):
+        """``self / other``."""
+        raise NotImplementedError("TODO jets.Jet.__truediv__: not implemented yet")
+
+    def __rtruediv__(self, other):
+        """``other / self`` for a constant ``other``."""
+        raise NotImplementedError("TODO jets.Jet.__rtruediv__: not implemented yet")
+
+    def __pow__(self, p):
+        """``self ** p`` for a constant real ``p`` (a number, not a Jet)."""
+        raise NotImplementedError("TODO jets.Jet.__pow__: not implemented yet")
+
+    def __matmul__(self, other):
+        return matmul(self, other)
+
+    def __rmatmul__(self, other):
+        return matmul(other, self)
+
+    # --------------------------------------------------------------- given: numpy's functions call the rules
+
+    def __array_ufunc__(self, ufunc, method, *inputs, **kwargs):
+        rule = _UFUNCS.get(ufunc)
+        if method != "__call__" or rule is None or kwargs:
+            return NotImplemented
+        return rule(*inputs)
+
+    def __array_function__(self, func, types, args, kwargs):
+        rule = _FUNCTIONS.get(func)
+        if rule is None:
+            return NotImplemented
+        return rule(*args, **kwargs)
+
+
+def sqrt(x: Jet) -> Jet:
+    """``sqrt(x)``; at ``x = 0`` the derivative is 0 where ``x``'s is 0, else +-inf in its sign."""
+    raise NotImplementedError("TODO jets.sqrt: not implemented yet")
+
+
+def sin(x: Jet) -> Jet:
+    """``sin(x)``."""
+    raise NotImplementedError("TODO jets.sin: not implemented yet")
+
+
+def cos(x: Jet) -> Jet:
+    """``cos(x)``."""
+    raise NotImplementedError("TODO jets.cos: not implemented yet")
+
+
+def exp(x: Jet) -> Jet:
+    """``exp(x)``."""
+    raise NotImplementedError("TODO jets.exp: not implemented yet")
+
+
+def log(x: Jet) -> Jet:
+    """``log(x)`` for ``x > 0``."""
+    raise NotImplementedError("TODO jets.log: not implemented yet")
+
+
+def arctan2(y, x) -> Jet:
+    """``arctan2(y, x)`` (the angle of the point (x, y)); either may be a constant."""
+    raise NotImplementedError("TODO jets.arctan2: not implemented yet")
+
+
+def matmul(a, b) -> Jet:
+    """The matrix product ``a @ b`` of stacks of matrices (..., n, m) and (..., m, p), each a Jet or a
+    constant array, broadcast as numpy's ``matmul``; a vector ``b`` (m,) is a column, as there."""
+    raise NotImplementedError("TODO jets.matmul: not implemented yet")
+
+
+def _stack(arrays, axis=0):
+    """``np.stack`` of Jets and constants: the derivatives stacked alike."""
+    ks = {a.k for a in arrays if isinstance(a, Jet)}
+    (k,) = ks
+    jets = [a if isinstance(a, Jet) else Jet.constant(a, k) for a in arrays]
+    ndim = jets[0].ndim + 1
+    axis = axis % ndim
+    return Jet(np.stack([j.value for j in jets], axis=axis), np.stack([j.grad for j in jets], axis=axis))
+
+
+#: numpy's functions, sent to the rules (``np.sin(jet)`` is ``sin(jet)``)
+_UFUNCS = {
+    np.add: lambda a, b: a + b if isinstance(a, Jet) else b + a,
+    np.subtract: lambda a, b: a - b if isinstance(a, Jet) else -(b - a),
+    np.multiply: lambda a, b: a * b if isinstance(a, Jet) else b * a,
+    np.true_divide: lambda a, b: a / b if isinstance(a, Jet) else b.__rtruediv__(a),
+    np.negative: lambda a: -a,
+    np.power: lambda a, p: a**p,
+    np.sqrt: sqrt,
+    np.sin: sin,
+    np.cos: cos,
+    np.exp: exp,
+    np.log: log,
+    np.arctan2: arctan2,
+    np.matmul: matmul,
+}
+_FUNCTIONS = {np.stack: _stack}
