@@ -29,6 +29,8 @@ DERIVED = {
     "imu_preintegration": ["preintegrate"],
     "gnc": ["tls_weights", "gm_weights", "gnc"],
     "gauge": ["gauge_directions"],
+    "chordal_3d": ["relaxed_rotations", "project_to_so3", "translations_given_rotations"],
+    "initialisation": ["spanning_tree_poses", "chordal_rotations", "chordal_translations"],
 }
 
 
