@@ -26,7 +26,7 @@ DERIVED = {
     "bundle_adjustment": ["reprojection_residuals_and_jacobians", "schur_solve"],
     "robust_kernels": ["huber", "cauchy", "tukey", "robust_information"],
     "marginalisation": ["marginalise"],
-    "imu_preintegration": ["preintegrate"],
+    "imu_preintegration": ["preintegrate", "imu_factor_residual"],
     "gnc": ["tls_weights", "gm_weights", "gnc"],
     "gauge": ["gauge_directions"],
     "chordal_3d": ["relaxed_rotations", "project_to_so3", "translations_given_rotations"],
