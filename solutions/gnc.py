@@ -141,8 +141,9 @@ HINTS = {
         """The starting mu keeps every edge in play: for TLS, ``mu = c2 / (2 s_max - c2)`` gives
         ``(mu + 1) / mu c2 = 2 s_max``, so no weight starts at 0; for GM, ``mu c2 = 2 s_max`` gives every
         weight at least ``(2/3)^2 = 4/9``. Record ``mu`` after the solve and before updating it; the
-        known inliers' weights are reset to 1 after the weights are computed, every round. TLS has converged when no weight is strictly between 0
-        and 1 (``w (1 - w)`` vanishes only at 0 and 1); GM when mu has reached 1.""",
+        known inliers' weights are reset to 1 after the weights are computed, every round. TLS has
+        converged when no weight is strictly between 0 and 1 (``w (1 - w)`` vanishes only at 0 and 1);
+        GM when mu has reached 1.""",
         """::
 
             w = ones(M);  s = solve(w);  s_max = max(s)
