@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from course.backends import registry
+from course.core.backend_names import FACTOR_GRAPH_BACKENDS, OURS
 from course.core.errors import CourseError
 from course.core.impl import default_impl, failure_reason, not_implemented_reason
 from course.core.peers import PeerMissing
@@ -144,9 +145,21 @@ def _solve_or_row(solve, repeat, backend, method, unimplemented) -> RunResult:
             raise
         return RunResult.skipped(backend, method, not_implemented_reason(exc))
     except Exception as exc:  # our run on the implementation's code: a row that names the error
-        if unimplemented == "raise" or backend != "ours":
+        if unimplemented == "raise" or not backend.startswith(OURS):
             raise
         return RunResult.skipped(backend, method, failure_reason(exc))
+
+
+def factor_graph_run(graph, backend: str, method: str, impl, options) -> RunResult:
+    """Our minimizer's ``method`` on a factor graph (chapter 7), its Jacobians as ``backend`` says
+    (``FACTOR_GRAPH_BACKENDS``: by the implementation's Jets, or by central differences)."""
+    from course.factorgraph import FactorGraphProblem
+    from course.solver import minimize
+
+    problem = FactorGraphProblem(graph, impl, jacobians=FACTOR_GRAPH_BACKENDS[backend])
+    result = minimize(problem, method, impl=impl, options=options)
+    result.backend = backend
+    return result
 
 
 def _run_peer(kind, backend, *args, **kwargs) -> RunResult:
@@ -307,6 +320,12 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
         return result
 
     def peer(backend, method):
+        if backend in FACTOR_GRAPH_BACKENDS:
+            from course.problems.posegraph.factor_graph import as_factor_graph
+
+            result = factor_graph_run(as_factor_graph(graph), backend, method, impl, options)
+            result.params = result.params.reshape(-1, 3)
+            return result
         kwargs = {"impl": impl} if backend == "ceres" else {}  # Ceres' edge cost is the implementation's
         return _run_peer("posegraph", backend, graph, method, max_iterations, **kwargs)
 
@@ -447,6 +466,10 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
         return minimize(PoseGraph3DProblem(graph, impl), method, impl=impl, options=options, callback=callback)
 
     def peer(backend, method):
+        if backend in FACTOR_GRAPH_BACKENDS:
+            from course.problems.posegraph3d.factor_graph import as_factor_graph
+
+            return factor_graph_run(as_factor_graph(graph), backend, method, impl, options)
         kwargs = {"impl": impl} if backend == "ceres" else {}  # Ceres' edge error is the implementation's
         return _run_peer("posegraph3d", backend, graph, method, max_iterations, **kwargs)
 

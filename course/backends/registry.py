@@ -13,7 +13,7 @@ imports nothing heavy, so that the command line can list names cheaply.
 import importlib
 
 from course.core import peers
-from course.core.backend_names import OURS
+from course.core.backend_names import FACTOR_GRAPH_BACKENDS, OURS
 from course.core.method_names import DEFAULT_METHODS, OUR_METHODS
 
 #: the curve's peers: backend -> (module, {method: what it is})
@@ -72,6 +72,9 @@ PEERS: dict[str, dict[str, tuple[str, dict[str, str]]]] = {
     "bal": BAL_PEERS}
 
 
+#: the kinds whose problems are also factor graphs (chapter 7: ``ours-autodiff``, ``ours-numeric``)
+FACTOR_GRAPH_KINDS = ("posegraph", "posegraph3d")
+
 #: what each kind is, for ``--help``
 KINDS = {"curve": "the curve (curve)", "posegraph": "2D pose graphs", "posegraph3d": "3D pose graphs",
          "bal": "bundle adjustment (BAL problems)"}
@@ -83,6 +86,8 @@ def pairs(kind: str, every: bool = False) -> list:
     ``every`` all it offers (every strategy of the minimizer, :data:`~course.core.method_names.OUR_METHODS`);
     every peer method either way."""
     out = [(OURS, method) for method in (OUR_METHODS if every else DEFAULT_METHODS)]
+    if every and kind in FACTOR_GRAPH_KINDS:  # offered, run when named: the same minimizer on the factor graph
+        out += [(backend, method) for backend in FACTOR_GRAPH_BACKENDS for method in DEFAULT_METHODS]
     out += [(backend, method) for backend, (_, methods) in PEERS[kind].items() for method in methods]
     return out
 
@@ -91,6 +96,9 @@ def describe(kind: str, backend: str, method: str) -> str:
     """What ``method`` of ``backend`` is (one line), on problems of ``kind``."""
     if backend == OURS:
         return OUR_METHODS[method]
+    if backend in FACTOR_GRAPH_BACKENDS:
+        how = "Jets (chapter 7)" if FACTOR_GRAPH_BACKENDS[backend] == "autodiff" else "central differences"
+        return f"{OUR_METHODS[method]}, on the problem as a factor graph, its Jacobians by {how}"
     return PEERS[kind][backend][1][method]
 
 

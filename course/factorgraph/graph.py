@@ -67,10 +67,11 @@ class FactorGraph:
         """Add variable ``key`` of ``kind`` (``course.factorgraph.variables``) at ``value``; its index."""
         if key in self.index:
             raise ValueError(f"{self.name}: variable {key!r} is added twice")
+        value = kind.check(value, f"{self.name}: variable {key!r}")
         self.index[key] = len(self.keys)
         self.keys.append(key)
         self.kinds.append(kind)
-        self.values.append(kind.check(value, f"{self.name}: variable {key!r}"))
+        self.values.append(value)
         return self.index[key]
 
     def fix(self, key) -> None:

@@ -36,9 +36,9 @@ class VariableKind:
         """``value`` as a float array of this kind's shape, or a ``ValueError`` naming ``where``."""
         arr = np.asarray(value, dtype=float)
         if arr.shape != self.shape:
-            raise ValueError(f"{where}: a {self.name} value has shape {self.shape}, got {arr.shape}")
+            raise ValueError(f"{where}: a value of kind {self.name} has shape {self.shape}, got {arr.shape}")
         if not np.all(np.isfinite(arr)):
-            raise ValueError(f"{where}: a {self.name} value is not finite: {arr}")
+            raise ValueError(f"{where}: a value of kind {self.name} is not finite: {arr}")
         return arr
 
 
