@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 
 from course.core import impl as impl_loader
-from course.factorgraph import BETWEEN_SE2, RANGE_BEARING, SE2, FactorGraph, FactorGraphProblem, Vector
-from course.factorgraph import jetmath
+from course.factorgraph import BETWEEN_SE2, RANGE_BEARING, SE2, FactorGraph, FactorGraphProblem, Vector, jetmath
 from course.solver import minimize
 
 
