@@ -114,6 +114,9 @@ def build_parser() -> argparse.ArgumentParser:
                                              "(course.app.benchmark)")
     bench.add_argument("--repeats", type=int, default=5)
     bench.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
+    bench.add_argument("--autodiff", action="store_true",
+                       help="chapter 7 only: automatic against analytic Jacobians on intel, sphere2500 and ladybug-49 "
+                            "(course.app.benchmark_autodiff)")
     bench.set_defaults(func=cmd_benchmark)
 
     ape = sub.add_parser("ape", help="chapter 5: absolute pose error of a trajectory against ground truth "
@@ -489,6 +492,11 @@ def cmd_datasets(args) -> int:
 
 
 def cmd_benchmark(args) -> int:
+    if args.autodiff:
+        from course.app import benchmark_autodiff
+
+        benchmark_autodiff.main(repeats=args.repeats, impl=args.impl or default_impl())
+        return 0
     from course.app import benchmark
 
     benchmark.main(repeats=args.repeats, impl=args.impl or default_impl())

@@ -10,13 +10,17 @@
 
 - ``PRIOR_SE2``, ``PRIOR_SE3``: a pose against a measured one (the between error from the measured pose).
 - ``RANGE_BEARING``: a 2D pose and a landmark (Vector2), ``z = (range, bearing)``.
+- ``REPROJECTION_BAL``: chapter 4's observation of a point (Vector3) by a BAL camera (Vector9,
+  ``(w, t, f, k1, k2)``, updated by plain addition), ``z`` the observed pixel (2,)::
+
+      P = R(w) X + t,  p = -P[:2] / P[2],  r = f (1 + k1 |p|^2 + k2 |p|^4) p - z
 """
 
 import numpy as np
 
 from course.factorgraph import jetmath
 from course.factorgraph.factor_type import FactorType
-from course.factorgraph.variables import SE2, SE3, Vector, se3_parts
+from course.factorgraph.variables import BAL_CAMERA, SE2, SE3, Vector, se3_parts
 
 
 def between_se2(z, xi, xj):
@@ -56,6 +60,14 @@ def range_bearing(z, x, landmark):
                      jetmath.wrap_angle(np.arctan2(dy, dx) - x[..., 2] - z[..., 1])], axis=-1)
 
 
+def reprojection_bal(z, camera, point):
+    P = jetmath.so3_rotate(camera[..., :3], point) + camera[..., 3:6]
+    px, py = -P[..., 0] / P[..., 2], -P[..., 1] / P[..., 2]
+    n2 = px * px + py * py
+    scale = camera[..., 6] * (1.0 + camera[..., 7] * n2 + camera[..., 8] * n2 * n2)
+    return np.stack([scale * px - z[..., 0], scale * py - z[..., 1]], axis=-1)
+
+
 def _origin_like(z, n):
     return np.zeros(z.shape[:-1] + (n,))
 
@@ -69,3 +81,4 @@ BETWEEN_SE3 = FactorType("between_se3", (SE3, SE3), 6, between_se3)
 PRIOR_SE2 = FactorType("prior_se2", (SE2,), 3, prior_se2)
 PRIOR_SE3 = FactorType("prior_se3", (SE3,), 6, prior_se3)
 RANGE_BEARING = FactorType("range_bearing", (SE2, Vector(2)), 2, range_bearing)
+REPROJECTION_BAL = FactorType("reprojection_bal", (BAL_CAMERA, Vector(3)), 2, reprojection_bal)

@@ -79,16 +79,35 @@ def rotation2d(theta):
     return np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
 
 
-def so3_exp(phi):
-    """``Exp(phi)`` (..., 3, 3) of rotation vectors (..., 3): ``I + a [phi]_x + b [phi]_x^2`` with
-    ``a = sin t / t``, ``b = (1 - cos t) / t^2``, ``t = |phi|``; their series below
-    ``SMALL_ANGLE_SQUARED``, where the closed forms divide 0 by 0."""
+def cross(a, b):
+    """``a x b`` (..., 3) of two (..., 3) vectors."""
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
+
+
+def rodrigues_coefficients(phi):
+    """``(a, b) = (sin t / t, (1 - cos t) / t^2)`` with ``t = |phi|`` (...,), and their series below
+    ``SMALL_ANGLE_SQUARED`` (where the closed forms divide 0 by 0)."""
     t2 = dot3(phi, phi)
     small = value_of(t2) < SMALL_ANGLE_SQUARED
     safe = where(small, 1.0, t2)
     t = np.sqrt(safe)
-    a = where(small, 1.0 - t2 / 6.0, np.sin(t) / t)
-    b = where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(t)) / safe)
+    return where(small, 1.0 - t2 / 6.0, np.sin(t) / t), where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(t)) / safe)
+
+
+def so3_rotate(phi, v):
+    """``Exp(phi) v`` (..., 3) without the matrix: ``v + a (phi x v) + b phi x (phi x v)`` (Rodrigues)."""
+    a, b = rodrigues_coefficients(phi)
+    w_v = cross(phi, v)
+    return v + a[..., None] * w_v + b[..., None] * cross(phi, w_v)
+
+
+def so3_exp(phi):
+    """``Exp(phi)`` (..., 3, 3) of rotation vectors (..., 3): ``I + a [phi]_x + b [phi]_x^2`` with
+    ``a = sin t / t``, ``b = (1 - cos t) / t^2``, ``t = |phi|``; their series below
+    ``SMALL_ANGLE_SQUARED``, where the closed forms divide 0 by 0."""
+    a, b = rodrigues_coefficients(phi)
     W = skew(phi)
     return np.eye(3) + a[..., None, None] * W + b[..., None, None] * (W @ W)
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from course.core import impl as impl_loader
 from course.core import peers
-from course.core.errors import SingularSystemError, check_array
+from course.core.errors import ShapeError, SingularSystemError, check_array
 from course.factorgraph import noise
 from course.factorgraph.graph import FactorGraph
 from course.factorgraph.numeric import central_differences
@@ -23,6 +23,9 @@ from course.solver.linearization import Linearization
 from course.solver.superlu import SuperLUSolver
 
 JACOBIANS = ("autodiff", "numeric")
+#: factors per evaluation of the automatic Jacobians (ladybug-49's 31843 observations: 143 ms at once,
+#: 48 ms in chunks of 2048, whose Jets fit in the cache)
+CHUNK = 2048
 
 
 class FactorGraphProblem:
@@ -102,13 +105,27 @@ class FactorGraphProblem:
         if self.jacobians == "numeric":
             return central_differences(residual, retractions, dims, xs)
         jet = self.impl.module("jets").Jet
-        r, J = self.impl.module("autodiff_factor").tangent_jacobians(residual, retractions, dims, xs, jet)
+        tangent_jacobians = self.impl.module("autodiff_factor").tangent_jacobians
         where = "autodiff_factor.tangent_jacobians"
         m = ftype.dim
-        r = check_array(r, (len(keys), m), where, "r")
-        if len(J) != len(dims):
-            raise ValueError(f"{where} returned {len(J)} Jacobian blocks for a factor with {len(dims)} variables")
-        return r, [check_array(block, (len(keys), m, d), where, f"J[{a}]") for a, (block, d) in enumerate(zip(J, dims))]
+        rs, Js = [], []
+        for start in range(0, len(keys), CHUNK):  # a chunk's Jets stay in the cache: 3x faster than all at once
+            part = slice(start, start + CHUNK)
+            count = len(keys[part])
+
+            def residual_of_part(*points, z_part=z[part]):
+                return ftype.residual(z_part, *points)
+
+            r, J = tangent_jacobians(residual_of_part, retractions, dims, [x[part] for x in xs], jet)
+            rs.append(check_array(r, (count, m), where, "r"))
+            if not isinstance(J, (list, tuple)) or len(J) != len(dims):
+                raise ShapeError(f"{where} returned {len(J) if isinstance(J, (list, tuple)) else type(J).__name__} "
+                                 f"Jacobian blocks for a factor with {len(dims)} variables")
+            Js.append([check_array(block, (count, m, d), where, f"J[{a}]")
+                       for a, (block, d) in enumerate(zip(J, dims))])
+        if len(rs) == 1:
+            return rs[0], Js[0]
+        return np.concatenate(rs), [np.concatenate([J[a] for J in Js]) for a in range(len(dims))]
 
     def linearize(self, x) -> Linearization:
         blocks = []

@@ -10,7 +10,8 @@ chapter whose problem it serves, so that the Jacobians compare with that chapter
 - ``Vector(n)``: ``x + delta``;
 - ``SE2`` (x, y, theta): ``x + delta``, the angle wrapped (chapter 2: plain addition);
 - ``SE3`` (t, R): ``(t + R rho, R Exp(phi))``, ``delta = (rho, phi)`` (chapter 6: on the right);
-- ``SO3`` (R): ``R Exp(phi)``.
+- ``SO3`` (R): ``R Exp(phi)``;
+- ``BAL_CAMERA`` (w, t, f, k1, k2): ``x + delta`` (chapter 4: plain addition, the angle-axis too).
 """
 
 from dataclasses import dataclass
@@ -95,6 +96,14 @@ def _concatenate_last(a, b):
     return np.stack(parts, axis=-1)
 
 
+class BALCameraKind(Vector):
+    """A BAL camera ``(w, t, f, k1, k2)`` (9,), updated by plain addition as in chapter 4."""
+
+    def __init__(self):
+        VariableKind.__init__(self, "BALCamera", (9,), 9)
+
+
 SE2 = SE2Kind()
+BAL_CAMERA = BALCameraKind()
 SO3 = SO3Kind()
 SE3 = SE3Kind()

@@ -1,0 +1,24 @@
+"""A bundle-adjustment problem as a factor graph (chapter 7): one BAL camera and one point variable
+each, one ``REPROJECTION_BAL`` factor per observation (unit information), nothing fixed (the gauge
+is left to the damping, as chapter 4's solver leaves it)."""
+
+import numpy as np
+
+from course.factorgraph import FactorGraph
+from course.factorgraph.factors import REPROJECTION_BAL
+from course.factorgraph.variables import BAL_CAMERA, Vector
+from course.problems.bal.dataset import BALProblem
+
+
+def as_factor_graph(problem: BALProblem) -> FactorGraph:
+    """The factor graph of ``problem``: cameras first (keys ``c<k>``), then points (``p<k>``)."""
+    fg = FactorGraph(problem.name or "bal")
+    for k, camera in enumerate(np.asarray(problem.cameras, dtype=float)):
+        fg.add_variable(f"c{k}", BAL_CAMERA, camera)
+    point = Vector(3)
+    for k, X in enumerate(np.asarray(problem.points, dtype=float)):
+        fg.add_variable(f"p{k}", point, X)
+    C = len(problem.cameras)
+    keys = np.stack([problem.camera_index, C + np.asarray(problem.point_index)], axis=1)
+    fg.add_many(REPROJECTION_BAL, keys, problem.observations)
+    return fg
