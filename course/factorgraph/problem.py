@@ -4,10 +4,11 @@
 a step ``h`` (n,) is every variable's tangent step in the same order. ``linearize`` evaluates each
 group of factors at once: the values of its variables gathered, the residual and its tangent
 Jacobians (``jacobians``: ``"autodiff"`` by the implementation's Jets and ``autodiff_factor``,
-``"numeric"`` by central differences), whitened by the square root of the information, and all
-groups assembled by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a
-pattern found once. The step comes from the implementation's sparse Cholesky solver (chapter 2),
-or SuperLU where qdldl is not installed.
+``"numeric"`` by central differences, or a function that a peer supplies, see
+``FactorGraphProblem``), whitened by the square root of the information, and all groups assembled
+by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pattern found once. The
+step comes from the implementation's sparse Cholesky solver (chapter 2), or SuperLU where qdldl is
+not installed.
 """
 
 import numpy as np
@@ -29,11 +30,19 @@ CHUNK = 2048
 
 
 class FactorGraphProblem:
-    """The minimizer's problem for ``graph``, with the Jacobians of ``jacobians`` and ``impl``'s pieces."""
+    """The minimizer's problem for ``graph``, with the Jacobians of ``jacobians`` and ``impl``'s pieces.
 
-    def __init__(self, graph: FactorGraph, impl="solutions", jacobians: str = "autodiff", solver=None):
-        if jacobians not in JACOBIANS:
-            raise ValueError(f"jacobians must be one of {JACOBIANS}, got {jacobians!r}")
+    ``jacobians`` is one of ``JACOBIANS``, or a function ``jacobians(factor_type, z, xs) -> (r (M, m),
+    [J_a (M, m, d_a)])`` (``xs`` the values of the factors' variables, slot by slot, as
+    ``factor_jacobians`` gathers them): the hook through which another automatic differentiation
+    (``course.backends.factorgraph.jax_factors``) linearises the same graph for the same minimizer.
+    The error (``chi2``) is always the factor types' own residual.
+    """
+
+    def __init__(self, graph: FactorGraph, impl="solutions", jacobians="autodiff", solver=None):
+        if isinstance(jacobians, str) and jacobians not in JACOBIANS or \
+                not isinstance(jacobians, str) and not callable(jacobians):
+            raise ValueError(f"jacobians must be one of {JACOBIANS} or a function, got {jacobians!r}")
         self.graph = graph
         self.impl = impl_loader.load(impl)
         self.jacobians = jacobians
@@ -102,6 +111,11 @@ class FactorGraphProblem:
         retractions = [kind.retract for kind in ftype.kinds]
         dims = [kind.dim for kind in ftype.kinds]
         xs = self._slots(x, ftype, keys)
+        if callable(self.jacobians):
+            r, J = self.jacobians(ftype, z, xs)
+            return check_array(r, (len(keys), ftype.dim), "jacobians", "r"), [
+                check_array(block, (len(keys), ftype.dim, d), "jacobians", f"J[{a}]")
+                for a, (block, d) in enumerate(zip(J, dims))]
         if self.jacobians == "numeric":
             return central_differences(residual, retractions, dims, xs)
         jet = self.impl.module("jets").Jet
