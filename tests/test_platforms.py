@@ -70,7 +70,11 @@ def test_qdldl_numba_and_jupytext_are_left_out_on_3_15_only():
 def test_the_peers_markers():
     peers = requirements("peers")
     assert names(applicable(peers, target("3.12", "linux-x86_64"))) == [
-        "pyceres", "g2opy", "gtsam", "pycolmap", "cvxopt"]
+        "pyceres", "g2opy", "gtsam", "jax", "pycolmap", "cvxopt"]
+    for platform in ("linux-x86_64", "linux-aarch64", "macos-arm64", "windows-amd64"):  # jaxlib: cp311-cp314
+        assert "jax" in names(applicable(peers, target("3.11", platform)))
+        assert "jax" not in names(applicable(peers, target("3.10", platform)))
+        assert "jax" not in names(applicable(peers, target("3.15", platform)))
     for python in ("3.10", "3.11", "3.12", "3.13", "3.14", "3.15"):
         assert "gtsam" not in names(applicable(peers, target(python, "windows-amd64")))
         assert "pyceres" not in names(applicable(peers, target(python, "linux-aarch64")))

@@ -1,6 +1,6 @@
 """Which optional libraries are installed here, and the one line said when one is not.
 
-The peers (pyceres, g2opy, gtsam, pycolmap) and cvxopt (CHOLMOD, for large factorizations with
+The peers (pyceres, g2opy, gtsam, jax, pycolmap) and cvxopt (CHOLMOD, for large factorizations with
 fill-in) come with the ``peers`` extra, and only where they publish wheels; qdldl, numba and
 jupytext are core requirements with no wheel for every Python. A missing one is never a traceback: the
 runs, checks or datasets that need it step aside, and :func:`announce` says so once per
@@ -17,6 +17,7 @@ LIBRARIES = {
     "pyceres": "Ceres' runs are skipped",
     "g2opy": "g2o's runs are skipped",
     "gtsam": "GTSAM's runs and the datasets in its wheel (w100, w10000) are skipped",
+    "jax": "the jax back end's runs (factor graphs linearised by jax.jacfwd) are skipped",
     "pycolmap": "Ceres' bundle-adjustment runs are skipped",
     "qdldl": "the sparse solves use scipy's SuperLU instead",
     "numba": "the Schur complement's reduction uses scipy's block-sparse product instead (about 4 times slower)",
@@ -24,7 +25,7 @@ LIBRARIES = {
     "cvxopt": "the 3D outlier experiments factorize with the sparse solve of the exercises (slower under fill-in)",
 }
 #: what installs a library where a wheel exists
-INSTALL = {"pyceres": EXTRA_HINT, "g2opy": EXTRA_HINT, "gtsam": EXTRA_HINT, "pycolmap": EXTRA_HINT,
+INSTALL = {"pyceres": EXTRA_HINT, "g2opy": EXTRA_HINT, "gtsam": EXTRA_HINT, "jax": EXTRA_HINT, "pycolmap": EXTRA_HINT,
            "qdldl": "pip install qdldl", "numba": "pip install numba",
            "jupytext": "pip install jupytext", "cvxopt": EXTRA_HINT}
 
