@@ -151,14 +151,29 @@ def _solve_or_row(solve, repeat, backend, method, unimplemented) -> RunResult:
 
 
 def factor_graph_run(graph, backend: str, method: str, impl, options) -> RunResult:
-    """Our minimizer's ``method`` on a factor graph (chapter 7), its Jacobians as ``backend`` says
-    (``FACTOR_GRAPH_BACKENDS``: by the implementation's Jets, or by central differences)."""
+    """A factor graph (chapter 7) solved by ``backend``: our minimizer's ``method``, its Jacobians as
+    ``FACTOR_GRAPH_BACKENDS`` says (the implementation's Jets, central differences, or JAX, compiled
+    before the solve: ``compile_seconds``), or a factor graphs' peer (``registry.FACTOR_GRAPH_PEERS``:
+    GTSAM on custom factors, ``options.max_iterations`` iterations at most). ``PeerMissing`` when the
+    back end's library is not installed here."""
+    from course.core import peers
     from course.factorgraph import FactorGraphProblem
     from course.solver import minimize
 
-    problem = FactorGraphProblem(graph, impl, jacobians=FACTOR_GRAPH_BACKENDS[backend])
+    if backend in registry.FACTOR_GRAPH_PEERS:
+        result = registry.factor_graph_peer_solver(backend)(graph, method, options.max_iterations, impl=impl)
+        return result
+    compile_seconds = 0.0
+    if FACTOR_GRAPH_BACKENDS[backend] == "jax":
+        peers.require("jax")
+        from course.backends.factorgraph import jax_factors
+
+        problem = jax_factors.problem(graph, impl)
+        compile_seconds = problem.jacobians.compile_seconds
+    else:
+        problem = FactorGraphProblem(graph, impl, jacobians=FACTOR_GRAPH_BACKENDS[backend])
     result = minimize(problem, method, impl=impl, options=options)
-    result.backend = backend
+    result.backend, result.compile_seconds = backend, compile_seconds
     return result
 
 
@@ -320,7 +335,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
         return result
 
     def peer(backend, method):
-        if backend in FACTOR_GRAPH_BACKENDS:
+        if backend in FACTOR_GRAPH_BACKENDS or backend in registry.FACTOR_GRAPH_PEERS:
             from course.problems.posegraph.factor_graph import as_factor_graph
 
             result = factor_graph_run(as_factor_graph(graph), backend, method, impl, options)
@@ -356,14 +371,14 @@ def format_ate(runs) -> str:
     rows = [r for r in runs if r.ate]
     if not rows:
         return ""
-    head = f"{'backend':8} {'method':22} " + " ".join(
+    head = f"{'backend':13} {'method':22} " + " ".join(
         f"{kind[:5]}-{stat:6}" for kind in ("translation", "rotation")
         for stat in ("rmse", "median", "std", "max", "min"))
     lines = ["absolute trajectory error (m, rad) after SE(2) alignment", head]
     for r in rows:
         cells = [f"{r.ate[kind][stat]:12.4g}" for kind in ("translation", "rotation")
                  for stat in ("rmse", "median", "std", "max", "min")]
-        lines.append(f"{r.backend:8} {r.method:22} " + " ".join(cells))
+        lines.append(f"{r.backend:13} {r.method:22} " + " ".join(cells))
     return "\n".join(lines)
 
 
@@ -466,7 +481,7 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
         return minimize(PoseGraph3DProblem(graph, impl), method, impl=impl, options=options, callback=callback)
 
     def peer(backend, method):
-        if backend in FACTOR_GRAPH_BACKENDS:
+        if backend in FACTOR_GRAPH_BACKENDS or backend in registry.FACTOR_GRAPH_PEERS:
             from course.problems.posegraph3d.factor_graph import as_factor_graph
 
             return factor_graph_run(as_factor_graph(graph), backend, method, impl, options)
@@ -586,7 +601,8 @@ def format_table(runs, title: str = "") -> str:
     A run that did not run (``not_run``) is a row with its backend, method and the reason (a
     failure's by what failed, ``short_not_run``: ``advice`` prints the whole message once).
     Runs started from an initialisation (``RunResult.init`` other than ``file``) get a note
-    line under the table naming it and its time. Where a run's data had edges repaired
+    line under the table naming it and its time, and so do runs whose back end compiled first
+    (``RunResult.compile_seconds``, JAX). Where a run's data had edges repaired
     (``RunResult.note``), a last column ``note`` says so on every row (after the reason on a
     row that did not run)."""
     header = ["backend", "method", "iters", "initial chi2", "final chi2", "total ms", "ms/iter", "stop"]
@@ -634,6 +650,8 @@ def format_table(runs, title: str = "") -> str:
     out += [line(header), line(["-" * w for w in widths])]
     out += [lines[k] for k in range(len(runs))]
     out += _init_notes(runs)
+    out += [f"{r.backend}: compiled in {1e3 * r.compile_seconds:.3f} ms before its first linearisation "
+            f"({r.method}); not in total ms" for r in runs if r.compile_seconds and not r.not_run]
     return "\n".join(out)
 
 

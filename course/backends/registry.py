@@ -13,7 +13,7 @@ imports nothing heavy, so that the command line can list names cheaply.
 import importlib
 
 from course.core import peers
-from course.core.backend_names import FACTOR_GRAPH_BACKENDS, OURS
+from course.core.backend_names import FACTOR_GRAPH_BACKENDS, GTSAM_CUSTOM, JAX, OURS
 from course.core.method_names import DEFAULT_METHODS, OUR_METHODS
 
 #: the curve's peers: backend -> (module, {method: what it is})
@@ -62,8 +62,15 @@ BAL_PEERS: dict[str, tuple[str, dict[str, str]]] = {
     "scipy": ("course.backends.bal.scipy", {
         "trf": "scipy.optimize.least_squares(method='trf'), sparse Jacobian, x_scale='jac'"}),
 }
+#: the factor graphs' peers (chapter 7), offered on ``FACTOR_GRAPH_KINDS`` and run when named: each solves the
+#: problem's factor graph (``course.factorgraph.FactorGraph``), ``solve(graph, method, max_iterations, impl=...)``
+FACTOR_GRAPH_PEERS: dict[str, tuple[str, dict[str, str]]] = {
+    GTSAM_CUSTOM: ("course.backends.factorgraph.gtsam_custom", {
+        "levenberg-marquardt": "GTSAM's LevenbergMarquardtOptimizer on gtsam.CustomFactor: our residual, its "
+                               "Jacobians by our Jets, one Python callback per factor"}),
+}
 #: the library each peer back end needs (scipy is a core requirement)
-LIBRARY = {"ceres": "pyceres", "g2o": "g2opy", "gtsam": "gtsam", "scipy": "scipy"}
+LIBRARY = {"ceres": "pyceres", "g2o": "g2opy", "gtsam": "gtsam", GTSAM_CUSTOM: "gtsam", JAX: "jax", "scipy": "scipy"}
 #: where a kind's peer needs another library than ``LIBRARY`` says: Ceres' bundle adjustment
 #: runs through pycolmap (a C++ cost), not pyceres
 KIND_LIBRARY: dict[str, dict[str, str]] = {"bal": {"ceres": "pycolmap"}}
@@ -89,6 +96,10 @@ def pairs(kind: str, every: bool = False) -> list:
     if every and kind in FACTOR_GRAPH_KINDS:  # offered, run when named: the same minimizer on the factor graph
         out += [(backend, method) for backend in FACTOR_GRAPH_BACKENDS for method in DEFAULT_METHODS]
     out += [(backend, method) for backend, (_, methods) in PEERS[kind].items() for method in methods]
+    if every and kind in FACTOR_GRAPH_KINDS:  # GTSAM on our residual, beside GTSAM's native factors
+        after = max((k + 1 for k, (backend, _) in enumerate(out) if backend == "gtsam"), default=len(out))
+        out[after:after] = [(backend, method) for backend, (_, methods) in FACTOR_GRAPH_PEERS.items()
+                            for method in methods]
     return out
 
 
@@ -97,9 +108,20 @@ def describe(kind: str, backend: str, method: str) -> str:
     if backend == OURS:
         return OUR_METHODS[method]
     if backend in FACTOR_GRAPH_BACKENDS:
-        how = "Jets (chapter 7)" if FACTOR_GRAPH_BACKENDS[backend] == "autodiff" else "central differences"
+        how = {"autodiff": "Jets (chapter 7)", "numeric": "central differences",
+               "jax": "JAX (jax.jacfwd under vmap and jit, the residual in jax.numpy)"}[FACTOR_GRAPH_BACKENDS[backend]]
         return f"{OUR_METHODS[method]}, on the problem as a factor graph, its Jacobians by {how}"
+    if backend in FACTOR_GRAPH_PEERS:
+        return FACTOR_GRAPH_PEERS[backend][1][method]
     return PEERS[kind][backend][1][method]
+
+
+def factor_graph_peer_solver(backend: str):
+    """The ``solve`` function of a factor graphs' peer (``FACTOR_GRAPH_PEERS``), importing it now;
+    ``course.core.peers.PeerMissing`` when its library is not installed."""
+    peers.require(LIBRARY[backend])
+    module, _ = FACTOR_GRAPH_PEERS[backend]
+    return importlib.import_module(module).solve
 
 
 def peer_methods(kind: str, backend: str) -> tuple:

@@ -47,6 +47,8 @@ class RunResult:
     ``repaired_edges``: how many edges' information the reader repaired (a pose graph read with
     ``information="nearest-psd"`` or ``"isotropic"``, ``course.solver.information``), and
     ``information_repair`` how; ``note`` says it in words.
+    ``compile_seconds``: a back end's compilation before its first linearisation (JAX's ``jit``),
+    not in ``seconds`` (0.0 where nothing is compiled).
     """
 
     backend: str
@@ -65,6 +67,7 @@ class RunResult:
     init_seconds: float = 0.0
     repaired_edges: int = 0
     information_repair: str = ""
+    compile_seconds: float = 0.0
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
@@ -108,6 +111,8 @@ class RunResult:
         }
         if self.ate is not None:
             out["ate"] = self.ate
+        if self.compile_seconds:
+            out["compile_seconds"] = float(self.compile_seconds)
         if self.repaired_edges:
             out.update(repaired_edges=int(self.repaired_edges), information_repair=self.information_repair,
                        note=self.note)
