@@ -3,61 +3,114 @@
 ``python -m course benchmark --autodiff`` prints, on intel, sphere2500 and ladybug-49 (those here), the
 median time of one linearisation (the Jacobians and H, b) and of one iteration of a whole solve
 (Levenberg-Marquardt, Nielsen's rule), for the chapter's problem with analytic Jacobians
-(``ours``), the same problem as a factor graph with Jacobians by Jets (``ours-autodiff``) and by
-central differences (``ours-numeric``), with each one's ratio to ``ours``. The runs are interleaved
-(one of each per round), so that the machine's load falls on all alike. The factor graph solves
-the full H by the sparse Cholesky factorisation where chapter 4 eliminates the points first (the
-Schur complement): on ladybug-49 that is part of the gap per iteration, and the linearisation's
-ratio is the automatic differentiation's own.
+(``ours``), the same problem as a factor graph with Jacobians by Jets (``ours-autodiff``), by
+central differences (``ours-numeric``) and by JAX (``jax``), and the factor graph through GTSAM with
+custom factors (``gtsam-custom``), with each one's ratio to ``ours``. The runs are interleaved
+(one of each per round), so that the machine's load falls on all alike.
+
+Where a back end changes the problem or the solve:
+
+- the factor graph solves the full H by the sparse Cholesky factorisation where chapter 4 eliminates
+  the points first (the Schur complement): on ladybug-49 that is part of the gap per iteration, and
+  the linearisation's ratio is the automatic differentiation's own;
+- ``jax``: the same problem and the same minimizer; only the factors' residuals and Jacobians in
+  each linearisation come from JAX (``course.backends.factorgraph.jax_factors``). Its compilation
+  (once per factor type and size, before the first linearisation) is kept out of both times and
+  printed on a line of its own; JAX may use more than one thread;
+- ``gtsam-custom``: GTSAM's optimizer, not ours: its Levenberg-Marquardt (``lambda I``, its own
+  update and stopping rule) and its linear solver (multifrontal Cholesky on its own ordering);
+  fixed variables are constants, not variables; 3D poses are ``Pose3`` with GTSAM's retraction
+  (the same to first order, not beyond); its linearisation is ``NonlinearFactorGraph.linearize``, one
+  Python callback per factor, each evaluating our Jets on that factor; an iteration of its LM also
+  counts the error evaluations of its retries. It runs ``GTSAM_CUSTOM_ITERATIONS`` iterations at most
+  (one of its iterations costs about as much as a whole solve of ours), so its final chi2 is where
+  that stopped.
 """
 
 import statistics
 import time
 
-from course.core.backend_names import FACTOR_GRAPH_BACKENDS, OURS
+from course.core import peers
+from course.core.backend_names import FACTOR_GRAPH_BACKENDS, GTSAM_CUSTOM, JAX, OURS, OURS_AUTODIFF
 from course.core.errors import DatasetError
 from course.factorgraph import FactorGraphProblem
 from course.solver import SolverOptions, minimize
 
-#: the graphs, and the method every back end runs on them
+#: the graphs, and the method every back end of ours runs on them
 GRAPHS = ("intel", "sphere2500", "ladybug-49")
 METHOD = "lm-type3"
+#: iterations of GTSAM's Levenberg-Marquardt on custom factors per solve (see the module doc)
+GTSAM_CUSTOM_ITERATIONS = 5
 
 
-def problems(name: str, impl="solutions") -> dict:
-    """``{backend: problem}``: the chapter's problem of ``name`` and its factor graph (autodiff, numeric)."""
+def factor_graph(name: str, impl="solutions"):
+    """``(ours, graph)``: the chapter's problem of ``name`` and its factor graph."""
     if name == "ladybug-49":
         from course.problems.bal.dataset import load_bal
         from course.problems.bal.factor_graph import as_factor_graph as bal_graph
         from course.problems.bal.problem import BundleAdjustmentProblem
 
-        data = load_bal(name)
-        ours, graph = BundleAdjustmentProblem(data, impl), bal_graph(data)
-    elif name in ("sphere2500",):
+        bal = load_bal(name)
+        return BundleAdjustmentProblem(bal, impl), bal_graph(bal)
+    if name in ("sphere2500",):
         from course.problems.posegraph3d import dataset as datasets_3d
         from course.problems.posegraph3d.factor_graph import as_factor_graph as graph_3d
         from course.problems.posegraph3d.problem import PoseGraph3DProblem
 
-        data = datasets_3d.load_dataset(name)
-        ours, graph = PoseGraph3DProblem(data, impl), graph_3d(data)
-    else:
-        from course.problems.posegraph import dataset as datasets_2d
-        from course.problems.posegraph.factor_graph import as_factor_graph as graph_2d
-        from course.problems.posegraph.problem import PoseGraphProblem
+        graph3d = datasets_3d.load_dataset(name)
+        return PoseGraph3DProblem(graph3d, impl), graph_3d(graph3d)
+    from course.problems.posegraph import dataset as datasets_2d
+    from course.problems.posegraph.factor_graph import as_factor_graph as graph_2d
+    from course.problems.posegraph.problem import PoseGraphProblem
 
-        data = datasets_2d.load_dataset(name)
-        ours, graph = PoseGraphProblem(data, impl), graph_2d(data)
+    data = datasets_2d.load_dataset(name)
+    return PoseGraphProblem(data, impl), graph_2d(data)
+
+
+def problems(name: str, impl="solutions") -> dict:
+    """``{backend: problem}``: the chapter's problem of ``name`` and its factor graph for our minimizer
+    (autodiff, numeric, and JAX's where jax is installed: compiled here)."""
+    ours, graph = factor_graph(name, impl)
     out = {OURS: ours}
     for backend, jacobians in FACTOR_GRAPH_BACKENDS.items():
+        if jacobians == "jax":
+            if peers.installed("jax"):
+                from course.backends.factorgraph import jax_factors
+
+                out[backend] = jax_factors.problem(graph, impl)
+            continue
         out[backend] = FactorGraphProblem(graph, impl, jacobians=jacobians)
     return out
 
 
+class _GtsamCustom:
+    """The ``gtsam-custom`` row: GTSAM's linearisation of the custom factors, and its solve."""
+
+    def __init__(self, graph, impl):
+        from course.backends.factorgraph import gtsam_custom
+
+        self.graph, self.impl, self.solver = graph, impl, gtsam_custom
+        self.factors, self.values, _, _ = gtsam_custom.build(graph, impl)
+
+    def linearize_seconds(self) -> float:
+        start = time.perf_counter()
+        self.factors.linearize(self.values)
+        return time.perf_counter() - start
+
+    def solve(self):
+        return self.solver.solve(self.graph, "levenberg-marquardt", GTSAM_CUSTOM_ITERATIONS, impl=self.impl)
+
+
 def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int = 50) -> dict:
     """``{backend: (seconds per linearisation, seconds per iteration, final chi2, iterations)}``, medians
-    of ``repeats`` interleaved rounds."""
+    of ``repeats`` interleaved rounds; ``jax`` and ``gtsam-custom`` only where their library is
+    installed; under ``"jax compile"``, JAX's compile seconds (where it ran)."""
     chosen = problems(name, impl)
-    lin, per_iteration, last = {b: [] for b in chosen}, {b: [] for b in chosen}, {}
+    custom = _GtsamCustom(chosen[OURS_AUTODIFF].graph, impl) if peers.installed("gtsam") else None
+    names = list(chosen) + ([GTSAM_CUSTOM] if custom is not None else [])
+    lin: dict = {b: [] for b in names}
+    per_iteration: dict = {b: [] for b in names}
+    last: dict = {}
     options = SolverOptions(max_iterations=max_iterations)
     for _ in range(repeats):
         for backend, problem in chosen.items():
@@ -67,12 +120,21 @@ def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int =
             result = minimize(problem, METHOD, impl=impl, options=options)
             per_iteration[backend].append(result.seconds / max(result.iterations, 1))
             last[backend] = result
-    return {b: (statistics.median(lin[b]), statistics.median(per_iteration[b]), last[b].final_chi2,
-                last[b].iterations) for b in chosen}
+        if custom is not None:
+            lin[GTSAM_CUSTOM].append(custom.linearize_seconds())
+            result = custom.solve()
+            per_iteration[GTSAM_CUSTOM].append(result.seconds / max(result.iterations, 1))
+            last[GTSAM_CUSTOM] = result
+    rows = {b: (statistics.median(lin[b]), statistics.median(per_iteration[b]), last[b].final_chi2,
+                last[b].iterations) for b in names}
+    if JAX in chosen:
+        rows["jax compile"] = chosen[JAX].jacobians.compile_seconds
+    return rows
 
 
 def main(repeats: int = 5, impl="solutions", graphs=GRAPHS, out=print) -> None:
-    out(f"automatic against analytic Jacobians: medians of {repeats} interleaved rounds, {METHOD}, "
+    out(f"automatic against analytic Jacobians: medians of {repeats} interleaved rounds, {METHOD} "
+        f"({GTSAM_CUSTOM}: GTSAM's LM, {GTSAM_CUSTOM_ITERATIONS} iterations at most), "
         "ratio = the back end's time / ours")
     out(f"{'graph':12} {'backend':14} {'ms/linearize':>12} {'ratio':>6} {'ms/iter':>9} {'ratio':>6} "
         f"{'iters':>5} {'final chi2':>16}")
@@ -82,7 +144,17 @@ def main(repeats: int = 5, impl="solutions", graphs=GRAPHS, out=print) -> None:
         except DatasetError as exc:
             out(f"{name:12} not run: {exc}")
             continue
+        compile_seconds = rows.pop("jax compile", None)
         lin0, it0 = rows[OURS][0], rows[OURS][1]
         for backend, (lin, it, chi2, iterations) in rows.items():
             out(f"{name:12} {backend:14} {1e3 * lin:12.2f} {lin / lin0:6.2f} {1e3 * it:9.2f} {it / it0:6.2f} "
                 f"{iterations:5d} {chi2:16.10g}")
+        for backend, library in ((JAX, "jax"), (GTSAM_CUSTOM, "gtsam")):
+            if backend not in rows:
+                out(f"{name:12} {backend:14} not run: {library} is not installed here")
+        if compile_seconds is not None:
+            out(f"{name:12} {JAX:14} compiled in {1e3 * compile_seconds:.1f} ms before its first linearisation "
+                "(not in the times above)")
+        if GTSAM_CUSTOM in rows:
+            ratio = rows[GTSAM_CUSTOM][1] / rows[OURS_AUTODIFF][1]
+            out(f"{name:12} per iteration, {GTSAM_CUSTOM} / {OURS_AUTODIFF}: {ratio:.1f}x")
