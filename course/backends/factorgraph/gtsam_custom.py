@@ -179,6 +179,8 @@ def solve(graph, method: str = "levenberg-marquardt", max_iterations: int = 100,
     failure = None
     try:
         optimizer.optimize()
+    except NotImplementedError:  # a TODO of the implementation's Jets, raised in a callback: not GTSAM's failure
+        raise
     except RuntimeError as exc:
         failure = " ".join(str(exc).split())
     seconds = time.perf_counter() - start
