@@ -74,10 +74,11 @@ CHAPTER3B = HERE / "chapter3b_initialisation.ipynb"
 CHAPTER4 = HERE / "chapter4_bundle_adjustment.ipynb"
 CHAPTER5 = HERE / "chapter5_vio.ipynb"
 CHAPTER6 = HERE / "chapter6_pose_graphs_3d.ipynb"
+CHAPTER7 = HERE / "chapter7_factor_graphs.ipynb"
 
 #: each notebook and its py:percent source
 NOTEBOOKS = {path: path.with_suffix(".py")
-             for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B, CHAPTER4, CHAPTER5, CHAPTER6)
+             for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B, CHAPTER4, CHAPTER5, CHAPTER6, CHAPTER7)
              if path.is_file() or path.with_suffix(".py").is_file()}  # an assignment tree ships its chapters only
 
 
