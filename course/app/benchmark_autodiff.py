@@ -13,6 +13,7 @@ ratio is the automatic differentiation's own.
 
 import statistics
 import time
+from typing import Any
 
 from course.core.backend_names import FACTOR_GRAPH_BACKENDS, OURS
 from course.core.errors import DatasetError
@@ -26,6 +27,8 @@ METHOD = "lm-type3"
 
 def problems(name: str, impl="solutions") -> dict:
     """``{backend: problem}``: the chapter's problem of ``name`` and its factor graph (autodiff, numeric)."""
+    data: Any  # each family's data and problem
+    ours: Any
     if name == "ladybug-49":
         from course.problems.bal.dataset import load_bal
         from course.problems.bal.factor_graph import as_factor_graph as bal_graph
@@ -47,7 +50,7 @@ def problems(name: str, impl="solutions") -> dict:
 
         data = datasets_2d.load_dataset(name)
         ours, graph = PoseGraphProblem(data, impl), graph_2d(data)
-    out = {OURS: ours}
+    out: dict[str, Any] = {OURS: ours}
     for backend, jacobians in FACTOR_GRAPH_BACKENDS.items():
         out[backend] = FactorGraphProblem(graph, impl, jacobians=jacobians)
     return out
@@ -57,7 +60,9 @@ def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int =
     """``{backend: (seconds per linearisation, seconds per iteration, final chi2, iterations)}``, medians
     of ``repeats`` interleaved rounds."""
     chosen = problems(name, impl)
-    lin, per_iteration, last = {b: [] for b in chosen}, {b: [] for b in chosen}, {}
+    lin: dict[str, list[float]] = {b: [] for b in chosen}
+    per_iteration: dict[str, list[float]] = {b: [] for b in chosen}
+    last: dict = {}
     options = SolverOptions(max_iterations=max_iterations)
     for _ in range(repeats):
         for backend, problem in chosen.items():
