@@ -372,6 +372,7 @@ for name in [g for g in GRAPHS if g != "ladybug-49"]:  # ladybug-49's solves: th
 with todo_as_one_line():
     benchmark_autodiff.main(repeats=REPEAT, impl=IMPL, graphs=GRAPHS)
 
+
 # %% [markdown] id="new-factor-md"
 # ## 4. A new factor in five lines
 #

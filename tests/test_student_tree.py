@@ -393,7 +393,7 @@ def test_missing_data_says_how_to_get_it_and_what_works_without(tree, python, tm
 @pytest.mark.slow
 def test_with_chapter_1_written_every_notebook_is_written_and_chapter_1_runs_whole(tree, python, tmp_path):
     """A student who has written chapter 1 alone: ``make notebooks`` (here its command, quick setting)
-    writes all seven notebooks and exits 0; chapter 1's runs every cell, its check cells included."""
+    writes all eight notebooks and exits 0; chapter 1's runs every cell, its check cells included."""
     work = tmp_path / "tree"
     shutil.copytree(tree, work)
     for name in ("curve_model", "gauss_newton", "damping"):
@@ -401,7 +401,7 @@ def test_with_chapter_1_written_every_notebook_is_written_and_chapter_1_runs_who
     out = tmp_path / "notebooks"
     done = _run(python, work, "-m", "notebooks.build", "--execute", "--small", "--out", str(out), timeout=600)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    assert len(list(out.glob("*.ipynb"))) == 7
+    assert len(list(out.glob("*.ipynb"))) == 8
     assert re.search(r"chapter1_curve_fitting\.ipynb: all \d+ code cells ran", done.stdout + done.stderr)
     text = (out / "chapter1_curve_fitting.ipynb").read_text()
     assert "every chi2 the C++ run prints is ours: True" in text and "Traceback" not in text
