@@ -214,9 +214,9 @@ print(chapter7.step_table(study))
 # $a = 1$, $b = \tfrac12$, zero derivatives, and $\partial\,\mathrm{Exp} / \partial \phi_k = [e_k]_\times$
 # exactly. `course.factorgraph.jetmath.so3_exp` uses them below $t^2 = 10^{-10}$; the branch is chosen
 # by the value, and the derivative follows the branch taken (as Ceres' Jets do with an `if`). The figure
-# shows what the closed form of $b$ does in floating point: its value cancels ($1 - \cos t$ keeps about
-# $\epsilon / t^2$ of relative accuracy), and the derivative a Jet would carry through it cancels far
-# worse. The table after it evaluates $\mathrm{Exp}$ on your Jets at $\phi = 0$, by the closed form alone
+# shows what the closed form of $b$ does in floating point: its value cancels ($1 - \cos t$ leaves it
+# a relative error of about $\epsilon / t^2$), and the derivative a Jet would carry through it cancels
+# far worse. The table after it evaluates $\mathrm{Exp}$ on your Jets at $\phi = 0$, by the closed form alone
 # and with the series.
 
 # %% id="figure-series"
