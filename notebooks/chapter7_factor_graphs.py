@@ -170,7 +170,7 @@ check("jets")
 # below rounding. (It needs a residual that is analytic and runs on complex numbers, which Jets do not.)
 
 # %% id="figure-steps"
-study = chapter7.step_study(IMPL)  # chapter7.step_study(IMPL, shift=1000.0): the same edge 1000 m away
+study = chapter7.step_study(IMPL)  # step_study(IMPL, shift=1000.0): the edge moved 1000 m along x and y
 display(Image(plot.to_png(chapter7.step_figure(study))))
 print(chapter7.step_table(study))
 
@@ -408,9 +408,9 @@ display(Image(plot.to_png(chapter7.drive_figure(drive, solved))))
 #
 # **Question 1.** Read the smallest error of forward and of central differences, and the step where each
 # is reached, off the figure of section 2. Derive both optimal steps and errors from the two error terms,
-# with the constants, and compare. Then run `chapter7.step_study(IMPL, shift=1000.0)` (the same edge
-# 1000 m from the origin): which term changes, by how much should the best errors grow, and what happens to
-# your Jets' error?
+# with the constants, and compare. Then run `chapter7.step_study(IMPL, shift=1000.0)` (the same edge, its
+# poses moved 1000 m along x and y): which term changes, by how much should the best errors grow, and what
+# happens to your Jets' error?
 #
 # **Question 2.** `jetmath.so3_exp` switches to the series below $t = 10^{-5}$, but the right panel of
 # section 3's figure shows the closed form's derivative of $b$ losing all its digits near $t = 10^{-4}$.

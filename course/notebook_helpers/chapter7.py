@@ -11,18 +11,19 @@ rho, R Exp(phi))``, translation first); a factor's residual is written once for 
   tangents it gives.
 * ``small_function``, ``RULES``, ``jets_check``: every derivative rule of the ``jets`` exercise on one
   function of two numbers, checked against central differences.
-* ``se2_edge``, ``step_study``, ``step_figure``, ``step_table``: forward and central differences against the
-  Jet derivative of chapter 2's edge, against the step size.
-* ``b_coefficient``, ``series_figure``, ``zero_angle_table``: Rodrigues' coefficient ``(1 - cos t) / t^2``
-  and its derivative in floating point, closed form against series; the closed form on Jets at 0.
+* ``se2_edge``, ``edge_jacobian_by_jets``, ``edge_jacobian_by_complex_step``, ``finite_differences``,
+  ``step_study``, ``step_figure``, ``step_table``: forward and central differences against the Jet
+  derivative of chapter 2's edge, against the step size; the complex step as an independent reference.
+* ``b_coefficient``, ``SWITCH``, ``series_figure``, ``zero_angle_table``: Rodrigues' coefficient ``(1 -
+  cos t) / t^2`` and its derivative in floating point, closed form against series; ``Exp`` on Jets at 0.
 * ``se3_edge``, ``chain_rule``, ``chain_rule_text``: the tangent Jacobians of chapter 6's edge as the
   ambient derivative times the retraction's.
-* ``mixed_graph``, ``h_pattern``, ``pattern_figure``: a graph of SE(2) poses and 2D landmarks, and the
-  pattern of its H.
-* ``jacobian_agreement``, ``agreement_table``, ``minimum_line``: the experiments' automatic against
-  analytic Jacobians and minima.
-* ``GpsDrive``, ``gps_drive``, ``odometry_graph``, ``dead_reckoning``, ``drive_figure``: a drive with
-  drifting odometry and a position fix every few poses.
+* ``mixed_graph``, ``h_pattern``, ``pattern_figure``, ``solve``, ``run_line``: a graph of SE(2) poses and
+  2D landmarks, the pattern of its H, and a solve by the implementation's three chapter-7 pieces alone.
+* ``jacobian_agreement``, ``agreement_table``, ``BACKENDS``, ``solve_runs``, ``minimum_line``: the
+  experiments' automatic against analytic Jacobians, and the minima.
+* ``GpsDrive``, ``gps_drive``, ``odometry_graph``, ``dead_reckoning``, ``position_error``,
+  ``drive_figure``: a drive with drifting odometry and a position fix every few poses.
 """
 
 from __future__ import annotations
