@@ -365,8 +365,10 @@ for name in [g for g in GRAPHS if g != "ladybug-49"]:  # ladybug-49's solves: th
 # $b$) and of one iteration of a whole solve, ours against the factor graph's, the runs interleaved so
 # that the machine's load falls on all alike. The factor graph solves the full $H$ by a sparse Cholesky
 # factorisation where chapter 4 eliminates the points first: on ladybug-49 that is part of the gap per
-# iteration, while the linearisation's ratio is the automatic differentiation's own. (In the small
-# setting one round: the times are noisy.)
+# iteration, while the linearisation's ratio is the automatic differentiation's own; and there the 50
+# iterations stop short of the minimum, where the two paths part in the sixth digit (nothing is fixed:
+# the scene's seven free directions leave H nearly singular, and the two factorisations round
+# differently along them). In the small setting one round: the times are noisy.
 
 # %% id="cost"
 with todo_as_one_line():
