@@ -36,6 +36,7 @@ from course.core.impl import not_implemented_reason
 from course.geometry.so3 import so3_exp, so3_log
 from course.problems.vio.imu_jacobians import imu_residual_jacobian
 from course.problems.vio.sim import VioSim
+from course.problems.vio.window import FIRST_SIGMAS
 
 #: camera frames per keyframe (as the window takes them: 0.25 s at 20 Hz)
 KEYFRAME_EVERY = 5
@@ -181,6 +182,7 @@ class PreintegrationStudy:
             lines.append(f"{name + ' (' + unit + ')':14} {slopes[k]:18.2f} {self.noise[k]:16.2e} {where:>36}")
         lines.append(f"an accelerometer bias change alone (up to 0.5 m/s^2): correction error at most "
                      f"{self.accel_only:.1e}")
+        lines.append(f"(the window's prior on the first keyframe's gyroscope bias: sigma {FIRST_SIGMAS[9]:g} rad/s)")
         return "\n".join(lines)
 
     def figure(self) -> Any:
