@@ -33,10 +33,10 @@
 # $\mathbb{R}^3$ and SO(3); gravity is $g = (0, 0, -9.81)$ m/s$^2$ in the world.
 #
 # `SMALL = True` (set by `python -m notebooks.build --execute --small`, and by the tests)
-# runs a 4-second simulation (`vio-sim:4:0`, 17 keyframes) in well under a minute; the full
-# setting runs `vio-sim:12:0` (49 keyframes) in one to two minutes, most of it in our two
-# windows. With `IMPL = "exercises"` your `imu_preintegration` and `marginalisation` go through
-# the lesson's cells, the windows and the batch; until they are written, those cells say
+# runs a 4-second simulation (`vio-sim:4:0`, 17 keyframes); the full setting runs `vio-sim:12:0`
+# (49 keyframes). Either takes well under a minute (the runs' own times are in section 5).
+# With `IMPL = "exercises"` your `imu_preintegration` and `marginalisation` go through the
+# lesson's cells, the windows and the batch; until they are written, those cells say
 # which TODO stops them, and GTSAM's runs and the EuRoC section run all the same.
 
 # %% id="setup"
@@ -120,20 +120,26 @@ sim = load_vio_sim(NAME)  # the theory's cells use its IMU samples too
 #
 # Write every rotation relative to the first, $R_k = R_i\,\Delta R_{ik}$ with
 # $\Delta R_{ik} = \prod_{l=i}^{k-1} \operatorname{Exp}(w_l\,dt_l)$ and $w_l = \tilde\omega_l - b_g$
-# (the noise left out for now), and $\tilde a_k$ for $\tilde a_k - b_a$. Summing the velocity
+# (the noise left out for now), and $\bar a_k = \tilde a_k - b_a$. Summing the velocity
 # updates from $i$ to $j$ and taking $R_i$ out of the sum:
 #
-# $$v_j = v_i + g\,\Delta t_{ij} + R_i \sum_{k=i}^{j-1} \Delta R_{ik}\,\tilde a_k\,dt_k
+# $$v_j = v_i + g\,\Delta t_{ij} + R_i \sum_{k=i}^{j-1} \Delta R_{ik}\,\bar a_k\,dt_k
 #   \quad\Longrightarrow\quad
-#   R_i^\top\big(v_j - v_i - g\,\Delta t_{ij}\big) = \sum_{k=i}^{j-1} \Delta R_{ik}\,\tilde a_k\,dt_k =: \Delta v_{ij}.$$
+#   R_i^\top\big(v_j - v_i - g\,\Delta t_{ij}\big)
+#   = \sum_{k=i}^{j-1} \Delta R_{ik}\,\bar a_k\,dt_k =: \Delta v_{ij}.$$
 #
-# The positions: summing $p_{k+1} - p_k$ gives $\sum_k v_k\,dt_k + \tfrac12 g\sum_k dt_k^2 +
-# \tfrac12\sum_k R_k\tilde a_k\,dt_k^2$; put in $v_k = v_i + g\,(t_k - t_i) + R_i\,\Delta v_{ik}$ and use
-# $\sum_k \big((t_k - t_i)\,dt_k + \tfrac12 dt_k^2\big) = \sum_k \tfrac12\big((t_{k+1} - t_i)^2 - (t_k - t_i)^2\big)
-# = \tfrac12 \Delta t_{ij}^2$ (a telescoping sum):
+# The positions: summing the updates $p_{k+1} - p_k$ from $i$ to $j$,
+#
+# $$p_j - p_i = \sum_k v_k\,dt_k + \tfrac12 g\sum_k dt_k^2 + \tfrac12\sum_k R_k\bar a_k\,dt_k^2;$$
+#
+# put in $v_k = v_i + g\,(t_k - t_i) + R_i\,\Delta v_{ik}$ (the line above, from $i$ to $k$) and use the
+# telescoping sum
+#
+# $$\sum_k \big((t_k - t_i)\,dt_k + \tfrac12 dt_k^2\big)
+#   = \sum_k \tfrac12\big((t_{k+1} - t_i)^2 - (t_k - t_i)^2\big) = \tfrac12 \Delta t_{ij}^2 :$$
 #
 # $$R_i^\top\big(p_j - p_i - v_i\,\Delta t_{ij} - \tfrac12 g\,\Delta t_{ij}^2\big)
-#   = \sum_{k=i}^{j-1} \big(\Delta v_{ik}\,dt_k + \tfrac12 \Delta R_{ik}\,\tilde a_k\,dt_k^2\big) =: \Delta p_{ij},
+#   = \sum_{k=i}^{j-1} \big(\Delta v_{ik}\,dt_k + \tfrac12 \Delta R_{ik}\,\bar a_k\,dt_k^2\big) =: \Delta p_{ij},
 #   \qquad R_i^\top R_j = \Delta R_{ij}.$$
 #
 # The left-hand sides hold the states (and gravity), the right-hand sides only the samples
@@ -175,7 +181,8 @@ sim = load_vio_sim(NAME)  # the theory's cells use its IMU samples too
 # three updates: each new error is a smooth function of $\delta_k$ and $\eta_k$, zero at zero, so
 # to first order
 #
-# $$\delta_{k+1} = A_k\,\delta_k + B_k\,\eta_k, \qquad A_k = \frac{\partial \delta_{k+1}}{\partial \delta_k}\ (9 \times 9), \quad
+# $$\delta_{k+1} = A_k\,\delta_k + B_k\,\eta_k, \qquad
+#   A_k = \frac{\partial \delta_{k+1}}{\partial \delta_k}\ (9 \times 9), \quad
 #   B_k = \frac{\partial \delta_{k+1}}{\partial \eta_k}\ (9 \times 6).$$
 #
 # The velocity and position rows come straight from their updates, which are linear. Write the
@@ -218,9 +225,9 @@ sim = load_vio_sim(NAME)  # the theory's cells use its IMU samples too
 #
 # The increments are computed at the bias estimate $\hat b$ of their moment. The optimiser then
 # moves the bias to $\hat b + \delta b$; integrating again would cost the 50 steps we saved. But a
-# bias change enters every step exactly as a noise would ($w_k - \delta b_g$, $\tilde a - b_a - \delta b_a$):
+# bias change enters every step exactly as a noise would ($w_k - \delta b_g$, $\tilde a - \hat b_a - \delta b_a$):
 # it is a noise $\eta_k = \delta b$ that is the same at every step. So the increments at
-# $\hat b + \delta b$ differ from ours by an error that follows the same recursion,
+# $\hat b + \delta b$ differ from ours by an error that follows, to first order, the same recursion,
 # $\delta_{k+1} = A_k\delta_k + B_k\,\delta b$; with $\delta_k = J_k\,\delta b$,
 #
 # $$J_{k+1} = A_k J_k + B_k, \qquad J_0 = 0,$$
@@ -250,11 +257,15 @@ with chapter5.todo_as_a_line():  # a TODO in your preintegrate is one line here,
 
 # %% [markdown] id="preintegrate-check-md"
 # **Check where you work.** The bias Jacobians are the one derivative `preintegrate` returns, and
-# a numerical one is easy to take: $f(b_g, b_a) = \big(\operatorname{Log}(\Delta R(\hat b)^\top \Delta R(b)),
-# \Delta v(b), \Delta p(b)\big)$, computed by your own `preintegrate` at the biases $b$, has at
-# $b = \hat b$ the Jacobian $\begin{bmatrix} \partial\Delta R/\partial b_g & 0 \\ \partial\Delta v/\partial b_g &
-# \partial\Delta v/\partial b_a \\ \partial\Delta p/\partial b_g & \partial\Delta p/\partial b_a\end{bmatrix}$ by the
-# definition above. `check_jacobian(f, x, J=...)` takes central differences of `f` and compares
+# a numerical one is easy to take: computed by your own `preintegrate` at the biases $b$,
+#
+# $$f(b_g, b_a) = \big(\operatorname{Log}(\Delta R(\hat b)^\top \Delta R(b)),\ \Delta v(b),\ \Delta p(b)\big)
+#   \quad\text{has at } b = \hat b \text{ the Jacobian}\quad
+#   \begin{bmatrix} \partial\Delta R/\partial b_g & 0 \\
+#   \partial\Delta v/\partial b_g & \partial\Delta v/\partial b_a \\
+#   \partial\Delta p/\partial b_g & \partial\Delta p/\partial b_a\end{bmatrix}$$
+#
+# by the definition above. `check_jacobian(f, x, J=...)` takes central differences of `f` and compares
 # them entry by entry with your `J`; a wrong block of $A_k$ or $B_k$ shows in the block it
 # spoils, named in the report (e.g. `d delta v / d b_g`). It does not test the covariance: the
 # `check` cell does.
@@ -410,12 +421,16 @@ display(Image(plot.to_png(chapter5.window_graph_figure())))
 #
 # ### The prior as a linear factor
 #
-# The minimiser works with residuals, so the window writes $c^\ast$ as one: $\tfrac12\lVert e_0 +
-# J\,\delta_k\rVert^2 = \tfrac12\,\delta_k^\top J^\top J\,\delta_k + e_0^\top J\,\delta_k + \tfrac12\lVert e_0\rVert^2$
-# matches $c^\ast$ when $J^\top J = H^\ast$ and $J^\top e_0 = b^\ast$. `prior_residual` builds them from the
-# eigen-decomposition $H^\ast = V \operatorname{diag}(s) V^\top$: $J = \operatorname{diag}(\sqrt s)\,V^\top$ has
-# $J^\top J = H^\ast$, and $e_0 = \operatorname{diag}(1/\sqrt s)\,V^\top b^\ast$ has $J^\top e_0 = V V^\top b^\ast = b^\ast$
-# for a $b^\ast$ in the range of $H^\ast$, keeping only the eigenvalues above a relative threshold: the
+# The minimiser works with residuals, so the window writes $c^\ast$ as one. Since
+#
+# $$\tfrac12\lVert e_0 + J\,\delta_k\rVert^2
+#   = \tfrac12\,\delta_k^\top J^\top J\,\delta_k + e_0^\top J\,\delta_k + \tfrac12\lVert e_0\rVert^2,$$
+#
+# this matches $c^\ast$ when $J^\top J = H^\ast$ and $J^\top e_0 = b^\ast$. `prior_residual` builds them from
+# the eigen-decomposition $H^\ast = V \operatorname{diag}(s) V^\top$: $J = \operatorname{diag}(\sqrt s)\,V^\top$
+# has $J^\top J = H^\ast$, and $e_0 = \operatorname{diag}(1/\sqrt s)\,V^\top b^\ast$ has
+# $J^\top e_0 = V V^\top b^\ast = b^\ast$ for a $b^\ast$ in the range of $H^\ast$, keeping only the
+# eigenvalues above a relative threshold: the
 # prior has as many rows as its rank. Later, at an estimate $x_k$ of the kept variables, its
 # residual is $e_0 + J\,(x_k \boxminus \bar x_k)$ (`prior_update`): $J$ stays the one of the
 # linearisation point $\bar x$, because the measurements it came from are gone and nothing can

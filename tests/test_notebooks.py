@@ -309,8 +309,8 @@ def test_chapter5_executes_small():
     else:  # the source's evaluation: ours equals evo's, beside the source's LM row
         for words in ("ours                    0.245723  0.231451", "source's LM run         0.247000", "rmse within"):
             assert words in text, words
-    # fill-in, cost and prior size, APE over time
-    assert len(images) == 3
+    # the lesson's preintegration, window graph and marginal figures; fill-in, cost and prior size, APE over time
+    assert len(images) == 6
     markdown = {c.get("id"): c.source for c in nb.cells if c.cell_type == "markdown"}
     assert "Question 1" in markdown["questions-md"] and "Question 2" in markdown["questions-md"]
     assert "Your answer to question 1" in markdown["answer-1"]
