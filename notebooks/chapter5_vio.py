@@ -123,10 +123,8 @@ sim = load_vio_sim(NAME)  # the theory's cells use its IMU samples too
 # (the noise left out for now), and $\bar a_k = \tilde a_k - b_a$. Summing the velocity
 # updates from $i$ to $j$ and taking $R_i$ out of the sum:
 #
-# $$v_j = v_i + g\,\Delta t_{ij} + R_i \sum_{k=i}^{j-1} \Delta R_{ik}\,\bar a_k\,dt_k
-#   \quad\Longrightarrow\quad
-#   R_i^\top\big(v_j - v_i - g\,\Delta t_{ij}\big)
-#   = \sum_{k=i}^{j-1} \Delta R_{ik}\,\bar a_k\,dt_k =: \Delta v_{ij}.$$
+# $$v_j = v_i + g\,\Delta t_{ij} + R_i\,\Delta v_{ij}, \qquad
+#   \Delta v_{ij} := \sum_{k=i}^{j-1} \Delta R_{ik}\,\bar a_k\,dt_k .$$
 #
 # The positions: summing the updates $p_{k+1} - p_k$ from $i$ to $j$,
 #
@@ -138,13 +136,13 @@ sim = load_vio_sim(NAME)  # the theory's cells use its IMU samples too
 # $$\sum_k \big((t_k - t_i)\,dt_k + \tfrac12 dt_k^2\big)
 #   = \sum_k \tfrac12\big((t_{k+1} - t_i)^2 - (t_k - t_i)^2\big) = \tfrac12 \Delta t_{ij}^2 :$$
 #
-# $$R_i^\top\big(p_j - p_i - v_i\,\Delta t_{ij} - \tfrac12 g\,\Delta t_{ij}^2\big)
-#   = \sum_{k=i}^{j-1} \big(\Delta v_{ik}\,dt_k + \tfrac12 \Delta R_{ik}\,\bar a_k\,dt_k^2\big) =: \Delta p_{ij},
-#   \qquad R_i^\top R_j = \Delta R_{ij}.$$
+# $$p_j = p_i + v_i\,\Delta t_{ij} + \tfrac12 g\,\Delta t_{ij}^2 + R_i\,\Delta p_{ij}, \qquad
+#   \Delta p_{ij} := \sum_{k=i}^{j-1} \big(\Delta v_{ik}\,dt_k + \tfrac12 \Delta R_{ik}\,\bar a_k\,dt_k^2\big),
+#   \qquad R_j = R_i\,\Delta R_{ij}.$$
 #
-# The left-hand sides hold the states (and gravity), the right-hand sides only the samples
-# and the biases: $\Delta R_{ij}, \Delta v_{ij}, \Delta p_{ij}$ are computed once per keyframe pair,
-# whatever the optimiser does to $x_i$ and $x_j$. They are not a rotation, velocity change and
+# The states and gravity stay outside the sums; $\Delta R_{ij}, \Delta v_{ij}, \Delta p_{ij}$ hold
+# only the samples and the biases, so they are computed once per keyframe pair, whatever the
+# optimiser does to $x_i$ and $x_j$. They are not a rotation, velocity change and
 # displacement in the world: they are those of the body in frame $i$, with gravity's part
 # taken out, as if the body fell freely.
 #
@@ -287,10 +285,11 @@ check("imu_preintegration.preintegrate")
 #
 # Between consecutive keyframes $i$ and $j$ the window has one IMU factor. Its first nine rows
 # are `imu_factor_residual`: for the true states and noise-free samples, section 1 gave three
-# identities, $R_i^\top R_j = \Delta R_{ij}$ and the two for $\Delta v_{ij}$, $\Delta p_{ij}$;
-# the residual measures how far the current states are from satisfying them:
+# relations between $x_i$, $x_j$ and the increments; the residual measures how far the current
+# states are from satisfying them. Solve each relation for its increment (what the states say
+# it is) and compare with the one measured:
 #
-# * **rows 0-2, the rotation**: the rotation between what the states imply, $R_i^\top R_j$, and the
+# * **rows 0-2, the rotation**: the rotation the states imply between frames $i$ and $j$ against the
 #   preintegrated $\Delta R_{ij}$, as a tangent vector (a $\operatorname{Log}$): three numbers, zero when
 #   they agree, where the difference of the matrices would be nine numbers for three degrees of
 #   freedom;

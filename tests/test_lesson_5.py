@@ -87,7 +87,8 @@ def test_each_exercise_has_its_hint_then_its_check_and_a_checker_before_a_derive
 
 def test_the_theory_is_derived(nb):
     theory = "\n".join(c.source for c in nb.cells if c.id in ("imu-md", "factor-md", "window-md", "marginal-md"))
-    for words in (r"=: \Delta v_{ij}", "telescoping", r"\Delta R_{ij}", "midpoint", r"O(h^3)",
+    for words in (r"\Delta v_{ij} := \sum", r"v_j = v_i + g\,\Delta t_{ij} + R_i\,\Delta v_{ij}", "telescoping",
+                  r"R_j = R_i\,\Delta R_{ij}", "midpoint", r"O(h^3)",
                   r"\delta_{k+1} = A_k\,\delta_k + B_k\,\eta_k", r"\delta v_{k+1} = \delta v_k + \delta a_k\,dt_k",
                   r"\Sigma_{k+1} = A_k \Sigma_k A_k^\top + B_k Q_k B_k^\top", r"\sigma^2/dt",
                   r"J_{k+1} = A_k J_k + B_k",
@@ -98,10 +99,11 @@ def test_the_theory_is_derived(nb):
 
 
 def test_the_lesson_leaves_the_level_3_results_to_the_student(nb):
-    """The rotation row of A_k, B_k, the D blocks of the rotated acceleration and the block Schur
-    complement are what the hints hold at level 3: no cell states them."""
+    """The rotation row of A_k, B_k, the D blocks of the rotated acceleration, the three residuals solved
+    from the relations and the block Schur complement are what the hints hold at level 3: no cell states them."""
     text = "\n".join(c.source for c in nb.cells if c.id not in ("fill-md",))
-    for pattern in (r"D_(\\phi|g|a)\s*=", r"\\delta\\phi_\{k\+1\}\s*=", r"E\^\\top\s*\\delta\\phi",
+    for pattern in (r"R_i\^\\top\s*\\big\(\s*[vp]_j", r"R_i\^\\top\s*\(\s*[vp]_j", r"R_i\^\\top\s*R_j",  # the residuals
+                    r"D_(\\phi|g|a)\s*=", r"\\delta\\phi_\{k\+1\}\s*=", r"E\^\\top\s*\\delta\\phi",
                     r"H_\{km\}\s*H_\{mm\}\^\{-1\}", r"H_\{kk\}\s*-\s*H_\{km\}", r"H_\{rr\}\s*-",
                     r"J_r\s*\\?,?\s*dt\s*\\?,?\s*\\eta_g"):
         assert not re.search(pattern, text), pattern
