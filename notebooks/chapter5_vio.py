@@ -212,8 +212,8 @@ sim = load_vio_sim(NAME)  # the theory's cells use its IMU samples too
 # $$\Sigma_{k+1} = A_k \Sigma_k A_k^\top + B_k Q_k B_k^\top, \qquad \Sigma_0 = 0 .$$
 #
 # $Q_k$ is the covariance of the noise *averaged over the interval*: a white noise of density
-# $\sigma$ has $E[n(t)\,n(s)] = \sigma^2 \delta(t - s)$, so its average over $dt$ has variance
-# $\frac{1}{dt^2}\int_0^{dt}\!\int_0^{dt} \sigma^2\delta(t - s)\,ds\,dt = \sigma^2/dt$, and
+# $\sigma$ has $E[n(t)\,n(s)] = \sigma^2 \delta_D(t - s)$ ($\delta_D$ Dirac's), so its average over $dt$
+# has variance $\frac{1}{dt^2}\int_0^{dt}\!\int_0^{dt} \sigma^2\delta_D(t - s)\,ds\,dt = \sigma^2/dt$, and
 # $Q_k = \operatorname{diag}(\sigma_g^2 I_3, \sigma_a^2 I_3)/dt_k$ (the simulation draws each sample's noise
 # with that variance). The rotation error gathers one independent gyroscope error per interval,
 # of variance of order $\sigma_g^2 dt$: a random walk, whose spread grows like $\sqrt t$; the
