@@ -394,9 +394,9 @@ class TwoVariables:
         """The information matrix H (2, 2) and vector ``eta`` (2,), ``H x = eta`` at the mean, of (x_m, x_k):
         each factor ``(a^T x - z)^2 / s^2`` adds ``a a^T / s^2`` to H and ``a z / s^2`` to eta."""
         H, eta = np.zeros((2, 2)), np.zeros(2)
-        for a, z, s in (((1.0, 0.0), self.z_m, self.s_m), ((-1.0, 1.0), self.z_rel, self.s_rel),
-                        ((0.0, 1.0), self.z_k, self.s_k)):
-            a = np.asarray(a)
+        for row, z, s in (((1.0, 0.0), self.z_m, self.s_m), ((-1.0, 1.0), self.z_rel, self.s_rel),
+                          ((0.0, 1.0), self.z_k, self.s_k)):
+            a = np.asarray(row)
             H += np.outer(a, a) / s**2
             eta += a * z / s**2
         return H, eta
