@@ -384,7 +384,8 @@ check("chordal_3d")
 #
 # which are also the stationary points of the *weighted* least-squares cost $\sum_k w_k s_k$ with the
 # weights frozen at $w_k = \rho'(s_k)$: solve with weights, recompute the weights, repeat (iteratively
-# reweighted least squares; chapter 4's kernels are this with one Gauss-Newton step per reweighting).
+# reweighted least squares; chapter 4's kernels weight each residual's gradient by the same $\rho'(s_k)$
+# inside every Gauss-Newton step).
 # The most decisive cost is the truncated least squares (TLS), $\rho(s) = \min(s, \bar c^2)$: an edge
 # whose $s$ exceeds the threshold $\bar c^2$ costs a constant and pulls not at all ($w = 0$), the others
 # count fully ($w = 1$). Here $\bar c^2 = 16.81$, the 0.99 quantile of $\chi^2$ with 6 degrees of freedom:
@@ -411,8 +412,9 @@ check("chordal_3d")
 #
 # **The weights.** For both, GNC's weights are those of the reweighting above, taken on the surrogate:
 # $w = \rho_\mu'(s)$ (Black and Rangarajan's outlier process gives the same: $\rho_\mu(s) =
-# \min_{w \in [0, 1]} w s + \Phi_\mu(w)$, minimised where $s = -\Phi_\mu'(w)$). Differentiate each
-# piece; the TLS weight is 1, then falls continuously, then is 0. Write `tls_weights` and `gm_weights`.
+# \min_{w \in [0, 1]} w s + \Phi_\mu(w)$, and by the envelope theorem $\rho_\mu'(s)$ is the minimising
+# $w$). Differentiate each piece; the TLS weight is 1, then falls continuously, then is 0. Write
+# `tls_weights` and `gm_weights`.
 #
 # **The schedule** (`gnc`). Start with least squares (all weights 1). If even the worst edge has
 # $s_{\max} \le \bar c^2$, nothing is an outlier. Otherwise start TLS at $\mu_0 = \bar c^2 / (2 s_{\max} - \bar c^2)$:
