@@ -483,6 +483,8 @@ for name in GRAPHS:
             solved[name] = (graph, initialise(graph, "chordal", IMPL)[0], runs[0])
 
 # %% id="trajectories"
+if not solved:
+    print("no Gauss-Newton run of ours from the chordal start above: no trajectories, no spectrum below")
 for name, (graph, start, ours) in solved.items():
     t_final, _ = unpack(ours.params)
     fig = poses_figure([("file's poses", graph.t), ("chordal start", start.t), ("Gauss-Newton", t_final)], title=name)
