@@ -69,6 +69,7 @@ IMPL = os.environ.get("COURSE_IMPL") or ("solutions" if (root / "solutions").is_
 GRAPHS = ["smallGrid3D"] if SMALL else ["sphere2500", "torus3D"]
 LESSON_GRAPH = "smallGrid3D"  # the theory's figures, in either setting
 print(f"implementation: {IMPL}; graphs: {', '.join(GRAPHS)}; the theory's figures: {LESSON_GRAPH}")
+lesson_graph = load3d(LESSON_GRAPH)  # None (saying why) where the data folder is missing
 
 # %% [markdown] id="so3-md"
 # ## 1. Rotations and poses as manifolds
@@ -256,6 +257,7 @@ hint("pose_graph_3d.edge_errors_and_jacobians", 1)  # level 1, the approach; 2 t
 
 # %% id="jacobian-check"
 edge = chapter6.random_edge(seed=0, residual_angle=0.5)  # T_i, T_j and Z, each (t (3,), R (3, 3))
+print(f"one edge, residual rotation {edge.residual_angle:.2f} rad")
 
 
 def edge_error(T_i, T_j):
@@ -308,10 +310,9 @@ check("pose_graph_3d")
 # random wrong loop closures (section 5) do to it.
 
 # %% id="figure-sparsity"
-graph = load3d(LESSON_GRAPH)
-if graph is not None:
-    display(Image(plot.to_png(chapter6.sparsity_figure(graph))))
-    print(chapter6.fill_in_table([graph, with_wrong_loop_closures(graph, 0.2, seed=1)]))
+if lesson_graph is not None:
+    display(Image(plot.to_png(chapter6.sparsity_figure(lesson_graph))))
+    print(chapter6.fill_in_table([lesson_graph, with_wrong_loop_closures(lesson_graph, 0.2, seed=1)]))
 
 # %% id="hint-assembly"
 hint("pose_graph_3d_assembly", 1)
@@ -365,7 +366,7 @@ check("pose_graph_3d_assembly")
 # blocks, the anchor's position given.
 
 # %% id="figure-chordal"
-display(Image(plot.to_png(chapter6.chordal_figure(load3d(LESSON_GRAPH), IMPL))))
+display(Image(plot.to_png(chapter6.chordal_figure(lesson_graph, IMPL))))
 
 # %% id="hint-chordal"
 hint("chordal_3d", 1)
@@ -535,9 +536,8 @@ if load3d(name) is not None:
 # squares; the next rounds follow the surrogate as $\mu$ moves.
 
 # %% id="gnc-weights"
-graph = load3d(LESSON_GRAPH)
-if graph is not None:
-    corrupted = with_wrong_loop_closures(graph, 0.2, seed=1)
+if lesson_graph is not None:
+    corrupted = with_wrong_loop_closures(lesson_graph, 0.2, seed=1)
     with todo_as_one_line():
         gnc_runs = [robust.gnc(corrupted, surrogate, IMPL) for surrogate in ("tls", "gm")]
         display(Image(plot.to_png(chapter6.gnc_weights_figure(gnc_runs, corrupted.outliers, odometry(corrupted)))))
