@@ -20,8 +20,9 @@
 #    camera; dense against Schur; robust kernels against outliers; the parallel assembly's speed-up.
 # 3. **Written questions.**
 #
-# Stuck on a derivation? `hint("reprojection_residuals_and_jacobians", 1)` (or `python -m
-# autograder hint NAME LEVEL`) gives the approach, level 2 the key identity, level 3 the result.
+# Stuck on a derivation? `hint("reprojection_residuals_and_jacobians", 1)` (or
+# `python -m autograder hint NAME LEVEL`) gives the approach, level 2 the key identity, level 3
+# the result.
 #
 # Conventions, as everywhere in the course: residuals are predicted minus observed (pixels),
 # $\chi^2 = \sum_k \lVert r_k\rVert^2$ (Ceres and the BAL files report the cost
@@ -297,9 +298,9 @@ check("bundle_adjustment.normal_equations")
 # leave a $3P \times 3P$ system, and in bundle adjustment $P \gg C$. What remains to factor is $S$, of
 # size $9C$; the rest of the step is $O(K)$ products of small blocks.
 #
-# **The structure of S.** In $W V^{-1} W^\top$, the $(c, d)$ block sums, over the points seen by *both*
-# cameras $c$ and $d$, a product of their two $W$ blocks with that point's $V_p^{-1}$. So $S$ has a
-# nonzero $9 \times 9$ block exactly where two cameras see a common point: the covisibility graph
+# **The structure of S.** $W V^{-1} W^\top$ couples two cameras only through a point they both see ($V^{-1}$
+# is block diagonal: it never mixes two points). So $S$ has a nonzero $9 \times 9$ block exactly where
+# two cameras see a common point: the covisibility graph
 # (the right panels of the figure above: dense on the ring, banded along the path). That is why
 # `schur_solve` factors $S$ densely when it is small or mostly full, and why forming $S$, not
 # factoring it, is most of a step on a problem like ladybug-49 (experiments 1 and 4).
@@ -699,13 +700,13 @@ else:
 # solvers by their final cost? What would you change (in the problem, or in what you
 # report) to compare them fairly?
 #
-# **Question 3.** In experiment 4 the dense step grows with an exponent near 3 in the number
-# of points and the Schur step with an exponent near 1. Using the derivation of theory section
-# 4, say which parts of a Schur step grow with the observations and which with the cameras
-# alone. How would the balance change for a problem with ten times as many cameras and the
-# same number of observations per camera, first when every camera shares points with most
-# others (the ring of the sparsity figure), then when each shares points only with its
-# neighbours (the path)?
+# **Question 3.** In experiment 4 the dense step's time grows much faster with the number of
+# points than the Schur step's (the growth exponents under its table). Using the derivation of
+# theory section 4, say which parts of a Schur step grow with the observations and which with
+# the cameras alone, and why the exponents come out as they do. How would the balance change
+# for a problem with ten times as many cameras and the same number of observations per camera,
+# first when every camera shares points with most others (the ring of the sparsity figure),
+# then when each shares points only with its neighbours (the path)?
 #
 # **Question 4.** In experiment 5, Huber leaves the inliers' RMS about five times its
 # outlier-free value, Cauchy brings it back, and Tukey does so only when it starts from Cauchy's
