@@ -269,7 +269,7 @@ def test_the_lesson_runs_with_the_reference_at_full_marks(tmp_path):
             "full marks on the public checks"), results[check_cell]
         if hint_cell is not None:
             assert "hint 1 of 3" in text[hint_cell] and "Hint 2" not in text[hint_cell], hint_cell
-            assert "(more: python -m autograder hint" in text[hint_cell], hint_cell
+            assert f"(more: python -m autograder hint {hint_name} 2)" in text[hint_cell], hint_cell
     checker = text["jacobian-check"]
     assert checker.startswith("bal-synthetic:6:40:0, observation 0: camera 0 (rotated by |w| = ")
     assert "\nJacobian OK: 2 x 12" in checker and "Jacobian WRONG: 1 of 24 entries" in checker
