@@ -26,7 +26,7 @@
 #
 # Conventions, everywhere in this chapter: a pose maps body to world, $p_w = R(\theta)\, p_b + t$,
 # with $R(\theta) = \begin{bmatrix} \cos\theta & -\sin\theta \\ \sin\theta & \cos\theta \end{bmatrix}$;
-# a pose is moved by plain addition of $\Delta x = (\Delta x, \Delta y, \Delta\theta)$, the angle
+# a pose is moved by plain addition of a step $(\Delta x, \Delta y, \Delta\theta)$, the angle
 # wrapped to $[-\pi, \pi)$; pose $p$ owns rows and columns $3p, 3p+1, 3p+2$ of $H$ and $b$; an edge
 # adds $e^\top \Omega e$ to $\chi^2$, $H = J^\top \Omega J$, $b = J^\top \Omega e$, and the step solves
 # $H \Delta x = -b$ (as in chapter 1).
