@@ -66,22 +66,19 @@ def unknowns(num_poses, anchor):
 def relaxed_rotations(num_poses, edges_i, edges_j, R_z, weights, R_anchor, anchor=0):
     """The relaxation's 3x3 matrices (N, 3, 3), not yet rotations; row ``anchor`` is ``R_anchor``.
 
-    Row a of ``R_j = R_i R_z`` reads, for the rows ``r^a`` of the R's as column vectors,
-    ``r_j^a - R_z^T r_i^a = 0`` (3,): the same linear system for each of the three rows a.
-    Minimize ``sum_k w_k ||r_j^a - R_z^T r_i^a||^2`` over every pose but the anchor. Its
-    normal equations ``H X = G`` (H (3N, 3N), one column of X per row a): with
-    ``J_i = -R_z^T`` and ``J_j = I`` (3, 3), edge k adds::
+    Minimize, over the nine entries of every pose's R but the anchor's (held at ``R_anchor``)::
 
-        H_ii += w I     H_jj += w I     H_ij += -w R_z     H_ji += -w R_z^T
+        sum_k  w_k || R_j - R_i R_z ||_F^2          (Frobenius norm; i, j the ends of edge k)
 
-    Eliminate the anchor: ``H_FF X_F = -H_FA X_A`` with ``X_A = R_anchor^T`` (its rows as
-    columns). Solve it sparse (``scipy.sparse.linalg.splu``, or ``course.solver.spd.spd_solve``:
-    qdldl's LDL^T where installed), then ``R_k[a, :] = X[3k:3k+3, a]``.
+    with no constraint that the R's be rotations. It is a linear least-squares problem: derive its
+    sparse normal equations, with the anchor eliminated, and solve them
+    (``python -m autograder hint relaxed_rotations 1``, then 2 and 3).
 
     Args: ``weights`` (M,) the rotation weight of each edge (``chordal_poses`` gives
     ``trace(Omega_rot) / 3``); ``R_z`` (M, 3, 3); ``R_anchor`` (3, 3).
     Hint: build H with one ``scipy.sparse.coo_matrix((data, (rows, cols)), shape).tocsc()``
-    (duplicates are summed), no Python loop over edges.
+    (duplicates are summed), no Python loop over edges; solve it sparse
+    (``scipy.sparse.linalg.splu``, or ``course.solver.spd.spd_solve``: qdldl's LDL^T where installed).
     """
     num_poses, edges_i, edges_j, anchor = check_graph(num_poses, edges_i, edges_j, anchor)
     R_anchor = np.asarray(R_anchor, dtype=float)
@@ -93,8 +90,9 @@ def relaxed_rotations(num_poses, edges_i, edges_j, R_z, weights, R_anchor, ancho
 def project_to_so3(M):
     """The rotation nearest to each M (K, 3, 3) in the Frobenius norm, (K, 3, 3).
 
-    With the SVD ``M = U S V^T`` it is ``U diag(1, 1, d) V^T``, ``d = det(U V^T)`` (+-1):
-    ``U V^T`` alone is the nearest orthogonal matrix, a reflection when d = -1.
+    The nearest orthogonal matrix of determinant +1 (not -1: a reflection is not a rotation);
+    derive it from M's singular value decomposition (``python -m autograder hint project_to_so3 1``).
+    Where it is not unique (an exact reflection), any nearest rotation is right.
     """
     raise NotImplementedError("TODO chordal_3d.project_to_so3: not implemented yet")
 
@@ -102,15 +100,14 @@ def project_to_so3(M):
 def translations_given_rotations(num_poses, edges_i, edges_j, t_z, R_z, information, R, t_anchor, anchor=0):
     """Positions t (N, 3) given the rotations R (N, 3, 3); row ``anchor`` is ``t_anchor``.
 
-    The translation error ``e_t = R_z^T (R_i^T (t_j - t_i) - t_z) = (R_i R_z)^T r_k`` with the
-    world-frame residual ``r_k = t_j - t_i - c_k``, ``c_k = R_i t_z``, is linear in t. Minimize
-    ``sum_k r_k^T W_k r_k``, ``W_k = (R_i R_z) Omega_tt (R_i R_z)^T`` (``Omega_tt =
-    information[k, :3, :3]``; the rotation-translation cross terms are ignored, the rotations
-    being fixed), over every position but the anchor's. Normal equations ``H t = g``::
+    With the rotations fixed, minimize over every position but the anchor's (held at ``t_anchor``)
+    the translation part of the cost::
 
-        H_ii += W    H_jj += W    H_ij += -W    H_ji += -W    g_i -= W c    g_j += W c
+        sum_k  e_t^T Omega_tt e_t,     e_t = R_z^T (R_i^T (t_j - t_i) - t_z),     Omega_tt = information[k, :3, :3]
 
-    then ``H_FF t_F = g_F - H_FA t_anchor``, solved sparse.
+    (the rotation-translation cross terms of the information are ignored, the rotations being
+    fixed). ``e_t`` is linear in t: derive the sparse normal equations, with the anchor eliminated,
+    and solve them (``python -m autograder hint translations_given_rotations 1``, then 2 and 3).
     """
     num_poses, edges_i, edges_j, anchor = check_graph(num_poses, edges_i, edges_j, anchor)
     t_anchor = np.asarray(t_anchor, dtype=float)

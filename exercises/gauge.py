@@ -28,16 +28,22 @@ SMALL_ANGLE = 1e-4
 def gauge_directions(cameras, points):
     """The 7 infinitesimal similarities of the scene as columns of ``N`` (9C + 3P, 7).
 
-    Args: cameras (C, 9), points (P, 3). Columns, in this order, for a small ``e``:
+    Args: cameras (C, 9), points (P, 3). Column ``m`` is the derivative at ``e = 0`` of the state
+    ``x(e)`` of the scene moved by the m-th one-parameter similarity below, ``dx/de`` (9C + 3P,),
+    each camera moving with the scene so that every reprojection stays the same:
 
-    - 0, 1, 2: rotation of the scene about the world origin by ``e`` about axis a (the unit
-      vector ``u_a``): points ``dX = u_a x X``; cameras keep ``P = R X + t``, so ``R`` becomes
-      ``R exp(-e [u_a]_x)``, ``t`` stays, and with the right Jacobian ``J_r`` of the angle
-      axis (``R(w + dw) = R(w) exp([J_r(w) dw]_x)`` to first order) ``dw = -J_r(w)^-1 u_a``;
-    - 3, 4, 5: translation of the scene by ``u_a``: ``dX = u_a``, ``dt = -R(w) u_a``, ``dw = 0``;
-    - 6: scaling about the origin: ``dX = X``, ``dt = t`` (``dw = 0``; f, k1, k2 never move).
+    - 0, 1, 2: rotation of the scene about the world origin by the angle ``e`` about axis a (the
+      unit vector ``u_a``): ``X -> Exp(e u_a) X``; every camera keeps each point's camera-frame
+      coordinates ``R(w) X + t``;
+    - 3, 4, 5: translation of the scene by ``e u_a``: ``X -> X + e u_a``; every camera keeps
+      ``R(w) X + t``;
+    - 6: scaling about the origin: ``X -> (1 + e) X``; every camera keeps its rotation and scales
+      ``R(w) X + t`` by ``1 + e`` (the projection divides it out).
 
-    With ``theta = |w|``, ``W = [w]_x``::
+    f, k1, k2 never move. Derive the change of each camera's ``w`` and ``t`` and of each point
+    (``python -m autograder hint gauge_directions 1``, then 2 and 3). The right Jacobian ``J_r`` of the
+    angle axis is defined by ``R(w + dw) = R(w) Exp(J_r(w) dw)`` to first order; with ``theta = |w|``,
+    ``W = [w]_x``, its inverse is::
 
         J_r(w)^-1 = I + W / 2 + (1 / theta^2 - (1 + cos theta) / (2 theta sin theta)) W^2
 

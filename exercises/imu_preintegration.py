@@ -140,17 +140,19 @@ def imu_factor_residual(state_i, state_j, preintegrated, bias_i, gravity):
     ``(b_g (3,), b_a (3,))``, the current estimate of the biases at i; ``gravity`` (3,), e.g.
     ``(0, 0, -9.81)``.
 
-    With ``delta b = b_i - b hat`` the preintegrated measurements are first corrected to
-    first order (no re-integration)::
+    Exact, noise-free preintegrated measurements at the true biases satisfy (gravity ``g``, ``dT =
+    delta_t``, the biases constant between i and j)::
 
-        Delta R' = Delta R Exp(dR/dbg delta b_g)
-        Delta v' = Delta v + dv/dbg delta b_g + dv/dba delta b_a,   Delta p' likewise
+        R_j = R_i Delta R
+        v_j = v_i + g dT + R_i Delta v
+        p_j = p_i + v_i dT + 1/2 g dT^2 + R_i Delta p
 
-    and, with ``dT = delta_t``::
-
-        r_R = Log(Delta R'^T R_i^T R_j)
-        r_v = R_i^T (v_j - v_i - g dT) - Delta v'
-        r_p = R_i^T (p_j - p_i - v_i dT - 1/2 g dT^2) - Delta p'
+    First correct the measurements to the bias ``b_i`` to first order, with ``delta b = b_i - b hat``
+    and the bias Jacobians (module docstring; no re-integration): ``Delta R'``, ``Delta v'``,
+    ``Delta p'``. The residual compares what the states say each preintegrated quantity is (solve
+    the relations above for it) with the corrected measurement: ``r_R = Log(Delta R'^T (...))``,
+    ``r_v = (...) - Delta v'``, ``r_p = (...) - Delta p'``, all in frame i; derive them
+    (``python -m autograder hint imu_factor_residual 1``, then 2 and 3).
 
     Returns ``concatenate([r_R, r_v, r_p])`` (9,), zero for the true states and biases of
     noise-free data integrated exactly.

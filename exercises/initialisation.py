@@ -145,17 +145,14 @@ def spanning_tree_poses(num_poses, edges_i, edges_j, measurements, anchor_pose, 
         u = edges_i[k]:   x_v = x_u (+) z_k               (forward)
         u = edges_j[k]:   x_v = x_u (+) inverse(z_k)      (backward)
         (x, y, a) (+) (dx, dy, da) = (x + cos a dx - sin a dy, y + sin a dx + cos a dy, wrap(a + da))
-        inverse(dx, dy, da) = (-cos da dx - sin da dy, sin da dx - cos da dy, -da)
 
-    with angles wrapped to [-pi, pi). No Python loop over edges: choose every vertex's
-    parent edge at once, then compose level by level (a loop over the levels 1, 2, ...,
-    max d is fine).
+    with ``inverse(z)`` the relative pose with ``z (+) inverse(z) = (0, 0, 0)`` (derive it) and angles
+    wrapped to [-pi, pi). No Python loop over edges: choose every vertex's parent edge at once, then
+    compose level by level (a loop over the levels 1, 2, ..., max d is fine)
+    (``python -m autograder hint spanning_tree_poses 1``, then 2 and 3).
 
     Returns: (N, 3) poses. Raises ValueError on a disconnected graph (``check_inputs``).
 
-    Hints: ``scipy.sparse.csgraph.shortest_path(adjacency, unweighted=True,
-    directed=False, indices=anchor)`` gives the hop distances; ``np.lexsort`` then
-    ``np.unique(..., return_index=True)`` picks the lowest edge index per vertex;
     ``course.geometry.se2.compose`` and ``wrap_angle`` compose and wrap.
     """
     num_poses, edges_i, edges_j, measurements, _, anchor = check_inputs(
@@ -186,39 +183,22 @@ def chordal_rotations(num_poses, edges_i, edges_j, measurements, information, an
 
     Relaxation: describe orientation k by ``v_k = (c_k, s_k)``, which should be
     ``(cos theta_k, sin theta_k)`` but is left free (the constraint c^2 + s^2 = 1 is
-    dropped). An edge says ``R_j = R_i R_ij``; the first column of that is the linear
-    equation ``v_j - R(theta_ij) v_i = 0``, two rows per edge. Minimize::
+    dropped). An edge says ``R_j = R_i R_ij``; its first column is linear in the v's.
+    Minimize::
 
         sum_k  w_k || v_j - R(theta_ij) v_i ||^2     over the v of every pose but the anchor,
 
     with ``v_anchor = (cos anchor_theta, sin anchor_theta)`` (without it, v = 0 is the
-    minimum). Normal equations ``H v = g``, H (2N, 2N): edge k, with ``J_i = -R_ij`` and
-    ``J_j = I`` (2, 2), adds ``J^T w J``::
-
-        H_ii += w I     H_jj += w I     H_ij += -w R_ij^T     H_ji += -w R_ij
-
-    (2x2 blocks at rows/columns ``2i:2i+2``, ``2j:2j+2``; g = 0). Eliminate the anchor:
-    with F the unknowns and A the anchor, ``H_FF v_F = -H_FA v_A``. Solve that sparse
-    symmetric positive definite system, then project each pair: ``theta_k = atan2(s_k,
-    c_k)``, wrapped to [-pi, pi).
-
-    The same in complex numbers (what the reference does): with ``z_k = c_k + i s_k`` and
-    ``a_k = exp(i theta_ij)``, an edge reads ``z_j - a_k z_i = 0``, and the normal
-    equations are one (N-1, N-1) Hermitian system, the real one above written in half the
-    unknowns (its 2x2 blocks ``w I`` and ``-w R_ij^T`` are the complex numbers ``w`` and
-    ``-w conj(a_k)``)::
-
-        H_kk = sum of w over the edges at k     H_ij += -w conj(a_k)     H_ji += -w a_k
-
-    Same theta; about 2.5 times faster to factorize on w10000.
+    minimum): derive its sparse normal equations with the anchor eliminated
+    (``python -m autograder hint chordal_rotations 1``, then 2 and 3), solve them, then project
+    each pair: ``theta_k = atan2(s_k, c_k)``, wrapped to [-pi, pi).
 
     Returns: theta (N,). Raises ValueError on a disconnected graph (the system would be
     singular).
 
     Hints: build H with ONE ``scipy.sparse.coo_matrix((data, (rows, cols)), shape)`` call
-    (duplicate entries are summed on conversion with ``.tocsc()``), no loop over edges;
-    drop the anchor's rows and columns (``_unknowns`` numbers the others) and move its
-    columns, times its known value, to the right-hand side; solve with
+    (duplicate entries are summed on conversion with ``.tocsc()``), no loop over edges
+    (``_unknowns`` numbers the poses but the anchor); solve with
     ``scipy.sparse.linalg.splu(H_FF, permc_spec="MMD_AT_PLUS_A")`` (a fill-reducing
     ordering for a symmetric matrix; plain ``spsolve`` works too, slower).
     """
@@ -239,43 +219,24 @@ def chordal_translations(num_poses, edges_i, edges_j, measurements, information,
         anchor_xy: (2,) the anchor's position; row ``anchor`` of the output is exactly it.
         anchor: the vertex held fixed.
 
-    With the rotations known the translation part of the edge error is linear in the
-    positions. The course's error is ``e_t = R_ij^T (R_i^T (t_j - t_i) - t_ij)
-    = (R_i R_ij)^T r`` with the world-frame residual::
+    With the rotations known the translation part of the course's edge error::
 
-        r_k = t_j - t_i - c_k,     c_k = R(theta_i) t_ij                  (2,)
+        e_t = R_ij^T (R_i^T (t_j - t_i) - t_ij)          (2,),   R_i = R(theta_i), R_ij = R(theta_ij)
 
-    so ``e_t^T Omega_tt e_t = r^T W r`` with ``Omega_tt = information[k, :2, :2]`` and::
-
-        W_k = R(theta_i + theta_ij) Omega_tt R(theta_i + theta_ij)^T     (2, 2), symmetric
-
-    Minimize ``sum_k r_k^T W_k r_k`` over every position but the anchor's (held at
-    ``anchor_xy``). The rotation-translation cross terms ``information[k, :2, 2]`` are
-    ignored: the rotations are fixed here, and keeping those terms would pull the
-    translations by the rotation errors left over from the first step (the usual
-    two-stage approximation; the solver that follows sees the full information). Normal
-    equations ``H t = g``, H (2N, 2N), g (2N,): with ``J_i = -I`` and ``J_j = I``::
-
-        H_ii += W    H_jj += W    H_ij += -W    H_ji += -W
-        g_i  -= W c  g_j  += W c
-
-    Eliminate the anchor as in ``chordal_rotations`` (``H_FF t_F = g_F - H_FA t_A``;
-    ``-H_FA t_A`` adds ``W t_A`` to the row of the anchor's neighbour on every edge at the
-    anchor) and solve the sparse symmetric positive definite system (``splu`` as in
-    ``chordal_rotations``, or ``course.solver.spd.spd_solve``: qdldl's LDL^T where installed).
-
-    Shortcut (in the reference, optional): when every ``Omega_tt`` is a multiple ``a_k I``
-    of the identity (w10000, m3500, intel; not mit or intel-g2o), ``W_k = a_k I`` whatever
-    the rotations, H is the weighted graph Laplacian times I (2x2), and x and y are two
-    right-hand sides of one (N-1, N-1) system: a quarter of the size, about 4 times
-    faster on w10000.
+    is linear in the positions. Minimize ``sum_k e_t^T Omega_tt e_t`` with ``Omega_tt =
+    information[k, :2, :2]`` over every position but the anchor's (held at ``anchor_xy``). The
+    rotation-translation cross terms ``information[k, :2, 2]`` are ignored: the rotations are
+    fixed here, and keeping those terms would pull the translations by the rotation errors left
+    over from the first step (the usual two-stage approximation; the solver that follows sees
+    the full information). Derive the sparse normal equations with the anchor eliminated
+    (``python -m autograder hint chordal_translations 1``, then 2 and 3) and solve the sparse
+    symmetric positive definite system (``splu`` as in ``chordal_rotations``, or
+    ``course.solver.spd.spd_solve``: qdldl's LDL^T where installed).
 
     Returns: (N, 2) positions. Raises ValueError on a disconnected graph.
 
-    Hints: as in ``chordal_rotations``; write W's three distinct entries out with
-    ``c = cos(theta_i + theta_ij)``, ``s = sin(...)`` (``W00 = c^2 O00 - 2 c s O01 + s^2
-    O11``, ...) or use ``np.matmul`` on (M, 2, 2) stacks; ``np.bincount(index, weights,
-    minlength)`` scatter-adds g and the diagonal blocks.
+    Hints: as in ``chordal_rotations``; ``np.matmul`` works on (M, 2, 2) stacks, and
+    ``np.bincount(index, weights, minlength)`` scatter-adds.
     """
     num_poses, edges_i, edges_j, measurements, information, anchor = check_inputs(
         num_poses, edges_i, edges_j, measurements, information, anchor)

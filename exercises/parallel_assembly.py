@@ -78,11 +78,12 @@ def chunk_bounds(num_observations, chunks):
 
     Chunk i is the observations ``b[i] <= k < b[i + 1]``: ``b[0] = 0``, ``b[n] = num_observations``,
     every chunk non-empty, and the sizes differ by at most one (balanced work for the threads).
-    With K observations and n chunks, ``K mod n`` chunks hold ``K // n + 1`` observations and
-    the others ``K // n``. More chunks than observations gives one observation per chunk (never
+    With K observations and n chunks, the first ``K mod n`` chunks hold ``K // n + 1`` observations
+    and the others ``K // n``. More chunks than observations gives one observation per chunk (never
     an empty chunk); no observations gives ``b = [0]`` (no chunk).
 
-    Example: ``chunk_bounds(10, 4)`` is ``[0, 3, 6, 8, 10]`` (sizes 3, 3, 2, 2).
+    Example: ``chunk_bounds(10, 4)`` is ``[0, 3, 6, 8, 10]`` (sizes 3, 3, 2, 2). Derive ``b[i]`` in
+    closed form (``python -m autograder hint chunk_bounds 1``).
     """
     num_observations = _count(num_observations, "num_observations", minimum=0)
     chunks = _count(chunks, "chunks")
@@ -108,7 +109,8 @@ def normal_equations_parallel(r, J_cam, J_point, camera_index, point_index, num_
     the partial sums here, in the calling thread, and put the chunks' W back in observation
     order: take the results in the order of submission, not of completion
     (``concurrent.futures.as_completed``). Call ``kernel`` only: the grader passes its own to
-    grade this function alone, and checks that chunks run at the same time.
+    grade this function alone, and checks that chunks run at the same time
+    (``python -m autograder hint normal_equations_parallel 1``, then 2 and 3).
     """
     workers = _count(workers, "workers")
     chunks = workers if chunks is None else _count(chunks, "chunks")

@@ -13,8 +13,9 @@ A step ``delta = (rho, phi)`` (6,) moves a pose on the right::
     T (+) delta = (R Exp(phi), t + R rho)
 
 and the Jacobians ``A = de/d delta_i`` and ``B = de/d delta_j`` (M, 6, 6) are taken in that
-perturbation, at ``delta = 0``: derive them (``python -m autograder hint edge_errors_and_jacobians 1``,
-then 2 and 3). The grader compares values and finite differences, so any correct form scores.
+perturbation, at ``delta = 0``: derive them (``python -m autograder hint
+pose_graph_3d.edge_errors_and_jacobians 1``, then 2 and 3). The grader compares values and
+finite differences, so any correct form scores.
 With ``D_R = R_z^T R_i^T R_j``, g2o's ``EdgeSE3`` error is ``[D_t; vec(q(D_R))]``, about
 half our rotation part (``vec(q) = sin(theta/2) u``); GTSAM's ``BetweenFactor<Pose3>`` is
 ``Logmap(D)``, rotation first, whose translation part ``V(phi)^-1 D_t`` equals ours to

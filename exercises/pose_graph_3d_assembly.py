@@ -27,10 +27,11 @@ from course.solver.unique import unique_inverse
 class SparseAssembler3D:
     """Scatter-add edge blocks into the upper triangle of a sparse H whose pattern is fixed.
 
-    ``__init__`` finds, once, where each edge's entries go: for every edge, the position in
-    ``H.data`` of each of the 78 entries of ``J^T Omega J`` (12, 12) that H's upper triangle
-    needs (the upper 21 of ``A^T Omega A`` and of ``B^T Omega B``, the 36 of ``A^T Omega B``),
-    and the pattern itself. ``assemble`` then costs batched products and one ``np.bincount``.
+    ``__init__`` finds, once, the pattern of H's upper triangle (every diagonal entry present) and
+    where in ``H.data`` each entry of each edge's blocks that the upper triangle needs goes;
+    ``assemble`` then costs batched products and one ``np.bincount``. Which entries of
+    ``J^T Omega J`` (12, 12) are needed, and where do they go? Derive it from the edges' indices
+    (``python -m autograder hint SparseAssembler3D 1``, then 2 and 3).
 
     Args of ``__init__``: ``num_poses``, ``edges_i``, ``edges_j`` (M,) int, ``fixed`` the indices of the
     fixed poses (a sequence of ints, possibly empty).
@@ -38,7 +39,7 @@ class SparseAssembler3D:
     Attribute ``diagonal_positions`` (6N,): where H's diagonal entries sit in ``H.data``
     (the LM loop adds its damping there).
 
-    Hint: ``course.solver.unique.unique_inverse(keys)`` is ``np.unique(keys, return_inverse=True)``,
+    ``course.solver.unique.unique_inverse(keys)`` is ``np.unique(keys, return_inverse=True)``,
     faster on keys that come nearly in order.
     """
 

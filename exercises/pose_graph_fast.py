@@ -21,8 +21,10 @@ from course.solver.unique import unique_inverse
 def edge_errors_and_jacobians(poses, edges_i, edges_j, measurements):
     """All edges at once: ``e`` (M, 3), ``A`` (M, 3, 3), ``B`` (M, 3, 3).
 
-    Same formulas as ``pose_graph_edge.edge_error_and_jacobians``, with no Python
-    loop over edges. Note ``R_ij^T R_i^T = R(theta_i + theta_ij)^T``.
+    The error and Jacobians of ``pose_graph_edge.edge_error_and_jacobians`` (its docstring has the
+    definitions) for every edge k between ``poses[edges_i[k]]`` and ``poses[edges_j[k]]`` with
+    ``measurements[k]``, with no Python loop over edges: write the entries as arrays over the edges
+    (``python -m autograder hint pose_graph_fast.edge_errors_and_jacobians 1``, then 2 and 3).
     M >= 1: keep the (M, ...) shapes for a single edge too.
     """
     raise NotImplementedError("TODO pose_graph_fast.edge_errors_and_jacobians: not implemented yet")
@@ -42,9 +44,10 @@ class SparseAssembler:
     Optional attribute ``diagonal_positions`` (3N,): where H's diagonal entries sit in
     ``H.data``, so the LM loop adds its damping in place instead of building H + D.
 
-    Hint: give every entry a CSC key (column * 3N + row) and keep the distinct keys with
-    ``np.unique(keys, return_inverse=True)``, or ``course.solver.unique.unique_inverse(keys)``,
-    the same and faster on keys that come nearly in order.
+    Pose p's rows and columns are ``3p .. 3p + 2``. Work out the pattern and the positions from the
+    edges' indices alone (``python -m autograder hint SparseAssembler 1``, then 2 and 3);
+    ``course.solver.unique.unique_inverse(keys)`` is ``np.unique(keys, return_inverse=True)``, faster
+    on keys that come nearly in order.
     """
 
     #: row and column of the 21 upper-triangle entries of a 6x6 edge block

@@ -16,8 +16,9 @@ import scipy.sparse as sp
 def dense_solve(H, b):
     """``dx`` (n,) with ``H dx = -b`` for a dense symmetric positive definite ``H`` (n, n).
 
-    Hint: ``scipy.linalg.cho_factor`` / ``cho_solve``; this costs O(n^3) whatever the
-    sparsity, which is the point of comparing it with the sparse solve.
+    Use a dense factorization that exploits the symmetry and the positive definiteness; it costs
+    O(n^3) whatever the sparsity, which is the point of comparing it with the sparse solve
+    (``python -m autograder hint dense_solve 1``).
     """
     raise NotImplementedError("TODO sparse_solve.dense_solve: not implemented yet")
 
@@ -25,7 +26,9 @@ def dense_solve(H, b):
 def upper_triangle_csc(H):
     """The upper triangle (diagonal included) of a symmetric ``H`` as a CSC matrix.
 
-    Args: H: (n, n) dense array or scipy sparse matrix. Returns: scipy.sparse CSC (n, n).
+    Args: H: (n, n) dense array or scipy sparse matrix. Returns: scipy.sparse CSC (n, n) holding
+    the entries ``H[r, c]`` with ``r <= c`` (a dense H's zeros are not stored)
+    (``python -m autograder hint upper_triangle_csc 1``).
     """
     raise NotImplementedError("TODO sparse_solve.upper_triangle_csc: not implemented yet")
 
@@ -42,7 +45,8 @@ class SparseCholeskySolver:
     included. It can change between calls: ``upper_triangle_csc`` of a dense H leaves out an entry
     that rounding cancelled to exactly zero this time, and not the next. A call whose pattern
     differs from the analysed one is analysed again (a new ``qdldl.Solver``): ``update`` assumes
-    the analysed pattern and, given another, silently factorizes the wrong matrix.
+    the analysed pattern and, given another, silently factorizes the wrong matrix
+    (``python -m autograder hint SparseCholeskySolver 1``, then 2 and 3).
     """
 
     def __init__(self):

@@ -66,22 +66,19 @@ def unknowns(num_poses, anchor):
 def relaxed_rotations(num_poses, edges_i, edges_j, R_z, weights, R_anchor, anchor=0):
     """The relaxation's 3x3 matrices (N, 3, 3), not yet rotations; row ``anchor`` is ``R_anchor``.
 
-    Row a of ``R_j = R_i R_z`` reads, for the rows ``r^a`` of the R's as column vectors,
-    ``r_j^a - R_z^T r_i^a = 0`` (3,): the same linear system for each of the three rows a.
-    Minimize ``sum_k w_k ||r_j^a - R_z^T r_i^a||^2`` over every pose but the anchor. Its
-    normal equations ``H X = G`` (H (3N, 3N), one column of X per row a): with
-    ``J_i = -R_z^T`` and ``J_j = I`` (3, 3), edge k adds::
+    Minimize, over the nine entries of every pose's R but the anchor's (held at ``R_anchor``)::
 
-        H_ii += w I     H_jj += w I     H_ij += -w R_z     H_ji += -w R_z^T
+        sum_k  w_k || R_j - R_i R_z ||_F^2          (Frobenius norm; i, j the ends of edge k)
 
-    Eliminate the anchor: ``H_FF X_F = -H_FA X_A`` with ``X_A = R_anchor^T`` (its rows as
-    columns). Solve it sparse (``scipy.sparse.linalg.splu``, or ``course.solver.spd.spd_solve``:
-    qdldl's LDL^T where installed), then ``R_k[a, :] = X[3k:3k+3, a]``.
+    with no constraint that the R's be rotations. It is a linear least-squares problem: derive its
+    sparse normal equations, with the anchor eliminated, and solve them
+    (``python -m autograder hint relaxed_rotations 1``, then 2 and 3).
 
     Args: ``weights`` (M,) the rotation weight of each edge (``chordal_poses`` gives
     ``trace(Omega_rot) / 3``); ``R_z`` (M, 3, 3); ``R_anchor`` (3, 3).
     Hint: build H with one ``scipy.sparse.coo_matrix((data, (rows, cols)), shape).tocsc()``
-    (duplicates are summed), no Python loop over edges.
+    (duplicates are summed), no Python loop over edges; solve it sparse
+    (``scipy.sparse.linalg.splu``, or ``course.solver.spd.spd_solve``: qdldl's LDL^T where installed).
     """
     num_poses, edges_i, edges_j, anchor = check_graph(num_poses, edges_i, edges_j, anchor)
     R_anchor = np.asarray(R_anchor, dtype=float)
@@ -116,8 +113,9 @@ def relaxed_rotations(num_poses, edges_i, edges_j, R_z, weights, R_anchor, ancho
 def project_to_so3(M):
     """The rotation nearest to each M (K, 3, 3) in the Frobenius norm, (K, 3, 3).
 
-    With the SVD ``M = U S V^T`` it is ``U diag(1, 1, d) V^T``, ``d = det(U V^T)`` (+-1):
-    ``U V^T`` alone is the nearest orthogonal matrix, a reflection when d = -1.
+    The nearest orthogonal matrix of determinant +1 (not -1: a reflection is not a rotation);
+    derive it from M's singular value decomposition (``python -m autograder hint project_to_so3 1``).
+    Where it is not unique (an exact reflection), any nearest rotation is right.
     """
     # BEGIN SOLUTION
     U, _, Vt = np.linalg.svd(np.asarray(M, dtype=float))
@@ -131,15 +129,14 @@ def project_to_so3(M):
 def translations_given_rotations(num_poses, edges_i, edges_j, t_z, R_z, information, R, t_anchor, anchor=0):
     """Positions t (N, 3) given the rotations R (N, 3, 3); row ``anchor`` is ``t_anchor``.
 
-    The translation error ``e_t = R_z^T (R_i^T (t_j - t_i) - t_z) = (R_i R_z)^T r_k`` with the
-    world-frame residual ``r_k = t_j - t_i - c_k``, ``c_k = R_i t_z``, is linear in t. Minimize
-    ``sum_k r_k^T W_k r_k``, ``W_k = (R_i R_z) Omega_tt (R_i R_z)^T`` (``Omega_tt =
-    information[k, :3, :3]``; the rotation-translation cross terms are ignored, the rotations
-    being fixed), over every position but the anchor's. Normal equations ``H t = g``::
+    With the rotations fixed, minimize over every position but the anchor's (held at ``t_anchor``)
+    the translation part of the cost::
 
-        H_ii += W    H_jj += W    H_ij += -W    H_ji += -W    g_i -= W c    g_j += W c
+        sum_k  e_t^T Omega_tt e_t,     e_t = R_z^T (R_i^T (t_j - t_i) - t_z),     Omega_tt = information[k, :3, :3]
 
-    then ``H_FF t_F = g_F - H_FA t_anchor``, solved sparse.
+    (the rotation-translation cross terms of the information are ignored, the rotations being
+    fixed). ``e_t`` is linear in t: derive the sparse normal equations, with the anchor eliminated,
+    and solve them (``python -m autograder hint translations_given_rotations 1``, then 2 and 3).
     """
     num_poses, edges_i, edges_j, anchor = check_graph(num_poses, edges_i, edges_j, anchor)
     t_anchor = np.asarray(t_anchor, dtype=float)
@@ -182,3 +179,52 @@ def chordal_poses(num_poses, edges_i, edges_j, t_z, R_z, information, t_anchor, 
     R[anchor] = R_anchor
     t = translations_given_rotations(num_poses, edges_i, edges_j, t_z, R_z, information, R, t_anchor, anchor)
     return t, R
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "relaxed_rotations": (
+        """Split the Frobenius norm into the three rows of the matrices: each row ``a`` gives the same
+        linear least-squares problem in the rows ``r^a`` (as column vectors) of every R. Write one edge's
+        residual as ``J_i r_i^a + J_j r_j^a``, add ``J^T w J`` into 3x3 blocks of H (3N, 3N), then move the
+        anchor's known columns to the right-hand side. The three rows are three right-hand sides of
+        one system: one factorization.""",
+        """Row a of ``R_i R_z`` is ``(r_i^a)^T R_z``, i.e. the column ``R_z^T r_i^a``: the residual of row a is
+        ``r_j^a - R_z^T r_i^a`` (3,), so ``J_i = -R_z^T``, ``J_j = I``. With F the free unknowns and A the
+        anchor's, ``[H_FF H_FA] [X_F; X_A] = 0`` becomes ``H_FF X_F = -H_FA X_A``.""",
+        """Edge k adds (3x3 blocks at rows/columns ``3i:3i+3``, ``3j:3j+3``)::
+
+            H_ii += w I     H_jj += w I     H_ij += -w R_z     H_ji += -w R_z^T
+
+        Solve ``H_FF X_F = -H_FA X_A`` with ``X_A = R_anchor^T`` (one column of X per row a: the anchor's
+        rows as columns), X (3N, 3); then ``R_k[a, :] = X[3k:3k+3, a]``, i.e. pose k's 3x3 block of X
+        transposed.""",
+    ),
+    "project_to_so3": (
+        """Expand ``||R - M||_F^2`` for an orthogonal R: only one term depends on R. Put M's SVD into it and
+        ask which orthogonal matrix maximizes it, then which rotation does when that one has determinant -1.""",
+        """``||R - M||_F^2 = 3 - 2 trace(R^T M) + ||M||_F^2``; with ``M = U S V^T``, ``trace(R^T M) =
+        trace(S Z)`` with the orthogonal ``Z = U^T R V``: ``sum_a s_a Z_aa``, largest at ``Z = I``
+        (``R = U V^T``). With ``det Z`` forced to ``det(U V^T)``, when that is -1 the best is to flip the
+        sign of the term of the smallest singular value: ``Z = diag(1, 1, -1)``.""",
+        """``R = U diag(1, 1, d) V^T`` with ``d = det(U V^T)`` (+-1) and ``M = U S V^T`` (numpy's SVD sorts
+        the singular values in decreasing order, so the last column of U meets the smallest): multiply U's
+        last column by d, then ``U V^T``, batched over K.""",
+    ),
+    "translations_given_rotations": (
+        """Pull the rotations out of ``e_t`` so that it reads ``(a fixed rotation)^T`` times a residual that is
+        linear in the positions with ``J_i = -I``, ``J_j = I``; the cost becomes a weighted sum of squares of
+        that residual. Assemble H (3N, 3N) and g (3N,) in 3x3 blocks, eliminate the anchor as in
+        ``relaxed_rotations``.""",
+        """``e_t = R_z^T R_i^T (t_j - t_i - R_i t_z) = (R_i R_z)^T r_k`` with the world-frame residual
+        ``r_k = t_j - t_i - c_k``, ``c_k = R_i t_z``; so ``e_t^T Omega_tt e_t = r_k^T W_k r_k`` with
+        ``W_k = (R_i R_z) Omega_tt (R_i R_z)^T``. Minimizing ``sum (J t - c)^T W (J t - c)`` gives
+        ``J^T W J t = J^T W c``.""",
+        """Edge k adds, with ``W = (R_i R_z) Omega_tt (R_i R_z)^T`` and ``c = R_i t_z``::
+
+            H_ii += W    H_jj += W    H_ij += -W    H_ji += -W    g_i -= W c    g_j += W c
+
+        then ``H_FF t_F = g_F - H_FA t_anchor``, solved sparse.""",
+    ),
+}

@@ -28,16 +28,22 @@ SMALL_ANGLE = 1e-4
 def gauge_directions(cameras, points):
     """The 7 infinitesimal similarities of the scene as columns of ``N`` (9C + 3P, 7).
 
-    Args: cameras (C, 9), points (P, 3). Columns, in this order, for a small ``e``:
+    Args: cameras (C, 9), points (P, 3). Column ``m`` is the derivative at ``e = 0`` of the state
+    ``x(e)`` of the scene moved by the m-th one-parameter similarity below, ``dx/de`` (9C + 3P,),
+    each camera moving with the scene so that every reprojection stays the same:
 
-    - 0, 1, 2: rotation of the scene about the world origin by ``e`` about axis a (the unit
-      vector ``u_a``): points ``dX = u_a x X``; cameras keep ``P = R X + t``, so ``R`` becomes
-      ``R exp(-e [u_a]_x)``, ``t`` stays, and with the right Jacobian ``J_r`` of the angle
-      axis (``R(w + dw) = R(w) exp([J_r(w) dw]_x)`` to first order) ``dw = -J_r(w)^-1 u_a``;
-    - 3, 4, 5: translation of the scene by ``u_a``: ``dX = u_a``, ``dt = -R(w) u_a``, ``dw = 0``;
-    - 6: scaling about the origin: ``dX = X``, ``dt = t`` (``dw = 0``; f, k1, k2 never move).
+    - 0, 1, 2: rotation of the scene about the world origin by the angle ``e`` about axis a (the
+      unit vector ``u_a``): ``X -> Exp(e u_a) X``; every camera keeps each point's camera-frame
+      coordinates ``R(w) X + t``;
+    - 3, 4, 5: translation of the scene by ``e u_a``: ``X -> X + e u_a``; every camera keeps
+      ``R(w) X + t``;
+    - 6: scaling about the origin: ``X -> (1 + e) X``; every camera keeps its rotation and scales
+      ``R(w) X + t`` by ``1 + e`` (the projection divides it out).
 
-    With ``theta = |w|``, ``W = [w]_x``::
+    f, k1, k2 never move. Derive the change of each camera's ``w`` and ``t`` and of each point
+    (``python -m autograder hint gauge_directions 1``, then 2 and 3). The right Jacobian ``J_r`` of the
+    angle axis is defined by ``R(w + dw) = R(w) Exp(J_r(w) dw)`` to first order; with ``theta = |w|``,
+    ``W = [w]_x``, its inverse is::
 
         J_r(w)^-1 = I + W / 2 + (1 / theta^2 - (1 + cos theta) / (2 theta sin theta)) W^2
 
@@ -74,3 +80,27 @@ def gauge_directions(cameras, points):
     d_point[6] = points
     return np.concatenate([d_cam.reshape(7, -1), d_point.reshape(7, -1)], axis=1).T
     # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "gauge_directions": (
+        """For each similarity, write the moved point ``X(e)`` and the moved camera ``(w(e), t(e))``,
+        impose the invariance for every X (``R(w(e)) X(e) + t(e)`` equal to ``R(w) X + t``, or to ``(1 + e)``
+        times it), solve for the camera's new rotation and translation, and differentiate at ``e = 0``.
+        Entries that do not move are 0.""",
+        """Rotation: ``R' Exp(e u_a) X + t' = R X + t`` for every X gives ``t' = t`` and ``R' = R Exp(-e u_a)``;
+        with ``R(w + dw) = R(w) Exp(J_r(w) dw)`` that is ``J_r(w) dw = -e u_a``. Also
+        ``d/de Exp(e u) X = [u]_x X = u x X`` at ``e = 0``. Translation: ``R (X + e u_a) + t' = R X + t``
+        gives ``t' = t - e R u_a``. Scaling: ``R (1 + e) X + t' = (1 + e) (R X + t)`` gives ``t' = (1 + e) t``.""",
+        """Per camera (w, t) and point X::
+
+            columns 0, 1, 2 (axis a):  dw = -J_r(w)^-1 u_a   dt = 0           dX = u_a x X
+            columns 3, 4, 5 (axis a):  dw = 0                dt = -R(w) u_a   dX = u_a
+            column  6:                 dw = 0                dt = t           dX = X
+
+        ``-J_r(w)^-1 u_a`` is minus column a of ``J_r(w)^-1`` and ``R(w) u_a`` column a of ``R(w)``; f, k1,
+        k2 rows are 0.""",
+    ),
+}

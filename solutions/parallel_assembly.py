@@ -78,11 +78,12 @@ def chunk_bounds(num_observations, chunks):
 
     Chunk i is the observations ``b[i] <= k < b[i + 1]``: ``b[0] = 0``, ``b[n] = num_observations``,
     every chunk non-empty, and the sizes differ by at most one (balanced work for the threads).
-    With K observations and n chunks, ``K mod n`` chunks hold ``K // n + 1`` observations and
-    the others ``K // n``. More chunks than observations gives one observation per chunk (never
+    With K observations and n chunks, the first ``K mod n`` chunks hold ``K // n + 1`` observations
+    and the others ``K // n``. More chunks than observations gives one observation per chunk (never
     an empty chunk); no observations gives ``b = [0]`` (no chunk).
 
-    Example: ``chunk_bounds(10, 4)`` is ``[0, 3, 6, 8, 10]`` (sizes 3, 3, 2, 2).
+    Example: ``chunk_bounds(10, 4)`` is ``[0, 3, 6, 8, 10]`` (sizes 3, 3, 2, 2). Derive ``b[i]`` in
+    closed form (``python -m autograder hint chunk_bounds 1``).
     """
     num_observations = _count(num_observations, "num_observations", minimum=0)
     chunks = _count(chunks, "chunks")
@@ -114,7 +115,8 @@ def normal_equations_parallel(r, J_cam, J_point, camera_index, point_index, num_
     the partial sums here, in the calling thread, and put the chunks' W back in observation
     order: take the results in the order of submission, not of completion
     (``concurrent.futures.as_completed``). Call ``kernel`` only: the grader passes its own to
-    grade this function alone, and checks that chunks run at the same time.
+    grade this function alone, and checks that chunks run at the same time
+    (``python -m autograder hint normal_equations_parallel 1``, then 2 and 3).
     """
     workers = _count(workers, "workers")
     chunks = workers if chunks is None else _count(chunks, "chunks")
@@ -142,3 +144,44 @@ def normal_equations_parallel(r, J_cam, J_point, camera_index, point_index, num_
     W = np.concatenate([part[2] for part in results]) if results else np.zeros((0, 9, 3))
     return U, V, W, g_cam, g_point, chi2
     # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "chunk_bounds": (
+        """First the number of chunks n (never more than K; none for K = 0), then the sizes: ``q, r =
+        divmod(K, n)`` gives the base size q and how many chunks r get one more. The bound ``b[i]`` is the
+        sum of the sizes of the first i chunks.""",
+        """The first i chunks hold ``i q`` observations plus one for each of them among the first r:
+        ``min(i, r)`` more. So ``b[i] = i q + min(i, r)``, which gives ``b[0] = 0`` and ``b[n] = n q + r = K``.""",
+        """::
+
+            n = min(chunks, K)
+            if n == 0: return [0]
+            q, r = divmod(K, n)
+            b = [i * q + min(i, r) for i in range(n + 1)]      (int64)""",
+    ),
+    "normal_equations_parallel": (
+        """Four steps: the chunks' bounds (``chunk_bounds(K, chunks)``); one task per chunk on a thread pool,
+        each calling ``kernel`` on its slices ``[lo:hi]``; the results gathered in chunk order; then the
+        sums of U, V, g_cam, g_point and chi2 and the concatenation of the W's. Start from zero blocks so
+        that K = 0 (no chunk) gives the right shapes.""",
+        """``pool.submit(fn, *args)`` returns at once with a ``Future``; ``future.result()`` waits for it. So build
+        the list of every chunk's future first (a list comprehension of ``submit`` calls), and only then
+        call ``result()`` on each, in that list's order: the chunks run together, and the results come
+        back in observation order whatever order they finish in. ``np.concatenate`` of the chunks' W
+        (each (hi - lo, 9, 3)) is W; with no chunk it is ``np.zeros((0, 9, 3))``.""",
+        """::
+
+            bounds = chunk_bounds(K, chunks)
+            with ThreadPoolExecutor(max_workers=workers) as pool:
+                futures = [pool.submit(kernel, r[lo:hi], J_cam[lo:hi], J_point[lo:hi], camera_index[lo:hi],
+                                       point_index[lo:hi], num_cameras, num_points)
+                           for lo, hi in zip(bounds[:-1], bounds[1:])]
+                results = [f.result() for f in futures]
+            U, V, g_cam, g_point, chi2 = zeros (C, 9, 9), (P, 3, 3), (C, 9), (P, 3), 0.0
+            for each result: add its U, V, g_cam, g_point and float(chi2)
+            W = np.concatenate([res[2] for res in results]) if results else np.zeros((0, 9, 3))""",
+    ),
+}

@@ -27,10 +27,11 @@ from course.solver.unique import unique_inverse
 class SparseAssembler3D:
     """Scatter-add edge blocks into the upper triangle of a sparse H whose pattern is fixed.
 
-    ``__init__`` finds, once, where each edge's entries go: for every edge, the position in
-    ``H.data`` of each of the 78 entries of ``J^T Omega J`` (12, 12) that H's upper triangle
-    needs (the upper 21 of ``A^T Omega A`` and of ``B^T Omega B``, the 36 of ``A^T Omega B``),
-    and the pattern itself. ``assemble`` then costs batched products and one ``np.bincount``.
+    ``__init__`` finds, once, the pattern of H's upper triangle (every diagonal entry present) and
+    where in ``H.data`` each entry of each edge's blocks that the upper triangle needs goes;
+    ``assemble`` then costs batched products and one ``np.bincount``. Which entries of
+    ``J^T Omega J`` (12, 12) are needed, and where do they go? Derive it from the edges' indices
+    (``python -m autograder hint SparseAssembler3D 1``, then 2 and 3).
 
     Args of ``__init__``: ``num_poses``, ``edges_i``, ``edges_j`` (M,) int, ``fixed`` the indices of the
     fixed poses (a sequence of ints, possibly empty).
@@ -38,7 +39,7 @@ class SparseAssembler3D:
     Attribute ``diagonal_positions`` (6N,): where H's diagonal entries sit in ``H.data``
     (the LM loop adds its damping there).
 
-    Hint: ``course.solver.unique.unique_inverse(keys)`` is ``np.unique(keys, return_inverse=True)``,
+    ``course.solver.unique.unique_inverse(keys)`` is ``np.unique(keys, return_inverse=True)``,
     faster on keys that come nearly in order.
     """
 
@@ -100,3 +101,41 @@ class SparseAssembler3D:
         H = sp.csc_matrix((data, self._indices, self._indptr), shape=self._shape)
         return H, b, chi2
         # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "SparseAssembler3D": (
+        """Of the three blocks of the module docstring, list the entries H's upper triangle needs, each with
+        its global row and column (pose p's dofs are ``6p .. 6p + 5``); add every diagonal entry; number the
+        distinct (row, column) pairs in CSC order: that number is the position in ``H.data``. ``assemble``
+        computes exactly those entries for all edges, sums them into ``H.data`` by position, and handles
+        the fixed poses (zero rows and columns, unit diagonal, zero b).""",
+        """The diagonal blocks ``A^T Omega A`` and ``B^T Omega B`` are symmetric: their upper 21 entries
+        (``np.triu_indices(6)``) suffice. ``A^T Omega B`` is needed whole (36 entries), ``B^T Omega A`` is its
+        transpose and never needed: 21 + 36 + 21 = 78 per edge. Where ``i > j`` the block ``A^T Omega B``
+        lies below the diagonal: store entry ``(r, c)`` at ``(min(r, c), max(r, c))``. CSC order is the
+        order of the key ``column * 6N + row``; ``np.unique(keys, return_inverse=True)`` gives the sorted
+        pattern and each entry's slot, and ``np.bincount`` sums the entries that share a slot.""",
+        """::
+
+            dof_i, dof_j = 6 edges_i + arange(6), 6 edges_j + arange(6)            (M, 6) each
+            a, b = triu_indices(6)
+            r = [dof_i[:, a], repeat(dof_i, 6, axis=1), dof_j[:, a]]               (M, 78)
+            c = [dof_i[:, b], tile(dof_j, (1, 6)),      dof_j[:, b]]
+            rows, cols = minimum(r, c).ravel(), maximum(r, c).ravel()
+            keys = concatenate([cols * 6N + rows, arange(6N) * 6N + arange(6N)])
+            unique, inverse = unique_inverse(keys)
+            positions, diagonal_positions = inverse[:78 M], inverse[78 M:]
+            indices, indptr = unique % 6N, searchsorted(unique // 6N, arange(6N + 1))
+            dead = fixed_dof[indices] | repeat(fixed_dof, diff(indptr))
+
+            assemble:  OA, OB = Omega A, Omega B
+                       H_edges = [(A^T OA)[:, a, b], (A^T OB).reshape(M, 36), (B^T OB)[:, a, b]]   (M, 78)
+                       data = bincount(positions, H_edges.ravel(), minlength=nnz)
+                       data[dead] = 0;  data[diagonal_positions[fixed_dof]] = 1
+                       b = bincount([dof_i, dof_j].ravel(), [OA^T e, OB^T e].ravel(), minlength=6N);  b[fixed_dof] = 0
+                       chi2 = sum_k e_k^T Omega_k e_k;  H = csc_matrix((data, indices, indptr), (6N, 6N))""",
+    ),
+}

@@ -21,8 +21,10 @@ from course.solver.unique import unique_inverse
 def edge_errors_and_jacobians(poses, edges_i, edges_j, measurements):
     """All edges at once: ``e`` (M, 3), ``A`` (M, 3, 3), ``B`` (M, 3, 3).
 
-    Same formulas as ``pose_graph_edge.edge_error_and_jacobians``, with no Python
-    loop over edges. Note ``R_ij^T R_i^T = R(theta_i + theta_ij)^T``.
+    The error and Jacobians of ``pose_graph_edge.edge_error_and_jacobians`` (its docstring has the
+    definitions) for every edge k between ``poses[edges_i[k]]`` and ``poses[edges_j[k]]`` with
+    ``measurements[k]``, with no Python loop over edges: write the entries as arrays over the edges
+    (``python -m autograder hint pose_graph_fast.edge_errors_and_jacobians 1``, then 2 and 3).
     M >= 1: keep the (M, ...) shapes for a single edge too.
     """
     # BEGIN SOLUTION
@@ -63,9 +65,10 @@ class SparseAssembler:
     Optional attribute ``diagonal_positions`` (3N,): where H's diagonal entries sit in
     ``H.data``, so the LM loop adds its damping in place instead of building H + D.
 
-    Hint: give every entry a CSC key (column * 3N + row) and keep the distinct keys with
-    ``np.unique(keys, return_inverse=True)``, or ``course.solver.unique.unique_inverse(keys)``,
-    the same and faster on keys that come nearly in order.
+    Pose p's rows and columns are ``3p .. 3p + 2``. Work out the pattern and the positions from the
+    edges' indices alone (``python -m autograder hint SparseAssembler 1``, then 2 and 3);
+    ``course.solver.unique.unique_inverse(keys)`` is ``np.unique(keys, return_inverse=True)``, faster
+    on keys that come nearly in order.
     """
 
     #: row and column of the 21 upper-triangle entries of a 6x6 edge block
@@ -119,3 +122,53 @@ class SparseAssembler:
         H = sp.csc_matrix((data, self._indices, self._indptr), shape=self._shape)
         return H, b, chi2
         # END SOLUTION
+
+
+#: the derived results, in three levels (``python -m autograder hint NAME LEVEL``; the release
+#: prints levels 1..N into the docstrings with ``--hints N``, course.core.hints)
+HINTS = {
+    "edge_errors_and_jacobians": (
+        """Gather the two poses of every edge (``poses[edges_i]``, ``poses[edges_j]``, (M, 3)), compute the
+        cosines and sines once as (M,) arrays, and fill the (M, 3) and (M, 3, 3) outputs entry by entry
+        (``A[:, 0, 2] = ...``). Products of 2x2 rotations collapse to one rotation of the summed angle.""",
+        """``R_ij^T R_i^T = R(theta_i + theta_ij)^T = [[c, s], [-s, c]]`` with ``c, s`` the cosine and sine of
+        ``theta_i + theta_ij``: the translation blocks of A and B are its negative and itself. With
+        ``(u, v) = R_i^T (t_j - t_i)``, ``d (u, v) / d theta_i = (v, -u)``.""",
+        """With ``c, s = cos, sin(theta_i + theta_ij)``, ``(u, v) = R_i^T (t_j - t_i)`` and
+        ``cz, sz = cos, sin(theta_ij)``::
+
+            e[:, :2] = R_ij^T ((u, v) - t_ij)          e[:, 2] = wrap(theta_j - theta_i - theta_ij)
+            B = [[ c, s, 0], [-s, c, 0], [0, 0, 1]]    per edge, (M, 3, 3)
+            A = -B, then A[:, :2, 2] = R_ij^T (v, -u) = (cz v - sz u, -sz v - cz u)""",
+    ),
+    "SparseAssembler": (
+        """In ``__init__``: for every edge, the global row and column of each of the 21 upper entries of its
+        6x6 block (the pose dofs ``[3i, 3i + 1, 3i + 2, 3j, 3j + 1, 3j + 2]``), moved above H's diagonal
+        where they fall below it; add every diagonal entry; then number the distinct (row, column) pairs in
+        CSC order: that numbering is the position in ``H.data``. In ``assemble``: the 21 entries of every
+        edge's ``J^T Omega J``, summed into ``H.data`` by position; the fixed poses' rows and columns
+        zeroed and their diagonal set to 1.""",
+        """H is symmetric: an entry ``(r, c)`` with ``r > c`` is stored at ``(c, r)``, so use
+        ``(min(r, c), max(r, c))``. CSC stores column by column, rows ascending within a column: that is
+        the order of the key ``column * 3N + row``. ``np.unique(keys, return_inverse=True)`` sorts the
+        distinct keys (the pattern: ``indices = key % 3N``, ``indptr = np.searchsorted(key // 3N,
+        arange(3N + 1))``) and gives each entry its slot; entries of several edges that share a slot are
+        summed by ``np.bincount(slot, weights, minlength=nnz)``.""",
+        """::
+
+            dof = [3 edges_i + (0, 1, 2), 3 edges_j + (0, 1, 2)]               (M, 6)
+            r, c = dof[:, UPPER[0]], dof[:, UPPER[1]]                        (M, 21)
+            rows, cols = minimum(r, c).ravel(), maximum(r, c).ravel()
+            keys = concatenate([cols * 3N + rows, arange(3N) * 3N + arange(3N)])   (edges, then diagonal)
+            unique, inverse = unique_inverse(keys)
+            positions, diagonal_positions = inverse[:21 M], inverse[21 M:]
+            indices, indptr = unique % 3N, searchsorted(unique // 3N, arange(3N + 1))
+            dead = fixed_dof[indices] | repeat(fixed_dof, diff(indptr))     (row or column fixed)
+
+            assemble:  J = [A B] (M, 3, 6);  H_edges = (J^T Omega J)[:, UPPER[0], UPPER[1]]   (M, 21)
+                       data = bincount(positions, H_edges.ravel(), minlength=nnz)
+                       data[dead] = 0;  data[diagonal_positions[fixed_dof]] = 1
+                       b = bincount(dof.ravel(), (J^T Omega e).ravel(), minlength=3N);  b[fixed_dof] = 0
+                       chi2 = sum_k e_k^T Omega_k e_k;  H = csc_matrix((data, indices, indptr), (3N, 3N))""",
+    ),
+}

@@ -150,3 +150,49 @@ def test_a_pose_graph_does_not_stop_at_the_ceres_cost(tmp_path, capsys):
     assert re.search(r"^ours +lm-type3 +\d+ ", out, flags=re.M)
     assert "or select what is written: --methods gauss-newton,lm-type1,lm-type2,lm-type3 or --backends ours," in out
     assert "check:" not in out
+
+
+FREE_FIRST_POSE = ("pose_graph_fast", "        data[self._fixed_diagonal] = 1.0\n", "")
+
+
+def test_a_pose_left_free_is_a_failed_row_naming_the_assembly_and_the_singular_h(tmp_path, capsys):
+    """The assembler forgets the fixed pose: a damped solver would wander to the iteration limit on a
+    singular H; instead every run of ours is a row ``failed: ...`` and one line says why, where, and
+    that H is singular; the peers' rows still run and compare exits 0."""
+    written = CHAPTER1 + ("pose_graph_edge", "pose_graph_assembly", "sparse_solve", "pose_graph_fast", "dogleg")
+    impl = _impl(tmp_path, written, FREE_FIRST_POSE)
+    text = (impl / "pose_graph_fast.py").read_text()
+    (impl / "pose_graph_fast.py").write_text(text.replace("        data[self._dead] = 0.0\n", "", 1))
+    assert main(["compare", "manhattan:200", "--impl", str(impl), "--backends", "ours,g2o"]) == 0
+    out = capsys.readouterr().out
+    assert len(re.findall(r"^ours +\S+ +failed: pose_graph_fast\.SparseAssembler\.assemble \(see below\)$", out,
+                          flags=re.M)) == 5
+    assert re.search(r"^g2o +gauss-newton +\d+ ", out, flags=re.M)
+    (line,) = [line for line in out.splitlines() if line.startswith("check: ours")]
+    assert line.startswith("check: ours gauss-newton, lm-type1, lm-type2, lm-type3, dogleg failed: "
+                           "pose_graph_fast.SparseAssembler.assemble: pose 0 is fixed but not held still")
+    assert "H is singular (3 gauge freedoms" in line
+    assert "\n  look at pose_graph_fast\n" in out
+
+
+def test_the_per_edge_loop_forgetting_the_fixed_pose_is_named_too(tmp_path):
+    from course.core.errors import ContractError
+    from course.problems.posegraph import dataset as datasets
+    from course.problems.posegraph.problem import PoseGraphProblem
+
+    impl = _impl(tmp_path, CHAPTER1 + ("pose_graph_edge", "pose_graph_assembly", "sparse_solve"),
+                 ("pose_graph_assembly", "for k in fixed:", "for k in ():"))
+    problem = PoseGraphProblem(datasets.load_dataset("w100"), impl, vectorized=False)
+    with pytest.raises(ContractError, match=r"pose_graph_assembly\.assemble_normal_equations: pose 0 is fixed"):
+        problem.linearize(problem.x0)
+    reference = PoseGraphProblem(datasets.load_dataset("w100"), "solutions", vectorized=False)
+    assert reference.linearize(reference.x0).chi2 > 0
+
+
+def test_an_error_of_the_students_code_is_a_row_with_its_file_and_line(tmp_path, capsys):
+    impl = _impl(tmp_path, CHAPTER1, ("curve_model", "import numpy as np", "import numpy as np\nnp = None"))
+    assert main(["compare", "curve", "--impl", str(impl), "--methods", "gauss-newton,lm"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"^ours +gauss-newton +failed: AttributeError \(see below\)$", out, flags=re.M)
+    assert re.search(r"failed: AttributeError: .*\(at .*curve_model\.py:\d+\)\n  look at curve_model", out)
+    assert re.search(r"^scipy +lm +\d+ ", out, flags=re.M)

@@ -24,6 +24,7 @@ installed here is always a row (``not run: gtsam is not installed here``), said 
 (``course.core.peers``).
 """
 
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
@@ -33,7 +34,7 @@ import numpy as np
 
 from course.backends import registry
 from course.core.errors import CourseError
-from course.core.impl import default_impl, not_implemented_reason
+from course.core.impl import default_impl, failure_reason, not_implemented_reason
 from course.core.peers import PeerMissing
 from course.core.progress import quiet
 from course.core.trace import RunResult
@@ -129,7 +130,9 @@ def _tree_impl(impl):
 
 def _solve_or_row(solve, repeat, backend, method, unimplemented) -> RunResult:
     """``_median_run(solve, repeat)``; with ``unimplemented="row"`` a ``NotImplementedError``
-    becomes a ``RunResult.skipped`` row naming the TODO; a missing peer library always does."""
+    becomes a ``RunResult.skipped`` row naming the TODO, and any other error of our run a row
+    ``failed: ...`` naming it (the implementation's code raised or broke a contract), so that one
+    broken exercise never hides the other rows; a missing peer library always is a row."""
     if unimplemented not in ("raise", "row"):
         raise ValueError(f"unimplemented must be 'raise' or 'row', got {unimplemented!r}")
     try:
@@ -140,6 +143,10 @@ def _solve_or_row(solve, repeat, backend, method, unimplemented) -> RunResult:
         if unimplemented == "raise":
             raise
         return RunResult.skipped(backend, method, not_implemented_reason(exc))
+    except Exception as exc:  # our run on the implementation's code: a row that names the error
+        if unimplemented == "raise" or backend != "ours":
+            raise
+        return RunResult.skipped(backend, method, failure_reason(exc))
 
 
 def _run_peer(kind, backend, *args, **kwargs) -> RunResult:
@@ -553,7 +560,8 @@ def format_table(runs, title: str = "") -> str:
     """A plain-text table: backend, method, iterations, initial and final chi2, total
     and per-iteration time (milliseconds), why the run stopped (``short_stop_reason``), and
     the parameters when they are few (the curve).
-    A run that did not run (``not_run``) is a row with its backend, method and the reason.
+    A run that did not run (``not_run``) is a row with its backend, method and the reason (a
+    failure's by what failed, ``short_not_run``: ``advice`` prints the whole message once).
     Runs started from an initialisation (``RunResult.init`` other than ``file``) get a note
     line under the table naming it and its time. Where a run's data had edges repaired
     (``RunResult.note``), a last column ``note`` says so on every row (after the reason on a
@@ -598,7 +606,7 @@ def format_table(runs, title: str = "") -> str:
     for k, r in enumerate(runs):  # table order: ran and not-run rows where the plan put them
         note = f"; {r.note}" if r.note else ""
         lines[k] = line(next(done)) if not r.not_run else \
-            f"{r.backend.ljust(widths[0])}  {r.method.ljust(widths[1])}  {r.not_run}{note}"
+            f"{r.backend.ljust(widths[0])}  {r.method.ljust(widths[1])}  {short_not_run(r.not_run)}{note}"
     out = [title] if title else []
     out += [line(header), line(["-" * w for w in widths])]
     out += [lines[k] for k in range(len(runs))]
@@ -661,9 +669,14 @@ def advice(runs, kind: str, impl) -> list:
             reasons.append(f"stopped at the iteration limit ({r.iterations} step attempts)")
         if reasons:
             flagged.append((r, reasons))
-    if not flagged:
+    failed = [r for r in runs if r.backend == "ours" and r.not_run.startswith("failed:")]
+    if not flagged and not failed:
         return []
     lines = []
+    for reason in dict.fromkeys(r.not_run for r in failed):  # each failure once, with every method it stopped
+        methods = [r.method for r in failed if r.not_run == reason]
+        look = _failed_exercise(reason, impl) or METHOD_EXERCISES.get(methods[0], methods[0])
+        lines.append(f"check: ours {', '.join(methods)} {reason}\n  look at {look}")
     model = MODEL_EXERCISES.get(kind)
     everyone = len(flagged) == len(ours) > 1
     for r, reasons in flagged:
@@ -678,6 +691,32 @@ def advice(runs, kind: str, impl) -> list:
                      "on this problem")
     lines.append("(`python -m autograder --only NAME` grades one exercise)")
     return lines
+
+
+def short_not_run(reason: str) -> str:
+    """A row's reason: a failure (``failed: where: what``) by where it failed only, pointing below."""
+    if not reason.startswith("failed: "):
+        return reason
+    where = reason[len("failed: "):].split(": ", 1)[0]
+    return f"failed: {where} (see below)"
+
+
+def _failed_exercise(reason: str, impl) -> str:
+    """The module of ``impl`` that a ``failed: module.function: ...`` reason names first, or whose file
+    its ``(at FILE:LINE)`` is ('' for none)."""
+    import importlib
+
+    from course.core import impl as impl_loader
+
+    folder = Path(importlib.import_module(impl_loader.load(impl).package).__file__ or ".").parent
+    at = re.search(r"\(at (.+):\d+\)$", reason)  # another error: the frame in the implementation's file
+    if at and Path(at.group(1)).parent.resolve() == folder.resolve():
+        return Path(at.group(1)).stem
+    for word in reason.replace(":", " ").split():
+        module = word.split(".", 1)[0]
+        if "." in word and module.isidentifier() and (folder / f"{module}.py").is_file():
+            return module
+    return ""
 
 
 def todo_names(runs) -> list:

@@ -17,6 +17,11 @@ class ShapeError(CourseError, ValueError):
     """An implementation returned an array of the wrong shape."""
 
 
+class ContractError(CourseError, ValueError):
+    """An implementation returned an array of the right shape that breaks its contract (e.g. a
+    fixed pose's rows of H not held)."""
+
+
 def check_array(value, shape, where: str, what: str):
     """Return ``value`` as a float array of ``shape`` (None = any length), or raise.
 

@@ -79,3 +79,19 @@ def not_implemented_reason(exc: NotImplementedError) -> str:
     if text.endswith(suffix):
         text = text[: -len(suffix)]
     return f"not implemented: {text}" if text else "not implemented"
+
+
+def failure_reason(exc: Exception) -> str:
+    """``"failed: ..."`` for a run that raised: the framework's own errors (``CourseError``) name the
+    function already; any other error adds its type and the last line of the traceback that is not
+    in the framework (the student's file and line, when the error is theirs)."""
+    from course.core.errors import CourseError
+
+    if isinstance(exc, CourseError):
+        return f"failed: {exc}"
+    import traceback
+
+    framework = str(Path(__file__).resolve().parents[1])
+    frames = [f for f in traceback.extract_tb(exc.__traceback__) if not f.filename.startswith(framework)]
+    where = f" (at {frames[-1].filename}:{frames[-1].lineno})" if frames else ""
+    return f"failed: {type(exc).__name__}: {exc}{where}"

@@ -13,6 +13,7 @@ from course.core import impl as impl_loader
 from course.core.errors import SingularSystemError, check_array
 from course.geometry.se2 import wrap_angle
 from course.problems.posegraph.graph import PoseGraph
+from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
 from course.solver.superlu import sparse_solver
 
@@ -33,6 +34,7 @@ class PoseGraphProblem:
         self._solver = sparse_solver(self._sparse) if solver is None else solver
         self._fixed_dof = (3 * graph.fixed[:, None] + np.arange(3)).ravel()
         self._assembler = None
+        self._held_checked = False
         if vectorized is not False:
             fast = self.impl.module("pose_graph_fast")
             try:
@@ -63,17 +65,27 @@ class PoseGraphProblem:
                 self.poses(x), g.edges_i, g.edges_j, g.measurements
             )
             H, b, chi2 = self._assembler.assemble(e, A, B, g.information)
-            return Linearization(H=H, b=check_array(b, (n,), "SparseAssembler.assemble", "b"),
-                                 chi2=float(chi2), upper=True,
+            b = check_array(b, (n,), "SparseAssembler.assemble", "b")
+            self._check_held_still(H, b, "pose_graph_fast.SparseAssembler.assemble")
+            return Linearization(H=H, b=b, chi2=float(chi2), upper=True,
                                  diagonal_positions=getattr(self._assembler, "diagonal_positions", None))
         H, b, chi2 = self.impl.module("pose_graph_assembly").assemble_normal_equations(
             self.poses(x), g.edges_i, g.edges_j, g.measurements, g.information, g.fixed
         )
         where = "pose_graph_assembly.assemble_normal_equations"
         H = check_array(H, (n, n), where, "H")
+        b = check_array(b, (n,), where, "b")
+        self._check_held_still(H, b, where)
         upper = self._sparse.upper_triangle_csc(H)
-        return Linearization(H=upper, b=check_array(b, (n,), where, "b"),
+        return Linearization(H=upper, b=b,
                              chi2=float(chi2), upper=True)
+
+    def _check_held_still(self, H, b, where):
+        """The first system assembled must hold the fixed poses still (``course.solver.held_still``):
+        the assembly's structure does not change between iterations, so once is enough."""
+        if not self._held_checked:
+            check_held_still(H, b, self._fixed_dof, where, 3)
+            self._held_checked = True
 
     def solve(self, lin: Linearization, damping=None):
         """Step (3N,) of ``(H + diag(damping)) h = -b`` by the sparse solver.

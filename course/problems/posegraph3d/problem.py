@@ -23,6 +23,7 @@ from course.core.errors import SingularSystemError, check_array
 from course.geometry import se3
 from course.problems.posegraph3d.graph import PoseGraph3D
 from course.solver import robust
+from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
 from course.solver.superlu import SuperLUSolver
 
@@ -71,6 +72,7 @@ class PoseGraph3DProblem:
         self._assembler = self.impl.module("pose_graph_3d_assembly").SparseAssembler3D(
             graph.num_poses, graph.edges_i, graph.edges_j, graph.fixed)
         self._fixed_dof = (6 * graph.fixed[:, None] + np.arange(6)).ravel()
+        self._held_checked = False
 
     def squared_residuals(self, x) -> np.ndarray:
         """``s_k = e_k^T Omega_k e_k`` (M,) at x, with the graph's own information (no weights)."""
@@ -98,7 +100,11 @@ class PoseGraph3DProblem:
             information = self._unit
         H, b, chi2 = self._assembler.assemble(e, A, B, information)
         chi2 = chi2 if robust_chi2 is None else robust_chi2
-        return Linearization(H=H, b=check_array(b, (6 * g.num_poses,), "SparseAssembler3D.assemble", "b"),
+        b = check_array(b, (6 * g.num_poses,), "SparseAssembler3D.assemble", "b")
+        if not self._held_checked:  # the structure does not change between iterations: once is enough
+            check_held_still(H, b, self._fixed_dof, "pose_graph_3d_assembly.SparseAssembler3D.assemble", 6)
+            self._held_checked = True
+        return Linearization(H=H, b=b,
                              chi2=float(chi2), upper=True,
                              diagonal_positions=getattr(self._assembler, "diagonal_positions", None))
 
