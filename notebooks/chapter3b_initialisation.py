@@ -52,14 +52,13 @@ if str(root) not in sys.path:
 from IPython.display import Image, Markdown, display
 
 from course.app import compare, plot
-from course.app.starts import INITIALISERS, initialise
+from course.app.starts import INITIALISERS
 from course.notebook_helpers import chapter3b
 from course.notebook_helpers.common import (
     basin_figure,
     initialiser_table,
     load,
     not_run_note,
-    outcome,
     time_to_solution_table,
 )
 from course.notebook_helpers.lesson import check, hint
@@ -270,14 +269,9 @@ if g is None:
     g = datasets.load_dataset("manhattan:300")
     display(Markdown("**The data folder is missing here**: the generated `manhattan:300` stands in for "
                      "mit below; the figures in the text do not apply to it."))
-starts = {}
-for init in ("file", "chordal"):
-    start, seconds = initialise(g, init, IMPL)
-    gn = compare.run_posegraph(g, impl=IMPL, methods=["gauss-newton"], backends=["ours"], init=init)[0]
-    starts[init] = (start, gn)
-    print(f"{g.name} from {init} ({1e3 * seconds:.1f} ms): chi2 {gn.initial_chi2:.4g} -> {gn.final_chi2:.6g} "
-          f"in {gn.iterations} iterations ({outcome(gn)})")
-display(Image(plot.to_png(basin_figure(starts, f"{g.name}: {g.num_poses} poses, {g.num_edges} edges"))))
+starts = chapter3b.basin_starts(g, IMPL)  # {start: (poses, our Gauss-Newton's run)}, or None at a TODO
+if starts is not None:
+    display(Image(plot.to_png(basin_figure(starts, f"{g.name}: {g.num_poses} poses, {g.num_edges} edges"))))
 
 # %% [markdown] id="table-md"
 # ## Every initialiser on every public graph

@@ -1,11 +1,12 @@
 """Chapter 3b's lesson: the figures of the theory of initialisation.
 
-``drift_basin``: chi2 along a family of starts that add a growing heading drift to the minimum, and
-where Gauss-Newton ends from each (the basin of the minimum, and other stationary points).
+``drift_basin``: chi2 along a family of starts that add a growing heading drift to the minimum,
+and where Gauss-Newton ends from each (the basin of the minimum, and other stationary points).
 ``tree_start``: the spanning-tree start against the file's poses, the hop distances, and the edges
 it leaves out. ``relaxation``: the rotation costs of one edge, and the chordal relaxation of one
 free orientation between anchored neighbours. ``check_relaxed_jacobians``: ``course.check_jacobian``
-on your Jacobians of the relaxed rotation residual of one edge.
+on your Jacobians of the relaxed rotation residual of one edge. ``basin_starts``: the experiments'
+basin of convergence (the file's and the chordal start, and our Gauss-Newton from each).
 
 Each takes the implementation (``impl``): while an exercise it needs is a TODO, it prints one line
 naming it and returns None (or draws what it can).
@@ -26,6 +27,30 @@ from course.solver import SolverOptions, minimize
 
 #: the total heading drift (radians) added along the trajectory in ``drift_basin``
 DRIFTS = np.linspace(-2.0 * np.pi, 2.0 * np.pi, 33)
+
+
+def basin_starts(graph, impl="solutions", inits: Sequence[str] = ("file", "chordal")) -> dict | None:
+    """``{init: (graph at that start, our Gauss-Newton's RunResult from it)}`` for each start of ``inits``,
+    printing one line per start (its time, chi2 before and after, iterations, outcome); None, after one
+    line naming the TODO, while an exercise it needs is not written."""
+    from course.notebook_helpers.common import outcome
+
+    starts = {}
+    for init in inits:
+        try:
+            start, seconds = initialise(graph, init, impl)
+        except NotImplementedError as exc:
+            print(todo_note(exc, f"the {init} start needs it"))
+            return None
+        (gn,) = compare.run_posegraph(graph, impl=impl, methods=["gauss-newton"], backends=["ours"], init=init,
+                                      unimplemented="row")
+        if gn.not_run:
+            print(f"not written yet: {gn.not_run.removeprefix('not implemented: ')} (Gauss-Newton from {init})")
+            return None
+        starts[init] = (start, gn)
+        print(f"{graph.name} from {init} ({1e3 * seconds:.1f} ms): chi2 {gn.initial_chi2:.4g} -> "
+              f"{gn.final_chi2:.6g} in {gn.iterations} iterations ({outcome(gn)})")
+    return starts
 
 
 def drifted(poses, drift: float) -> np.ndarray:

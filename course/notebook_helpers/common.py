@@ -290,7 +290,9 @@ def initialiser_table(tables: dict[str, list[RunResult]], methods: Sequence[str]
                 at = "yes" if abs(r.final_chi2 - best) <= 1e-6 * abs(best) else "no"
                 line += f" | {r.iterations:5d} {r.final_chi2:14.8g} {at:>6}"
             lines.append(line)
-    lines.append("lowest final chi2: " + ", ".join(f"{name} {lowest(runs):.8g}" for name, runs in tables.items()))
+    lines.append("lowest final chi2: " + ", ".join(
+        f"{name} {lowest(runs):.8g}" if np.isfinite(lowest(runs)) else f"{name} - (no run)"
+        for name, runs in tables.items()))
     return "\n".join(lines)
 
 
