@@ -188,6 +188,7 @@ check("initialisation.spanning_tree_poses")
 # %% id="figure-relaxation"
 display(Image(plot.to_png(chapter3b.relaxation())))
 
+
 # %% [markdown] id="jacobian-md"
 # ### Check your Jacobians where you derive them
 #
