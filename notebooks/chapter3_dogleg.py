@@ -104,8 +104,10 @@ SMALL = os.environ.get("COURSE_NOTEBOOK_SMALL", "0") == "1"
 # Why not stop there (steepest descent)? Along $-g$ the model is minimized on one line only; in a
 # long narrow valley of $L$ (an ill-conditioned $H$) the next gradient is nearly orthogonal and the
 # steps zigzag. The Cauchy point matters for another reason: trust-region convergence theory asks
-# every step to decrease the model at least as much as the Cauchy point clipped to the region
-# does (the *Cauchy decrease*). The dogleg path starts along $-g$, so its steps always do.
+# every step to decrease the model by at least a fixed fraction of what the minimizer along $-g$
+# within the region achieves (the *Cauchy decrease*). The dogleg's steps do at least as well as
+# that point, since its path starts along $-g$ and, as section 3 shows, the model keeps decreasing
+# along it.
 #
 # The left panel of the figure in section 3 draws $\varphi$ and the true $F(x - \alpha g)$ on a
 # two-parameter problem, with your Cauchy point.
@@ -194,12 +196,12 @@ display(Image(plot.to_png(chapter3.dogleg_path(IMPL))))
 # * $\rho > 0.75$: the model is good: $\Delta \leftarrow \max(\Delta,\, 3|h|)$;
 # * otherwise $\Delta$ stays.
 #
-# Why $3|h|$ and not $3\Delta$: when the step was $h_{gn}$, strictly inside the region, growing
-# $\Delta$ by itself would let it grow without bound while the steps stay short, and the next
-# rejection would take many halvings to come back; $\max(\Delta, 3|h|)$ grows only a radius the step
-# used. The pair of thresholds is the dogleg's counterpart of chapter 1's rules for $\lambda$ (a large
-# $\lambda$ is a small radius); a rejected step halves $\Delta$ and retries *from the same $a$ and
-# $h_{gn}$*.
+# Why $3|h|$ and not $3\Delta$: when the step was $h_{gn}$, strictly inside the region, tripling
+# $\Delta$ after every good step would let it grow without bound while the steps stay short, and
+# the next rejection would take many halvings to come back; $\max(\Delta, 3|h|)$ never shrinks the
+# radius after a good step, and grows it only to three times the step actually taken. The pair of
+# thresholds is the dogleg's counterpart of chapter 1's rules for $\lambda$ (a large $\lambda$ is a
+# small radius); a rejected step halves $\Delta$ and retries *from the same $a$ and $h_{gn}$*.
 #
 # Our dogleg on chapter 1's curve, from $(0, 0, 0)$ and $\Delta_0 = 10^4$: per attempt the radius,
 # the step's length and $\rho$, and below the same as numbers (`inside`: the Gauss-Newton step;

@@ -82,10 +82,12 @@ SMALL = os.environ.get("COURSE_NOTEBOOK_SMALL", "0") == "1"
 # quadratic in the positions: one linear solve finds its minimum (section 4). All the nonlinearity
 # enters through the rotations. Now turn one orientation $\theta_i$ with everything else fixed: the
 # vector $R_i^\top (t_j - t_i)$ of each edge leaving $i$ goes round a circle, so its contribution to
-# $\chi^2$ is of the form $A - B \cos(\theta_i - \varphi)$, periodic in $\theta_i$, with a maximum
-# opposite its minimum. A non-constant periodic function is never convex: $\chi^2$ has other
-# stationary points besides its minimum (local minima, saddles, maxima), and Gauss-Newton, which only
-# sees the quadratic model at its current point, converges to the one whose basin holds its start.
+# $\chi^2$ is a trigonometric polynomial in $\theta_i$ (terms in $\cos\theta_i$ and $\sin\theta_i$, and in
+# $2\theta_i$ when $\Omega_{tt}$ is not a multiple of the identity), and the wrapped angle errors are
+# periodic too: $\chi^2$ is $2\pi$-periodic in each orientation. A convex function of one variable
+# that is periodic is constant, so $\chi^2$ is not convex: besides its minimum it can have other
+# stationary points (local minima, saddles), and Gauss-Newton, which only sees the quadratic model
+# at its current point, converges to the one whose basin holds its start.
 #
 # Which starts lie in the basin of the minimum? Odometry composes measurements: a heading error on
 # one edge rotates every pose after it, and independent heading errors add up along the chain like
@@ -163,7 +165,7 @@ check("initialisation.spanning_tree_poses")
 #
 # the squared length of the chord between two points of the circle at angle $\phi$ (hence *chordal*;
 # the Frobenius distance $\lVert R_j - R_i R_{ij} \rVert_F^2$ is twice it). Near $\phi = 0$ it is
-# $\phi^2$, the pose graph's own angle cost; for large errors it stays below 4 (left panel below).
+# $\phi^2$, the pose graph's own angle cost; for large errors it stays at most 4 (left panel below).
 #
 # On the circle the problem is as non-convex as before: the circle is not a convex set. The
 # **relaxation** drops the constraint $|v_k| = 1$ and minimizes
