@@ -21,36 +21,17 @@ framework's own edge error (``PoseGraph.errors``), and the sparsity patterns dep
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator
-
 import numpy as np
 import scipy.sparse as sp
 
 from course.app import plot
-from course.core import impl as impl_loader
-from course.core.impl import not_implemented_reason
 from course.geometry.jacobian_check import numerical_jacobian
 from course.geometry.se2 import between, compose, edge_errors
+from course.notebook_helpers.lesson import exercise, todo_as_one_line  # noqa: F401 (the cells call them here)
 
 # ---------------------------------------------------------------- every cell that runs your code
 
 
-@contextlib.contextmanager
-def todo_as_one_line(out=print) -> Iterator[None]:
-    """Run the block; an unwritten exercise (``NotImplementedError``) ends it with one line naming the
-    TODO, a peer library that is not installed (``ImportError``) with one line naming it."""
-    try:
-        yield
-    except NotImplementedError as exc:
-        out(f"{not_implemented_reason(exc)}: write it, then run this cell again")
-    except ImportError as exc:
-        out(f"not run here: {exc.name or exc} is not installed (the peers extra)")
-
-
-def exercise(name: str, impl="solutions"):
-    """The module ``name`` of implementation ``impl`` (``"solutions"``, ``"exercises"`` or a path)."""
-    return impl_loader.load(impl).module(name)
 
 
 def example_edge() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
