@@ -21,8 +21,6 @@ unless a name says degrees.
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,25 +29,13 @@ from scipy.sparse import csgraph
 from scipy.sparse.linalg import splu
 
 from course.app import plot
-from course.core import impl as impl_loader
 from course.core.impl import not_implemented_reason
 from course.geometry.so3 import exp_many, log_many, right_jacobian_inverse_many
+from course.notebook_helpers.lesson import exercise, todo_as_one_line  # noqa: F401 (the cells call them here)
 
 # ---------------------------------------------------------------- every cell that runs your code
 
 
-@contextlib.contextmanager
-def todo_as_one_line(out=print) -> Iterator[None]:
-    """Run the block; an unwritten exercise (``NotImplementedError``) ends it with one line naming the TODO."""
-    try:
-        yield
-    except NotImplementedError as exc:
-        out(f"{not_implemented_reason(exc)}: write it, then run this cell again")
-
-
-def exercise(name: str, impl="solutions"):
-    """The module ``name`` of implementation ``impl`` (``"solutions"``, ``"exercises"`` or a path)."""
-    return impl_loader.load(impl).module(name)
 
 
 # ---------------------------------------------------------------- section 1: perturbations
