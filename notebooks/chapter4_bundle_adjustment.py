@@ -80,8 +80,7 @@ from course.notebook_helpers.bal import (
     sparsity_counts,
     sparsity_figure,
 )
-from course.notebook_helpers.chapter4 import todo_as_a_line
-from course.notebook_helpers.lesson import check, hint
+from course.notebook_helpers.lesson import check, hint, todo_as_one_line
 from course.problems.bal import outliers
 from course.problems.bal.dataset import load_bal
 
@@ -209,7 +208,7 @@ hint("reprojection_residuals_and_jacobians", 1)  # level 1, the approach; 2 the 
 scene = load_bal("bal-synthetic:6:40")
 k = chapter4.generic_observation(scene)  # the first observation whose camera is rotated by about 2 rad
 print(chapter4.observation_line(scene, k))
-with todo_as_a_line():
+with todo_as_one_line():
     f, x, J, plus, names, rows = chapter4.observation_setup(scene, k, IMPL)  # your function, on this observation
     check_jacobian(f, x, J=J, plus=plus, names=names, rows=rows)
     print("\nwhat a slip looks like (the sign of J_cam[1, 2], d y / d w_z, flipped):")
@@ -257,7 +256,7 @@ check("bundle_adjustment.reprojection_residuals_and_jacobians")
 # %% id="sparsity"
 ring = load_bal("bal-synthetic:6:40")
 path = neighbours_only(load_bal("bal-synthetic:12:120"), window=1)
-with todo_as_a_line():
+with todo_as_one_line():
     display(Image(plot.to_png(sparsity_figure([ring, path], IMPL))))  # the nonzeros of your Jacobians
 for problem in (ring, path, load("ladybug-49")):
     if problem is not None:
@@ -371,12 +370,12 @@ check("bundle_adjustment")
 # of 0): the least-squares mean is pulled to 2.7; each kernel starts there.
 
 # %% id="kernels"
-with todo_as_a_line():
+with todo_as_one_line():
     display(Image(plot.to_png(kernel_figure(outliers.DEFAULT_LOSSES, IMPL))))
 
 # %% id="figure-irls"
 location = chapter4.location_data()  # 40 samples N(0, 1), 10 outliers N(12, 2^2)
-with todo_as_a_line():
+with todo_as_one_line():
     irls = chapter4.irls_location(location, outliers.DEFAULT_LOSSES[:4], IMPL)  # your kernels' weights rho'
     display(Image(plot.to_png(chapter4.irls_figure(location, irls))))
 
@@ -422,7 +421,7 @@ check("robust_kernels")
 
 # %% id="gauge"
 small_scene = load_bal("bal-synthetic:5:40")
-with todo_as_a_line():
+with todo_as_one_line():
     print(gauge_report(small_scene, IMPL))  # your gauge_directions against your Jacobians
     display(Image(plot.to_png(gauge_figure(small_scene, IMPL))))
 
@@ -457,7 +456,7 @@ check("gauge")
 # experiment 6.)
 
 # %% id="sum-order"
-with todo_as_a_line():
+with todo_as_one_line():
     print(chapter4.sum_order_table(load_bal("bal-synthetic:20:3000:3"), IMPL))  # your parallel assembly
 
 # %% id="hint-parallel"
@@ -527,7 +526,7 @@ for name in (["bal-synthetic:10:300"] if SMALL else ["bal-synthetic:30:3000", "l
 name = "bal-synthetic:10:300" if SMALL else "ladybug-49"
 if load(name) is not None:
     iterations = 5 if SMALL else 10
-    with todo_as_a_line():
+    with todo_as_one_line():
         timings = benchmark_bal.per_iteration(name, repeats=min(REPEAT, 3), iterations=iterations, impl=IMPL,
                                               scipy_evaluations=2)
         print(per_iteration_table(timings, f"{name}: milliseconds per iteration, median of {min(REPEAT, 3)} "
@@ -546,7 +545,7 @@ if load(name) is not None:
 
 # %% id="sweep"
 sizes = ((4, 30), (10, 300), (20, 900)) if SMALL else benchmark_bal.SWEEP
-with todo_as_a_line():
+with todo_as_one_line():
     sweep = benchmark_bal.size_sweep(sizes, repeats=min(REPEAT, 3), iterations=2 if SMALL else 5, impl=IMPL)
     print(benchmark_bal.format_sweep(sweep))
     display(Image(plot.to_png(size_sweep_figure(sweep))))
@@ -570,7 +569,7 @@ with todo_as_a_line():
 # %% id="rank"
 dubrovnik = load("dubrovnik-3-7")
 if dubrovnik is not None:
-    with todo_as_a_line():
+    with todo_as_one_line():
         print(rank_report(dubrovnik, IMPL))
         print()
         table, last = iteration_limit_table(dubrovnik, IMPL, (5, 20, 100) if SMALL else (10, 50, 200, 1000), METHODS)
@@ -634,7 +633,7 @@ print(compare.format_bal(behind_runs))
 
 # %% id="dense"
 point_counts = [50, 100, 200, 400] if SMALL else [50, 100, 200, 400, 800, 1600]
-with todo_as_a_line():
+with todo_as_one_line():
     steps = dense_vs_schur(10, point_counts, IMPL, repeat=min(REPEAT, 3))  # your schur_solve against a dense Cholesky
     print(dense_vs_schur_table(steps, 10))
     display(Image(plot.to_png(dense_vs_schur_figure(steps, 10))))
@@ -654,7 +653,7 @@ with todo_as_a_line():
 # does not.
 
 # %% id="outliers"
-with todo_as_a_line():
+with todo_as_one_line():
     reference, rows = outliers.run(12, 300, seed=1, impl=IMPL)
     print(outliers.table(reference, rows))
 

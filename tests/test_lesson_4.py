@@ -16,6 +16,7 @@ import pytest
 from course import check_jacobian
 from course.core.impl import REPO_ROOT
 from course.notebook_helpers import chapter4
+from course.notebook_helpers.lesson import todo_as_one_line
 from course.problems.bal import outliers
 from course.problems.bal.dataset import load_bal
 from notebooks import build
@@ -91,7 +92,7 @@ def test_each_exercise_has_its_hint_then_its_check_and_a_checker_before_the_jaco
     # a cell that calls your code turns a TODO into one line (the comparisons make it a row instead)
     for cell_id, source in code.items():
         if "IMPL" in source and cell_id not in ("setup", "costs", "behind", "parallel"):
-            assert "todo_as_a_line()" in source, cell_id
+            assert "todo_as_one_line()" in source, cell_id
     assert code["costs"].count('unimplemented="row"') == 1 and code["behind"].count('unimplemented="row"') == 1
 
 
@@ -156,17 +157,17 @@ def test_questions_and_answer_cells(nb):
 
 
 def test_a_todo_is_one_line(capsys, scene):
-    with chapter4.todo_as_a_line():
+    with todo_as_one_line():
         chapter4.observation_setup(scene, 0, "exercises")
         raise AssertionError("the stub ran")
-    with chapter4.todo_as_a_line():
+    with todo_as_one_line():
         chapter4.irls_location(chapter4.location_data(), [("huber", 2.45)], "exercises")
         raise AssertionError("the stub ran")
     assert capsys.readouterr().out.splitlines() == [
-        "not run: not implemented: TODO bundle_adjustment.reprojection_residuals_and_jacobians (write it, then run "
-        "this cell again)",
-        "not run: not implemented: TODO robust_kernels.huber (write it, then run this cell again)"]
-    with pytest.raises(ValueError), chapter4.todo_as_a_line():
+        "not implemented: TODO bundle_adjustment.reprojection_residuals_and_jacobians: write it, then run this "
+        "cell again",
+        "not implemented: TODO robust_kernels.huber: write it, then run this cell again"]
+    with pytest.raises(ValueError), todo_as_one_line():
         raise ValueError("not a TODO: it goes through")
 
 
@@ -278,7 +279,7 @@ def test_the_lesson_runs_with_the_reference_at_full_marks(tmp_path):
     assert "gauge free : 7 of" in text["gauge"] and "gauge fixed: 0 of" in text["gauge"]
     images = [k for k, v in outputs.items() for o in v if "image/png" in o.get("data", {})]
     assert images == IMAGES
-    assert "Traceback" not in "".join(text.values()) and "not run: not implemented" not in "".join(text.values())
+    assert "Traceback" not in "".join(text.values()) and "not implemented" not in "".join(text.values())
     nbformat.write(nb, tmp_path / "executed.ipynb")
 
 
@@ -302,7 +303,7 @@ def test_in_a_student_tree_with_chapter_1_written_the_lesson_names_its_todos(pyt
     assert re.search(r"chapter4_bundle_adjustment\.ipynb: all \d+ code cells ran", done.stderr), done.stderr[-2000:]
     nb = nbformat.read(out / "chapter4_bundle_adjustment.ipynb", as_version=4)
     outputs, text, results = _outputs(nb)
-    todo = "not run: not implemented: TODO {} (write it, then run this cell again)\n"
+    todo = "not implemented: TODO {}: write it, then run this cell again\n"
     jacobians = "bundle_adjustment.reprojection_residuals_and_jacobians"
     for cell in ("sparsity", "gauge", "sum-order", "per-iteration", "sweep", "dense", "outliers"):
         assert todo.format(jacobians) in text[cell], (cell, text[cell])

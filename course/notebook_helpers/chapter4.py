@@ -6,42 +6,25 @@ work: :data:`CAMERA`, :data:`POINT`, :func:`generic_observation`, :func:`observa
 :func:`observation_setup` (what ``course.check_jacobian`` needs for one observation). Robust costs as
 reweighted least squares: :func:`location_data`, :func:`irls_location`, :func:`irls_figure`. The
 parallel assembly: :func:`sum_order_table`.
-:func:`todo_as_a_line` wraps a cell that calls your code: an unwritten TODO prints one line naming it.
 
 ``impl`` is an implementation's name or path (``course.core.impl.load``): the figures and tables
-that need an exercise call *that* implementation's function.
+that need an exercise call *that* implementation's function. A cell that calls them is wrapped in
+``course.notebook_helpers.lesson.todo_as_one_line``: an unwritten TODO prints one line naming it.
 """
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from course.app import plot
-from course.core import impl as impl_loader
-from course.core.impl import not_implemented_reason
 from course.geometry.jacobian_check import Space, numerical_jacobian
 from course.geometry.so3 import skew, so3_exp
+from course.notebook_helpers.lesson import exercise
 from course.problems.bal.dataset import BALProblem, rotate
-
-
-@contextlib.contextmanager
-def todo_as_a_line(then: str = "write it, then run this cell again") -> Iterator[None]:
-    """Run the ``with`` block; an unwritten exercise (``NotImplementedError``) ends it with one
-    printed line, ``not run: not implemented: TODO module.function (write it, ...)``, not a traceback."""
-    try:
-        yield
-    except NotImplementedError as exc:
-        print(f"not run: {not_implemented_reason(exc)} ({then})")
-
-
-def _module(impl: Any, name: str) -> Any:
-    return impl_loader.load(impl).module(name)
-
 
 # ---------------------------------------------------------------- the camera model
 
@@ -208,7 +191,7 @@ def observation_line(problem: BALProblem, k: int) -> str:
 def observation_setup(problem: BALProblem, k: int, impl: Any = "solutions") -> ObservationSetup:
     """The implementation's residual and Jacobians of observation ``k`` of ``problem`` alone, as
     :class:`ObservationSetup`. Raises ``NotImplementedError`` while the function is a TODO."""
-    ba = _module(impl, "bundle_adjustment")
+    ba = exercise("bundle_adjustment", impl)
     obs = problem.observations[k:k + 1]
     index = np.zeros(1, dtype=np.int64)
 
@@ -259,7 +242,7 @@ def irls_location(data: LocationData, losses: Sequence[Any], impl: Any = "soluti
     iteratively reweighted least squares with the implementation's ``robust_kernels``: from the
     mean, ``w_i = rho'(s_i)`` with ``s_i = (y_i - mu)^2``, then ``mu = sum w_i y_i / sum w_i``
     (the Gauss-Newton step of the reweighted problem; all weights zero keeps mu)."""
-    kernels = _module(impl, "robust_kernels")
+    kernels = exercise("robust_kernels", impl)
     y = data.samples
     runs = []
     for loss in losses:
@@ -332,8 +315,8 @@ def sum_order_table(problem: BALProblem, impl: Any = "solutions", chunks: Sequen
     g_point, chi2) from the serial assembly for each number of workers, and whether every workers
     count and every one of ``repeats`` runs gave the same bits (they should: the chunks fix the
     sums, and adding the partial sums in chunk order fixes their order)."""
-    ba = _module(impl, "bundle_adjustment")
-    parallel = _module(impl, "parallel_assembly")
+    ba = exercise("bundle_adjustment", impl)
+    parallel = exercise("parallel_assembly", impl)
     args = (problem.camera_index, problem.point_index, problem.num_cameras, problem.num_points)
     r, J_cam, J_point = ba.reprojection_residuals_and_jacobians(problem.cameras, problem.points, problem.camera_index,
                                                                 problem.point_index, problem.observations)
