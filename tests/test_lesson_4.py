@@ -277,6 +277,10 @@ def test_the_lesson_runs_with_the_reference_at_full_marks(tmp_path):
     assert "d y / d camera w" in checker
     assert all(line.endswith("yes") for line in text["sum-order"].splitlines()[2:]) and "NO" not in text["sum-order"]
     assert "gauge free : 7 of" in text["gauge"] and "gauge fixed: 0 of" in text["gauge"]
+    # the numbers the prose and the questions quote are the ones printed
+    assert "(rotated by |w| = 2.08 rad)" in checker and "1.47x" in text["parallel"]
+    if "ladybug-49: 49 cameras" in text["sparsity"]:  # the data folder is here
+        assert re.search(r"J +63686 +23769 ", text["sparsity"]) and " 4519.7" in text["sparsity"]
     images = [k for k, v in outputs.items() for o in v if "image/png" in o.get("data", {})]
     assert images == IMAGES
     assert "Traceback" not in "".join(text.values()) and "not implemented" not in "".join(text.values())
