@@ -67,7 +67,7 @@ def drifted(poses, drift: float) -> np.ndarray:
     return out
 
 
-def drift_basin(graph, impl="solutions", drifts: Sequence[float] = DRIFTS, show: float = 4.32):
+def drift_basin(graph, impl="solutions", drifts=DRIFTS, show: float = 4.32):
     """Two panels on ``graph``: (left) chi2 of the drifted starts ``drifted(x*, d)`` against the drift d,
     with x* our Gauss-Newton's minimum from the file's poses, and the chi2 where Gauss-Newton
     (``impl``'s, at most 50 iterations) ends from each; (right) where Gauss-Newton ends from the drift
@@ -82,16 +82,18 @@ def drift_basin(graph, impl="solutions", drifts: Sequence[float] = DRIFTS, show:
               "(this figure runs your Gauss-Newton on a pose graph: chapter 2)")
         return None
     x_star = np.asarray(best.params).reshape(-1, 3)
-    drifts = np.asarray(drifts, dtype=float)
-    starts, ends, runs = [], [], []
-    for d in drifts:
+    drift = np.asarray(drifts, dtype=float)
+    start_chi2: list = []
+    end_chi2: list = []
+    runs: list = []
+    for d in drift:
         start = graph.with_poses(drifted(x_star, d))
         run = minimize(PoseGraphProblem(start, impl), "gauss-newton", impl=impl,
                        options=SolverOptions(max_iterations=50))
-        starts.append(start.chi2())
-        ends.append(run.final_chi2)
+        start_chi2.append(start.chi2())
+        end_chi2.append(run.final_chi2)
         runs.append(run)
-    starts, ends = np.array(starts), np.array(ends)
+    drifts, starts, ends = drift, np.array(start_chi2), np.array(end_chi2)
     home = np.abs(ends - best.final_chi2) <= 1e-6 * best.final_chi2
     fig = plot.figure(12.0, 4.8)
     left, right = fig.subplots(1, 2)
