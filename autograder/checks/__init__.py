@@ -35,7 +35,7 @@ from autograder.records import Call, Check, Context, ErrorInfo, Outcome, Verdict
 ORDER = ("curve_model", "gauss_newton", "damping", "end_to_end", "pose_graph_edge", "pose_graph_assembly",
          "sparse_solve", "ceres_edge_cost", "pose_graph_fast", "pose_graph", "dogleg",
          "initialisation", "bundle_adjustment", "robust_kernels", "gauge", "parallel_assembly",
-         "marginalisation", "imu_preintegration", "pose_graph_3d", "pose_graph_3d_assembly", "chordal_3d", "gnc",
+         "imu_preintegration", "marginalisation", "pose_graph_3d", "pose_graph_3d_assembly", "chordal_3d", "gnc",
          "jets", "autodiff_factor", "factor_linearisation")
 
 

@@ -28,15 +28,12 @@ rho, R Exp(phi))``, translation first); a factor's residual is written once for 
 
 from __future__ import annotations
 
-import contextlib
 import warnings
-from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from course.app import plot
-from course.core import impl as impl_loader
 from course.core.errors import DatasetError
 from course.core.impl import not_implemented_reason
 from course.factorgraph import BETWEEN_SE2, RANGE_BEARING, SE2, SE3, FactorGraph, FactorGraphProblem, Vector, jetmath
@@ -44,26 +41,13 @@ from course.factorgraph.factors import between_se2, between_se3
 from course.factorgraph.variables import se3_value
 from course.geometry.jacobian_check import JacobianCheck, check_jacobian
 from course.geometry.so3 import exp_many, skew
+from course.notebook_helpers.lesson import exercise, todo_as_one_line  # noqa: F401 (the cells call them here)
 from course.solver import minimize
 from course.solver.superlu import SuperLUSolver
 
 EPS = float(np.finfo(float).eps)
 
 # ---------------------------------------------------------------- every cell that runs your code
-
-
-@contextlib.contextmanager
-def todo_as_one_line(out=print) -> Iterator[None]:
-    """Run the block; an unwritten exercise (``NotImplementedError``) ends it with one line naming the TODO."""
-    try:
-        yield
-    except NotImplementedError as exc:
-        out(f"{not_implemented_reason(exc)}: write it, then run this cell again")
-
-
-def exercise(name: str, impl="solutions"):
-    """The module ``name`` of implementation ``impl`` (``"solutions"``, ``"exercises"`` or a path)."""
-    return impl_loader.load(impl).module(name)
 
 
 # ---------------------------------------------------------------- section 1: dual numbers
