@@ -3,14 +3,12 @@ in the quick setting (a hint and a check cell per exercise, a Jacobian-checker c
 derived, the figures, the numbers the prose quotes), its written questions, and the notebook in a student
 tree where only chapter 1 is written."""
 
-import os
-import shutil
-import subprocess
 
 import nbformat
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from executed_notebooks import chapter_1_student_build, executed_small
 
 from course.core import peers
 from course.core.impl import REPO_ROOT
@@ -273,9 +271,7 @@ def _outputs(nb):
 
 @pytest.fixture(scope="module")
 def executed():
-    nb = _lesson()
-    build.execute(nb, timeout=300, small=True)
-    return nb
+    return executed_small(build.CHAPTER2)
 
 
 @pytest.mark.slow
@@ -325,18 +321,9 @@ def test_the_lessons_figures_and_numbers(executed):
 
 @pytest.mark.slow
 def test_in_a_student_tree_with_chapter_1_written_the_lesson_builds_and_names_its_todos(python, tmp_path):
-    from course.release import stubs as release
-
-    tree = tmp_path / "tree"
-    release.release(check=True, student_dir=tree)
-    for name in ("curve_model", "gauss_newton", "damping"):
-        shutil.copy(REPO_ROOT / "solutions" / f"{name}.py", tree / "exercises" / f"{name}.py")
-    out = tmp_path / "out"
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "COURSE_IMPL"))}
-    env["PYTHONPATH"] = str(tree)
-    done = subprocess.run([python, "-m", "notebooks.build", "--execute", "--small", "--only", "chapter2", "--out",
-                           str(out)], cwd=tree, env=env, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    built = chapter_1_student_build(python)  # the tree and every notebook built once per test run
+    out = built["out"]
+    assert built["returncode"] == 0, built["output"][-3000:]
     nb = nbformat.read(out / "chapter2_pose_graphs.ipynb", as_version=4)
     text = _outputs(nb)
     assert "implementation: exercises" in text["setup"]

@@ -4,14 +4,12 @@ cell before the Jacobians' check), the experiments, the written questions; its h
 (``course.notebook_helpers.chapter4``) with the reference, a wrong implementation and a TODO; and the
 notebook in a student tree where only chapter 1 is written."""
 
-import os
 import re
-import shutil
-import subprocess
 
 import nbformat
 import numpy as np
 import pytest
+from executed_notebooks import chapter_1_student_build, executed_small
 
 from course import check_jacobian
 from course.core.impl import REPO_ROOT
@@ -259,8 +257,7 @@ def _outputs(nb):
 
 @pytest.mark.slow
 def test_the_lesson_runs_with_the_reference_at_full_marks(tmp_path):
-    nb = build.read(build.NOTEBOOKS[build.CHAPTER4])
-    build.execute(nb, timeout=300, small=True)
+    nb = executed_small(build.CHAPTER4)
     outputs, text, results = _outputs(nb)
     errors = [(k, o.get("evalue")) for k, v in outputs.items() for o in v if o.output_type == "error"]
     assert not errors, errors
@@ -292,19 +289,11 @@ def test_in_a_student_tree_with_chapter_1_written_the_lesson_names_its_todos(pyt
     """A student who wrote chapter 1 only: the lesson runs to the end; each cell that needs chapter 4's
     code is one line naming the TODO (its check cells: a table of TODOs), the peers run, no cell fails."""
     from course.core import peers
-    from course.release import stubs as release
-
-    tree = tmp_path / "tree"
-    release.release(check=True, student_dir=tree)
-    for name in ("curve_model", "gauss_newton", "damping"):
-        shutil.copy(REPO_ROOT / "solutions" / f"{name}.py", tree / "exercises" / f"{name}.py")
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "COURSE_IMPL"))}
-    env["PYTHONPATH"] = str(tree)
-    out = tmp_path / "out"
-    done = subprocess.run([python, "-m", "notebooks.build", "--execute", "--small", "--only", "chapter4", "--out",
-                           str(out)], cwd=tree, env=env, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    assert re.search(r"chapter4_bundle_adjustment\.ipynb: all \d+ code cells ran", done.stderr), done.stderr[-2000:]
+    built = chapter_1_student_build(python)  # the tree and every notebook built once per test run
+    out = built["out"]
+    assert built["returncode"] == 0, built["output"][-3000:]
+    log = built["output"]
+    assert re.search(r"chapter4_bundle_adjustment\.ipynb: all \d+ code cells ran", log), log[-2000:]
     nb = nbformat.read(out / "chapter4_bundle_adjustment.ipynb", as_version=4)
     outputs, text, results = _outputs(nb)
     todo = "not implemented: TODO {}: write it, then run this cell again\n"

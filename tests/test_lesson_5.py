@@ -3,11 +3,11 @@ cells for ``imu_preintegration`` and ``marginalisation``, the experiments, the w
 helpers (``course.notebook_helpers.chapter5``), with the reference, a wrong implementation and a TODO."""
 
 import re
-import shutil
 
 import nbformat
 import numpy as np
 import pytest
+from executed_notebooks import chapter_1_student_build, executed_small
 
 from course import check_jacobian
 from course.core.impl import REPO_ROOT
@@ -219,8 +219,7 @@ def _outputs(nb):
 
 @pytest.mark.slow
 def test_the_lesson_runs_with_the_reference_at_full_marks(tmp_path):
-    nb = build.read(build.NOTEBOOKS[build.CHAPTER5])
-    build.execute(nb, timeout=300, small=True)
+    nb = executed_small(build.CHAPTER5)
     outputs, text, results = _outputs(nb)
     errors = [(k, o.get("evalue")) for k, v in outputs.items() for o in v if o.output_type == "error"]
     assert not errors, errors
@@ -246,22 +245,10 @@ def test_the_lesson_runs_with_the_reference_at_full_marks(tmp_path):
 def test_in_a_student_tree_with_chapter_1_written_the_lesson_names_its_todos(python, tmp_path):
     """A student who wrote chapter 1 only: the lesson runs to the end; each cell that needs chapter 5's
     code is one line naming the TODO (its check cells: a table of TODOs), and no cell fails."""
-    import os
-    import subprocess
-
-    from course.release import stubs as release
-
-    tree = tmp_path / "tree"
-    release.release(check=True, student_dir=tree)
-    for name in ("curve_model", "gauss_newton", "damping"):
-        shutil.copy(REPO_ROOT / "solutions" / f"{name}.py", tree / "exercises" / f"{name}.py")
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "COURSE_IMPL"))}
-    env["PYTHONPATH"] = str(tree)
-    out = tmp_path / "out"
-    done = subprocess.run([python, "-m", "notebooks.build", "--execute", "--small", "--only", "chapter5", "--out",
-                           str(out)], cwd=tree, env=env, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    assert re.search(r"chapter5_vio\.ipynb: all \d+ code cells ran", done.stderr), done.stderr[-2000:]
+    built = chapter_1_student_build(python)  # the tree and every notebook built once per test run
+    out = built["out"]
+    assert built["returncode"] == 0, built["output"][-3000:]
+    assert re.search(r"chapter5_vio\.ipynb: all \d+ code cells ran", built["output"]), built["output"][-2000:]
     outputs, text, results = _outputs(nbformat.read(out / "chapter5_vio.ipynb", as_version=4))
     todo = "not run: not implemented: TODO {} (write it, then run this cell again)\n"
     assert text["figure-preintegration"] == todo.format("imu_preintegration.preintegrate")

@@ -2,13 +2,11 @@
 in the quick setting (a hint, a check and, where a Jacobian is derived, a checker cell per exercise; the
 figures; the written questions), and the notebook in a student tree where only chapter 1 is written."""
 
-import os
-import shutil
-import subprocess
 
 import nbformat
 import numpy as np
 import pytest
+from executed_notebooks import chapter_1_student_build, executed_small
 
 from course.core.impl import REPO_ROOT
 from course.geometry.jacobian_check import check_jacobian, numerical_jacobian
@@ -179,9 +177,7 @@ def executed():
 
     if not data_dir().is_dir():
         pytest.skip(f"data folder {data_dir()} not found (set COURSE_DATA to use another)")
-    nb = build.read(build.NOTEBOOKS[build.CHAPTER6])
-    build.execute(nb, timeout=300, small=True)
-    return nb
+    return executed_small(build.CHAPTER6)
 
 
 @pytest.mark.slow
@@ -273,20 +269,11 @@ def test_reference_answers_of_every_question_stay_out_of_the_student_tree():
 @pytest.mark.slow
 def test_in_a_student_tree_with_chapter_1_written_the_lesson_builds_and_names_its_todos(python, tmp_path):
     from course.core.data import data_dir
-    from course.release import stubs as release
-
     if not data_dir().is_dir():
         pytest.skip(f"data folder {data_dir()} not found (set COURSE_DATA to use another)")
-    tree = tmp_path / "tree"
-    release.release(check=True, student_dir=tree)
-    for name in ("curve_model", "gauss_newton", "damping"):
-        shutil.copy(REPO_ROOT / "solutions" / f"{name}.py", tree / "exercises" / f"{name}.py")
-    out = tmp_path / "out"
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "COURSE_IMPL"))}
-    env.update(PYTHONPATH=str(tree), COURSE_DATA=str(data_dir()))
-    done = subprocess.run([python, "-m", "notebooks.build", "--execute", "--small", "--only", "chapter6", "--out",
-                           str(out)], cwd=tree, env=env, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    built = chapter_1_student_build(python)  # the tree and every notebook built once per test run
+    out = built["out"]
+    assert built["returncode"] == 0, built["output"][-3000:]
     nb = nbformat.read(out / "chapter6_pose_graphs_3d.ipynb", as_version=4)
     cells, text = _outputs(nb)
     assert "implementation: exercises" in text["setup"]

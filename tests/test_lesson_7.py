@@ -3,12 +3,11 @@ notebook run in the quick setting (a hint and a check per exercise, the checker 
 written questions), its reference answers, and the notebook in a student tree where nothing of chapter 7
 is written."""
 
-import os
-import subprocess
 
 import nbformat
 import numpy as np
 import pytest
+from executed_notebooks import chapter_1_student_build, executed_small
 
 from course.core.impl import REPO_ROOT
 from course.factorgraph import SE2, FactorType
@@ -246,18 +245,12 @@ def executed():
 
     if not data_dir().is_dir():
         pytest.skip(f"data folder {data_dir()} not found (set COURSE_DATA to use another)")
-    import time
-
-    nb = build.read(build.NOTEBOOKS[build.CHAPTER7])
-    start = time.perf_counter()
-    build.execute(nb, timeout=300, small=True)
-    return nb, time.perf_counter() - start
+    return executed_small(build.CHAPTER7)
 
 
 @pytest.mark.slow
 def test_the_lesson_runs_with_a_hint_a_check_and_a_checker_per_exercise(executed):
-    nb, seconds = executed
-    assert seconds < 60, f"the quick setting took {seconds:.0f} s"
+    nb = executed
     text = _outputs(nb)
     errors = [(c.id, o.get("ename"), o.get("evalue")) for c in nb.cells if c.cell_type == "code"
               for o in c.outputs if o.output_type == "error"]
@@ -294,7 +287,7 @@ def test_the_lesson_runs_with_a_hint_a_check_and_a_checker_per_exercise(executed
 
 @pytest.mark.slow
 def test_the_lessons_figures_tables_and_numbers(executed):
-    nb, _ = executed
+    nb = executed
     text = _outputs(nb)
     assert _images(nb) == FIGURES
     assert "f(2 + eps) = 3 + 9 eps" in text["figure-dual"]
@@ -344,22 +337,14 @@ def test_the_lesson_is_registered():
     assert build.NOTEBOOKS[build.CHAPTER7] == REPO_ROOT / "notebooks" / "chapter7_factor_graphs.py"
 
 
-# ---------------------------------------------------------------- a student tree, chapter 7 not written
+# ---------------------------------------------------------------- a student tree, chapter 7 not written (chapter 1 is)
 
 
 @pytest.mark.slow
-def test_in_a_student_tree_the_lesson_builds_and_names_its_todos(python, tmp_path):
-    from course.core.data import data_dir
-    from course.release import stubs as release
-
-    tree = tmp_path / "tree"
-    release.release(check=True, student_dir=tree)
-    out = tmp_path / "out"
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "COURSE_IMPL"))}
-    env.update(PYTHONPATH=str(tree), COURSE_DATA=str(data_dir()))
-    done = subprocess.run([python, "-m", "notebooks.build", "--execute", "--small", "--only", "chapter7", "--out",
-                           str(out)], cwd=tree, env=env, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+def test_in_a_student_tree_the_lesson_builds_and_names_its_todos(python):
+    built = chapter_1_student_build(python)  # the tree (chapter 1 written) and every notebook, once per run
+    out = built["out"]
+    assert built["returncode"] == 0, built["output"][-3000:]
     nb = nbformat.read(out / "chapter7_factor_graphs.ipynb", as_version=4)
     text = _outputs(nb)
     assert "implementation: exercises" in text["setup"]

@@ -14,6 +14,7 @@ import sys
 import nbformat
 import pytest
 from conftest import needs
+from executed_notebooks import executed_small
 
 from notebooks import build
 
@@ -137,8 +138,7 @@ def test_kernel_falls_back_to_a_temporary_kernelspec(monkeypatch):
 
 @pytest.mark.slow
 def test_chapter1_executes(tmp_path):
-    nb = build.read(build.NOTEBOOKS[build.CHAPTER1])
-    build.execute(nb, timeout=300, small=True)
+    nb = executed_small(build.CHAPTER1)
     errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
     assert not errors, errors
     text = "\n".join(
@@ -167,8 +167,7 @@ def test_chapter1_executes(tmp_path):
 
 def _execute_small(path):
     """Run notebook ``path`` (built from its source) in the small setting; returns (text of its outputs, images)."""
-    nb = build.read(build.NOTEBOOKS[path])
-    build.execute(nb, timeout=300, small=True)
+    nb = executed_small(path)
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     errors = [o for o in outputs if o.output_type == "error"]
     assert not errors, errors
