@@ -342,6 +342,8 @@ def test_the_lesson_is_registered():
 
 @pytest.mark.slow
 def test_in_a_student_tree_the_lesson_builds_and_names_its_todos(python):
+    from course.core.data import data_dir
+
     built = chapter_1_student_build(python)  # the tree (chapter 1 written) and every notebook, once per run
     out = built["out"]
     assert built["returncode"] == 0, built["output"][-3000:]
