@@ -5,7 +5,7 @@
     python -m notebooks.build --small      # with --execute: one run per timing, not five,
                                            # chapters 2, 3 and 3b on small graphs only,
                                            # chapter 4 on synthetic problems, chapter 5 on a
-                                           # 4-second simulation
+                                           # 4-second simulation, chapter 7 on intel alone
     python -m notebooks.build --only chapter2 chapter3   # only those notebooks
     python -m notebooks.build --execute --out /tmp/nb    # write them elsewhere
 
@@ -21,7 +21,11 @@ visual-inertial back end (the fill-in of H when a keyframe is marginalised, the 
 cost and the prior's size, the APE over time of the window with and without the prior,
 the batch and GTSAM's, the source's EuRoC MH_05 table), chapter 6 3D pose graphs (every back
 end from the file's poses and the chordal start, the trajectories, the spectrum of rotation
-errors, wrong loop closures against least squares, a Cauchy kernel and GNC).
+errors, wrong loop closures against least squares, a Cauchy kernel and GNC), chapter 7 a lesson
+on the factor graph with automatic differentiation (dual numbers and Jets, finite differences
+against Jets by the step size, the chain rule through a retraction, the generic block-sparse
+linearisation; then intel, sphere2500 and ladybug-49 as factor graphs: automatic against analytic
+Jacobians, the same minimum, the benchmark, and a GPS factor in five lines).
 
 Each notebook's source is a jupytext py:percent file next to it (``chapter2_pose_graphs.py``
 for ``chapter2_pose_graphs.ipynb``); edit the source, then rebuild. A cell starts with
@@ -74,10 +78,11 @@ CHAPTER3B = HERE / "chapter3b_initialisation.ipynb"
 CHAPTER4 = HERE / "chapter4_bundle_adjustment.ipynb"
 CHAPTER5 = HERE / "chapter5_vio.ipynb"
 CHAPTER6 = HERE / "chapter6_pose_graphs_3d.ipynb"
+CHAPTER7 = HERE / "chapter7_factor_graphs.ipynb"
 
 #: each notebook and its py:percent source
 NOTEBOOKS = {path: path.with_suffix(".py")
-             for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B, CHAPTER4, CHAPTER5, CHAPTER6)
+             for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B, CHAPTER4, CHAPTER5, CHAPTER6, CHAPTER7)
              if path.is_file() or path.with_suffix(".py").is_file()}  # an assignment tree ships its chapters only
 
 
@@ -326,7 +331,7 @@ def execute(nb, timeout=900, cwd=HERE, small=False, impl=None, progress=None, ke
     ``COURSE_NOTEBOOK_REPEAT`` (1 when
     ``small``, else 5) and ``COURSE_NOTEBOOK_SMALL`` (1 when ``small``: chapters 2, 3 and 3b
     run on small graphs only, chapter 4 on synthetic problems, chapter 5 on a 4-second
-    simulation) and starts in ``cwd``. ``progress``, a name: report each
+    simulation, chapter 7 on intel alone) and starts in ``cwd``. ``progress``, a name: report each
     cell on stderr under it (see ``_Progress``; ``verbose``: a line per cell off a terminal).
     """
     from nbclient import NotebookClient

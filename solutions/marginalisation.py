@@ -12,15 +12,13 @@ Split ``dx`` into the variables to remove (m) and those kept (r, in their origin
     H = [[H_rr, H_rm],      b = [b_r,
          [H_mr, H_mm]]           b_m]
 
-Minimising ``c`` over ``dx_m`` (``H_mm dx_m = -(b_m + H_mr dx_r)``) leaves a cost of ``dx_r``
-alone whose Hessian and gradient are the Schur complements::
-
-    H_prior = H_rr - H_rm H_mm^-1 H_mr
-    b_prior = b_r  - H_rm H_mm^-1 b_m
+Minimise ``c`` over ``dx_m`` (for a given ``dx_r``) and put the minimiser back: what is left is a
+cost of ``dx_r`` alone, ``1/2 dx_r^T H_prior dx_r + b_prior^T dx_r + const``. Derive ``H_prior`` and
+``b_prior`` from the blocks (``python -m autograder hint marginalise 1``, then 2 and 3).
 
 This is also the information form of the Gaussian marginal: when H is definite,
 ``H_prior = ((H^-1)_rr)^-1``. Removing x2 from a chain x1 - x2 - x3 leaves a direct factor
-between x1 and x3 (fill-in): ``H_rm H_mm^-1 H_mr`` couples every kept variable that shared a
+between x1 and x3 (fill-in): the prior couples every kept variable that shared a
 factor with a removed one.
 
 ``H_mm`` can be singular: a landmark seen once (by one bearing) is unconstrained along the

@@ -35,8 +35,11 @@ def test_the_end_of_a_chapter_names_its_lesson_then_the_next_chapter():
     line = report.next_step(_results({"dogleg.cauchy_point", "dogleg.dogleg_step", "dogleg.update_radius",
                                       "dogleg.end_to_end"}))
     assert "chapter 3's lesson, notebooks/chapter3_dogleg.ipynb" in line and "initialisation." in line
-    last = report.next_step(_results({"gnc.gnc"}))
-    assert last.startswith("next: every exercise is at full marks")
+    line = report.next_step(_results({"gnc.gnc"}))
+    assert line.startswith("next: chapter 6's lesson, notebooks/chapter6_pose_graphs_3d.ipynb (`make notebooks`), "
+                           "then jets.Jet (chapter 7;")
+    last = report.next_step(_results({"factor_linearisation.BlockSparseAssembler"}))
+    assert last == "next: every exercise is at full marks; the last lesson is notebooks/chapter7_factor_graphs.ipynb"
 
 
 def test_an_exercise_below_full_marks_comes_first():

@@ -14,6 +14,7 @@ import sys
 import nbformat
 import pytest
 from conftest import needs
+from executed_notebooks import executed_small
 
 from notebooks import build
 
@@ -46,10 +47,19 @@ def test_source_round_trips_with_ids_and_tags(path, tmp_path):
     again = build.read(copy)
     assert [(c.id, c.source, c.metadata) for c in again.cells] == [(c.id, c.source, c.metadata) for c in nb.cells]
     tagged = {cell.id for cell in nb.cells if build.ANSWER_TAG in cell.metadata.get("tags", [])}
-    expected = {"answer-1", "answer-2"} if path in (build.CHAPTER2, build.CHAPTER3B, build.CHAPTER4,
-                                                    build.CHAPTER5, build.CHAPTER6) else set()
+    expected = {"answer-1", "answer-2"} if path == build.CHAPTER4 else set()
     if path == build.CHAPTER1:
         expected = {"answer-1", "answer-2", "answer-3"}
+    if path in (build.CHAPTER3, build.CHAPTER3B):  # their lessons' four questions
+        expected = {f"answer-{k}" for k in range(1, 5)}
+    if path == build.CHAPTER5:  # its lesson's four questions
+        expected = {f"answer-{k}" for k in range(1, 5)}
+    if path in (build.CHAPTER2, build.CHAPTER6):  # their lessons' five questions
+        expected = {f"answer-{k}" for k in range(1, 6)}
+    if path == build.CHAPTER4:  # its lesson's five questions
+        expected = {f"answer-{k}" for k in range(1, 6)}
+    if path == build.CHAPTER7:  # its lesson's five questions
+        expected = {f"answer-{k}" for k in range(1, 6)}
     assert tagged == expected
     assert all(set(cell.metadata) <= {"tags"} for cell in nb.cells)
 
@@ -128,8 +138,7 @@ def test_kernel_falls_back_to_a_temporary_kernelspec(monkeypatch):
 
 @pytest.mark.slow
 def test_chapter1_executes(tmp_path):
-    nb = build.read(build.NOTEBOOKS[build.CHAPTER1])
-    build.execute(nb, timeout=300, small=True)
+    nb = executed_small(build.CHAPTER1)
     errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
     assert not errors, errors
     text = "\n".join(
@@ -158,8 +167,7 @@ def test_chapter1_executes(tmp_path):
 
 def _execute_small(path):
     """Run notebook ``path`` (built from its source) in the small setting; returns (text of its outputs, images)."""
-    nb = build.read(build.NOTEBOOKS[path])
-    build.execute(nb, timeout=300, small=True)
+    nb = executed_small(path)
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     errors = [o for o in outputs if o.output_type == "error"]
     assert not errors, errors
@@ -178,7 +186,7 @@ def test_chapter2_executes_small():
                   "measured in the loop", "Converged (stopped by their own test"):
         assert words in text
     assert "w10000" not in text  # the full setting only
-    assert len(images) == 2  # before/after, dense and sparse against N
+    assert len(images) == 6  # the theory's four (tests/test_lesson_2.py), before/after, dense and sparse against N
     # the written questions are asked, with an empty answer cell each, and not answered
     markdown = {c.get("id"): c.source for c in nb.cells if c.cell_type == "markdown"}
     assert "Question 1" in markdown["questions-md"] and "Question 2" in markdown["questions-md"]
@@ -199,7 +207,7 @@ def test_chapter3_executes_small():
     _, text, images = _execute_small(build.CHAPTER3)
     for words in ("curve (start chi2", "manhattan:200 (start chi2", "at GN minimum", "factorizations / step attempts"):
         assert words in text
-    assert len(images) == 4  # per iteration and per second, on the curve and on manhattan:200
+    assert len(images) == 6  # the path and the radius (theory); per iteration and per second, curve and manhattan:200
     # after every rejection the dogleg retries without a factorization; LM type 1 factorizes again
     assert re.search(r"dogleg: [1-9]\d* retries after a rejection, new factorizations before each: \[0\]", text)
     assert re.search(r"lm-type1: [1-9]\d* retries after a rejection, new factorizations before each: \[1\]", text)
@@ -221,7 +229,7 @@ def test_chapter3b_executes_small():
         assert f"manhattan:200 {init}" in text
     for name in ("intel", "m3500", "w10000"):  # the full setting only
         assert name not in text
-    assert len(images) == 1  # the basin: two starts, two panels each
+    assert len(images) == 4  # the drift, the tree, the relaxation (theory); the basin: two starts, two panels each
     # a peer not installed here is a row saying so, else a row of numbers
     for backend in ("g2o", "gtsam"):
         assert f"{backend:8} gauss-newton  file" in text
@@ -263,8 +271,9 @@ def test_chapter4_executes_small():
     if peers.installed("gtsam"):  # dubrovnik-3-7 ships with gtsam
         for words in ("38 residuals (2 per observation) for 48 unknowns", "null space 3", "cost @ 100", "f_2"):
             assert words in text, words
-    # sparsity, costs on the synthetic problem, the size sweep, dense against Schur, kernels, gauge
-    assert len(images) == 6
+    # the theory's camera, Taylor test, sparsity, kernels, IRLS and gauge; costs on the synthetic problem, the
+    # size sweep, dense against Schur
+    assert len(images) == 9
     markdown = {c.get("id"): c.source for c in nb.cells if c.cell_type == "markdown"}
     assert "Question 1" in markdown["questions-md"] and "Question 2" in markdown["questions-md"]
     assert "Your answer to question 1" in markdown["answer-1"]
@@ -309,8 +318,8 @@ def test_chapter5_executes_small():
     else:  # the source's evaluation: ours equals evo's, beside the source's LM row
         for words in ("ours                    0.245723  0.231451", "source's LM run         0.247000", "rmse within"):
             assert words in text, words
-    # fill-in, cost and prior size, APE over time
-    assert len(images) == 3
+    # the lesson's preintegration, window graph and marginal figures; fill-in, cost and prior size, APE over time
+    assert len(images) == 6
     markdown = {c.get("id"): c.source for c in nb.cells if c.cell_type == "markdown"}
     assert "Question 1" in markdown["questions-md"] and "Question 2" in markdown["questions-md"]
     assert "Your answer to question 1" in markdown["answer-1"]
@@ -330,7 +339,7 @@ def test_reference_answers_stay_out_of_the_student_tree():
     from course.release import stubs as release
 
     answers = REPO_ROOT / "solutions" / "answers"
-    for chapter in ("chapter1", "chapter2", "chapter3b", "chapter4", "chapter5"):
+    for chapter in ("chapter1", "chapter2", "chapter3", "chapter3b", "chapter4", "chapter5", "chapter6", "chapter7"):
         assert (answers / f"{chapter}.md").is_file(), chapter
     files = release.render(REPO_ROOT / "solutions")
     assert not [name for name in files if name.startswith("answers")]
@@ -349,6 +358,8 @@ def test_chapter6_executes_small(data_folder):
                   "outliers", "ours GNC TLS", "ours cauchy", "20% ours least squares"):
         assert words in text, words
     assert "sphere2500" not in text and "torus3D" not in text  # the full setting only
-    assert len(images) == 2  # the trajectories and the spectrum of smallGrid3D
+    # the theory's five (perturbations, right Jacobian, sparsity, chordal, surrogates), the trajectories
+    # and the spectrum of smallGrid3D, GNC's weights round by round
+    assert len(images) == 8
     markdown = {c.get("id"): c.source for c in nb.cells if c.cell_type == "markdown"}
     assert "Question 1" in markdown["questions-md"] and "Your answer to question 2" in markdown["answer-2"]

@@ -35,7 +35,7 @@ from autograder.records import Call, Check, Context, ErrorInfo, Outcome, Verdict
 ORDER = ("curve_model", "gauss_newton", "damping", "end_to_end", "pose_graph_edge", "pose_graph_assembly",
          "sparse_solve", "ceres_edge_cost", "pose_graph_fast", "pose_graph", "dogleg",
          "initialisation", "bundle_adjustment", "robust_kernels", "gauge", "parallel_assembly",
-         "marginalisation", "imu_preintegration", "pose_graph_3d", "pose_graph_3d_assembly", "chordal_3d", "gnc",
+         "imu_preintegration", "marginalisation", "pose_graph_3d", "pose_graph_3d_assembly", "chordal_3d", "gnc",
          "jets", "autodiff_factor", "factor_linearisation")
 
 
@@ -62,7 +62,7 @@ CHAPTER = {"curve_model": "1", "gauss_newton": "1", "damping": "1", "end_to_end"
 LESSONS = {"1": "notebooks/chapter1_curve_fitting.ipynb", "2": "notebooks/chapter2_pose_graphs.ipynb",
            "3": "notebooks/chapter3_dogleg.ipynb", "3b": "notebooks/chapter3b_initialisation.ipynb",
            "4": "notebooks/chapter4_bundle_adjustment.ipynb", "5": "notebooks/chapter5_vio.ipynb",
-           "6": "notebooks/chapter6_pose_graphs_3d.ipynb"}
+           "6": "notebooks/chapter6_pose_graphs_3d.ipynb", "7": "notebooks/chapter7_factor_graphs.ipynb"}
 
 
 def modules() -> list:

@@ -33,7 +33,7 @@ def _jr(phi):
 
 def preintegrate(call, *, scheme="midpoint", gyro_bias=True, accel_bias=True, both_new=False, half=0.5,
                  new_velocity=False, left=False, rot_block="E^T", per_dt=True, propagate=True, swap_q=False,
-                 jac_sign=1.0):
+                 jac_sign=1.0, d_g_sign=1.0):
     """The 12 outputs of ``preintegrate`` with one slip or none."""
     gyro, accel, dt, bg, ba, gn, an = call.args
     gyro, accel = np.asarray(gyro, dtype=float), np.asarray(accel, dtype=float)
@@ -52,7 +52,7 @@ def preintegrate(call, *, scheme="midpoint", gyro_bias=True, accel_bias=True, bo
         if scheme == "midpoint":
             acc = Rn @ (a0 + a1) / 2.0 if both_new else (R @ a0 + Rn @ a1) / 2.0
             D_phi = -(R @ skew(a0) + Rn @ skew(a1) @ E.T) / 2.0
-            D_g, D_a = Rn @ skew(a1) @ Jr * h / 2.0, -(R + Rn) / 2.0
+            D_g, D_a = d_g_sign * Rn @ skew(a1) @ Jr * h / 2.0, -(R + Rn) / 2.0
         else:
             acc, D_phi, D_g, D_a = R @ a0, -R @ skew(a0), np.zeros((3, 3)), -R
         A = np.eye(9)
@@ -96,6 +96,9 @@ _PRE_SLIPS = [
     ({"propagate": False}, "the covariance was not propagated through A_k: Sigma_{k+1} = A_k Sigma_k A_k^T + "
                            "B_k Q_k B_k^T"),
     ({"swap_q": True}, "gyro and accelerometer noises swapped: the first three columns of B_k are the gyro's"),
+    ({"d_g_sign": -1.0}, "D_g has the opposite sign: the gyro noise turns Delta R_{k+1} into Delta R_{k+1} "
+                         "Exp(-J_r eta_g dt), and [x]_x y = -[y]_x x turns -Delta R_{k+1} [J_r eta_g dt]_x a_{k+1} "
+                         "into +Delta R_{k+1} [a_{k+1}]_x J_r eta_g dt"),
     ({"jac_sign": -1.0}, "the bias Jacobians have the opposite sign: a bias is subtracted from the measurement, "
                          "as the noise is, so J_{k+1} = A_k J_k + B_k with B_k's -J_r dt"),
 ]

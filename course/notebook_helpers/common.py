@@ -142,13 +142,17 @@ def rejected(r: RunResult) -> list[int]:
 
 
 def gauss_newton_minimum(runs: Sequence[RunResult]) -> float:
-    """The final chi2 of our Gauss-Newton among ``runs``."""
-    return next(r.final_chi2 for r in runs if r.backend == "ours" and r.method == "gauss-newton")
+    """The final chi2 of our Gauss-Newton among ``runs`` (NaN when it did not run: a TODO)."""
+    return next((r.final_chi2 for r in runs if r.backend == "ours" and r.method == "gauss-newton"
+                 and not r.not_run), float("nan"))
 
 
 def reached(r: RunResult, runs: Sequence[RunResult]) -> str:
-    """'yes' when ``r`` ends at the Gauss-Newton minimum (1e-6 relative), else 'no' or 'lower'."""
+    """'yes' when ``r`` ends at the Gauss-Newton minimum (1e-6 relative), else 'no' or 'lower';
+    '?' when our Gauss-Newton did not run."""
     gn = gauss_newton_minimum(runs)
+    if not np.isfinite(gn):
+        return "?"
     rel = (r.final_chi2 - gn) / gn
     return "yes" if abs(rel) <= 1e-6 else ("lower" if rel < 0 else "no")
 
@@ -189,7 +193,8 @@ def chi2_against_time(runs: Sequence[RunResult], title: str) -> Any:
         ax.plot(1e3 * t[keep], kept[keep], marker=".", label=f"{plot.label(r)} ({1e3 * r.seconds:.1f} ms)")
         values.append(kept[keep])
         starts.append(r.trace[0].chi2)
-    ax.axhline(gauss_newton_minimum(runs), color="k", linestyle=":", linewidth=1, label="Gauss-Newton minimum")
+    if np.isfinite(gauss_newton_minimum(runs)):
+        ax.axhline(gauss_newton_minimum(runs), color="k", linestyle=":", linewidth=1, label="Gauss-Newton minimum")
     ax.set_xscale("log")
     ax.set_yscale("log")
     if values:
@@ -251,8 +256,8 @@ def basin_figure(starts: dict[str, tuple[Any, RunResult]], title: str) -> Any:
 
 
 def lowest(runs: Sequence[RunResult]) -> float:
-    """The lowest final chi2 among the runs that ran."""
-    return min(r.final_chi2 for r in runs if not r.not_run)
+    """The lowest final chi2 among the runs that ran (NaN when none did)."""
+    return min((r.final_chi2 for r in runs if not r.not_run), default=float("nan"))
 
 
 def initialiser_table(tables: dict[str, list[RunResult]], methods: Sequence[str]) -> str:
@@ -261,7 +266,8 @@ def initialiser_table(tables: dict[str, list[RunResult]], methods: Sequence[str]
     ``lowest`` (yes: within 1e-6 relative of the lowest final chi2 of any run on that graph).
 
     ``tables`` maps a graph's name to our runs on it, every start and method (``RunResult.init``
-    names the start); a pair missing from the runs is ``-``."""
+    names the start); a pair missing from the runs is ``-``, a start that did not run (a TODO) one
+    line naming it."""
     group = 5 + 1 + 14 + 1 + 6
     left = f"{'graph':13} {'start':8} {'start chi2':>11} {'init ms':>8}"
     head = [(" " * len(left) + "".join(f" | {m:^{group}}" for m in methods)).rstrip(),
@@ -271,7 +277,9 @@ def initialiser_table(tables: dict[str, list[RunResult]], methods: Sequence[str]
         best = lowest(runs)
         for init in dict.fromkeys(r.init for r in runs):
             row = [r for r in runs if r.init == init and not r.not_run]
-            if not row:
+            if not row:  # a TODO: one line naming it
+                reason = next(r.not_run for r in runs if r.init == init)
+                lines.append(f"{name:13} {init:8} {reason}")
                 continue
             line = f"{name:13} {init:8} {row[0].initial_chi2:11.4g} {1e3 * row[0].init_seconds:8.2f}"
             for m in methods:
@@ -282,7 +290,9 @@ def initialiser_table(tables: dict[str, list[RunResult]], methods: Sequence[str]
                 at = "yes" if abs(r.final_chi2 - best) <= 1e-6 * abs(best) else "no"
                 line += f" | {r.iterations:5d} {r.final_chi2:14.8g} {at:>6}"
             lines.append(line)
-    lines.append("lowest final chi2: " + ", ".join(f"{name} {lowest(runs):.8g}" for name, runs in tables.items()))
+    lines.append("lowest final chi2: " + ", ".join(
+        f"{name} {lowest(runs):.8g}" if np.isfinite(lowest(runs)) else f"{name} - (no run)"
+        for name, runs in tables.items()))
     return "\n".join(lines)
 
 

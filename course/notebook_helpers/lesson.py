@@ -6,12 +6,16 @@ check in a sandboxed child, judged by the same judge on the public checks, the s
 feedback. It never imports the student's code into the notebook's kernel.
 """
 
+import contextlib
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 from autograder import hints as hint_texts
 from autograder import report
 from autograder.grade import run
+from course.core import impl as impl_loader
+from course.core.impl import not_implemented_reason
 
 
 @dataclass
@@ -69,3 +73,21 @@ def check(exercise: str, impl: str | None = None, timeout: float | None = None, 
 def hint(name: str, level: int = 1) -> None:
     """Print level ``level`` (1 the approach, 2 the key identity, 3 the result) of ``name``'s hints."""
     print(hint_texts.text(name, level))
+
+
+@contextlib.contextmanager
+def todo_as_one_line(out=print) -> Iterator[None]:
+    """Run the ``with`` block; an unwritten exercise (``NotImplementedError``) ends it with one line
+    naming the TODO, a peer library that is not installed (``ImportError``) with one line naming it:
+    a lesson's cell that calls the student's code never stops the notebook with a traceback."""
+    try:
+        yield
+    except NotImplementedError as exc:
+        out(f"{not_implemented_reason(exc)}: write it, then run this cell again")
+    except ImportError as exc:
+        out(f"not run here: {exc.name or exc} is not installed (the peers extra)")
+
+
+def exercise(name: str, impl="solutions"):
+    """The module ``name`` of implementation ``impl`` (``"solutions"``, ``"exercises"`` or a path)."""
+    return impl_loader.load(impl).module(name)

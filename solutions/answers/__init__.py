@@ -1,7 +1,7 @@
 # RELEASE: omit
 """Reference answers to the notebooks' written questions (instructors only).
 
-``chapter2.md`` answers the two questions of ``notebooks/chapter2_pose_graphs.ipynb``.
+``chapter2.md`` answers the five questions of ``notebooks/chapter2_pose_graphs.ipynb``.
 Every file here starts with ``# RELEASE: omit``, so ``python -m course release`` keeps
 it out of ``exercises/`` (and the student tree has no ``solutions/`` at all).
 """

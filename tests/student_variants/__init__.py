@@ -1001,6 +1001,9 @@ IR_IN = ("def imu_factor_residual", "# BEGIN SOLUTION")
 
 # chapter 5: IMU preintegration (midpoint) and the IMU factor's residual
 BUGS_IMU_PREINTEGRATION = {
+    "ip_gyro_noise_on_the_acceleration_with_the_wrong_sign": V(
+        "imu_preintegration.py", IP_IN, "D_g = R_next @ skew(acc[k + 1]) @ Jr * (h / 2.0)",
+        "D_g = -R_next @ skew(acc[k + 1]) @ Jr * (h / 2.0)", {IP_COV, IP_JVP}, "D_g has the opposite sign"),
     "ip_euler_scheme": V(
         "imu_preintegration.py", [], 'accel_noise, scheme="midpoint"):', 'accel_noise, scheme="euler"):',
         IP_ALL, "(Euler, as GTSAM does)"),

@@ -39,7 +39,8 @@ INNER = SolverOptions(max_iterations=30, cost_tolerance=1e-8)
 @dataclass
 class RobustRun:
     """One robust solve: the poses, which edges it kept (weight > 0.5), the outer iterations
-    (GNC's mu values), inner Gauss-Newton iterations, seconds."""
+    (GNC's mu values), inner Gauss-Newton iterations, seconds; for GNC, ``extra`` holds ``mus`` and
+    ``weights``, the weights (M,) of each solve, the first least squares' ones included."""
 
     method: str
     t: np.ndarray
@@ -80,11 +81,12 @@ def least_squares(graph: PoseGraph3D, impl="solutions", loss=None, max_iteration
 def gnc(graph: PoseGraph3D, surrogate="tls", impl="solutions", c2=C2_6DOF_99) -> RobustRun:
     """GNC with the implementation's ``gnc`` module; the edges kept are those of weight > 0.5."""
     module = impl_loader.load(impl).module("gnc")
-    state: dict = {"x": None, "inner": 0, "seconds": 0.0}
+    state: dict = {"x": None, "inner": 0, "seconds": 0.0, "weights": []}
     solver = factorizer()
 
     def solve(weights):
         weights = np.asarray(weights, dtype=float)
+        state["weights"].append(weights.copy())
         keep = weights >= DROP
         weighted = _weighted(graph.with_edges(keep), weights[keep])
         if state["x"] is None:
@@ -101,7 +103,7 @@ def gnc(graph: PoseGraph3D, surrogate="tls", impl="solutions", c2=C2_6DOF_99) ->
     weights, mus = module.gnc(solve, graph.num_edges, c2, surrogate, known_inliers=odometry(graph))
     t, R = unpack(state["x"])
     return RobustRun(f"GNC {surrogate.upper()}", t, R, np.asarray(weights) > 0.5, len(mus), state["inner"],
-                     state["seconds"], {"mus": list(mus)})
+                     state["seconds"], {"mus": list(mus), "weights": state["weights"]})
 
 
 def errors_against(t, R, t_true, R_true) -> tuple:

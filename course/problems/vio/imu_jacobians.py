@@ -8,15 +8,11 @@ and its Jacobian (9, 30) in the 30 tangent coordinates
 ``(dphi_i, dp_i, dv_i, dbg_i, dba_i, dphi_j, dp_j, dv_j, dbg_j, dba_j)``. It needs no
 implementation module (it works in a student tree too): only the preintegrated values.
 
-The residual (Forster, Carlone, Dellaert, Scaramuzza, T-RO 2017, eq. 45, first-order bias
-correction). With ``delta b = (b_g,i - b^_g, b_a,i - b^_a)`` (``b^`` the biases the preintegration
-was computed at), ``theta = dR/dbg delta b_g``, ``dT = delta_t``::
-
-    Delta R' = Delta R Exp(theta)
-    Delta v' = Delta v + dv/dbg delta b_g + dv/dba delta b_a,    Delta p' likewise
-    u_v = R_i^T (v_j - v_i - g dT),    u_p = R_i^T (p_j - p_i - v_i dT - 1/2 g dT^2)
-    E   = Delta R'^T R_i^T R_j
-    r   = (r_R, r_v, r_p) = (Log(E), u_v - Delta v', u_p - Delta p')
+The residual is the one of chapter 5's exercise ``imu_factor_residual`` (Forster, Carlone, Dellaert,
+Scaramuzza, T-RO 2017, eq. 45, first-order bias correction), ``r = (r_R, r_v, r_p)``: its docstring
+defines it and its hints derive it. Below, ``theta = dR/dbg delta b_g`` is the bias correction's
+rotation, ``E = Delta R'^T R_i^T R_j`` with ``Delta R' = Delta R Exp(theta)``, and ``u_v``, ``u_p`` the
+velocity and position differences rotated into frame i, before the preintegrated values are subtracted.
 
 The Jacobian, with ``[x]`` the skew matrix, ``J_r`` the right Jacobian of SO(3) and
 ``J_r^-1(e) = I + 1/2 [e] + (1/t^2 - cot(t/2) / (2 t)) [e]^2`` (``t = |e|``) its inverse,
