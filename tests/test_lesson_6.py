@@ -3,6 +3,8 @@ in the quick setting (a hint, a check and, where a Jacobian is derived, a checke
 figures; the written questions), and the notebook in a student tree where only chapter 1 is written."""
 
 
+import re
+
 import nbformat
 import numpy as np
 import pytest
@@ -294,5 +296,6 @@ def test_in_a_student_tree_with_chapter_1_written_the_lesson_builds_and_names_it
     images = [c.id for c in nb.cells if c.cell_type == "code" for o in c.outputs if "image/png" in o.get("data", {})]
     assert {"figure-perturbations", "figure-right-jacobian", "figure-sparsity", "figure-chordal",
             "figure-surrogates"} <= set(images)
-    assert "not implemented: TODO" in text["compare"] and "g2o      gauss-newton" in text["compare"]
+    assert "not implemented: TODO" in text["compare"] and re.search(r"^g2o +gauss-newton ", text["compare"], re.M), \
+        text["compare"]
     assert "Traceback" not in nbformat.writes(nb)
