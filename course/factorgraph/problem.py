@@ -14,14 +14,13 @@ not installed.
 import numpy as np
 
 from course.core import impl as impl_loader
-from course.core import peers
-from course.core.errors import ShapeError, SingularSystemError, check_array
+from course.core.errors import ShapeError, check_array
 from course.factorgraph import noise
 from course.factorgraph.graph import FactorGraph
 from course.factorgraph.numeric import central_differences
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
-from course.solver.superlu import SuperLUSolver
+from course.solver.superlu import checked_step, sparse_solver
 
 JACOBIANS = ("autodiff", "numeric")
 #: factors per evaluation of the automatic Jacobians (ladybug-49's 31843 observations: 143 ms at once,
@@ -67,13 +66,7 @@ class FactorGraphProblem:
                                           for v in self._fixed]) if len(self._fixed) else np.zeros(0, np.int64)
         self._assembler = self.impl.module("factor_linearisation").BlockSparseAssembler(
             dims, [keys for _, keys, _, _ in self._groups], self._fixed)
-        if solver is None:
-            if peers.installed("qdldl"):
-                solver = self.impl.module("sparse_solve").SparseCholeskySolver()
-            else:
-                peers.announce("qdldl")
-                solver = SuperLUSolver()
-        self._solver = solver
+        self._solver = sparse_solver(self.impl.module("sparse_solve")) if solver is None else solver
         self._held_checked = False
 
     # ------------------------------------------------------------ values
@@ -158,14 +151,8 @@ class FactorGraphProblem:
 
     def solve(self, lin: Linearization, damping=None):
         """The step (n,) of ``(H + diag(damping)) h = -b``; fixed variables' steps are 0."""
-        h = np.asarray(self._solver.solve(lin.with_diagonal_added(damping), lin.b), dtype=float)
-        if h.shape != lin.b.shape or not np.all(np.isfinite(h)) or (h @ lin.b > 0):
-            raise SingularSystemError(
-                f"{self.graph.name}: the sparse solve gave "
-                + ("a non-finite step" if h.shape == lin.b.shape else f"shape {h.shape}")
-                + " or an ascent direction: H is not positive definite (is a variable fixed?)")
-        h[self._fixed_dof] = 0.0
-        return h
+        return checked_step(self._solver, lin.with_diagonal_added(damping), lin.b, self._fixed_dof,
+                            self.graph.name, "variable")
 
     def retract(self, x, h):
         """Every variable moved by its step, kind by kind (vectorised)."""

@@ -50,3 +50,18 @@ def sparse_solver(sparse_module):
         return sparse_module.SparseCholeskySolver()
     peers.announce("qdldl")
     return SuperLUSolver()
+
+
+def checked_step(solver, H, b, fixed_dof, name: str, what: str = "pose") -> np.ndarray:
+    """The step ``h`` (n,) of ``H h = -b`` by ``solver.solve(H, b)`` (H its upper triangle, CSC), with
+    the entries ``fixed_dof`` set to 0. A step of another shape, not finite, or uphill (``h . b > 0``)
+    means H is not positive definite: ``SingularSystemError`` naming ``name`` (the problem) and asking
+    whether a ``what`` is fixed."""
+    h = np.asarray(solver.solve(H, b), dtype=float)
+    if h.shape != np.shape(b) or not np.all(np.isfinite(h)) or (h @ b > 0):
+        raise SingularSystemError(
+            f"{name}: the sparse solve gave "
+            + ("a non-finite step" if h.shape == np.shape(b) else f"shape {h.shape}")
+            + f" or an ascent direction: H is not positive definite (is a {what} fixed?)")
+    h[fixed_dof] = 0.0
+    return h

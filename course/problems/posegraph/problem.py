@@ -15,7 +15,7 @@ from course.geometry.se2 import wrap_angle
 from course.problems.posegraph.graph import PoseGraph
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
-from course.solver.superlu import sparse_solver
+from course.solver.superlu import checked_step, sparse_solver
 
 #: the per-edge loop assembles a dense (3N, 3N) H: refuse beyond this many poses
 MAX_DENSE_POSES = 4000
@@ -97,15 +97,7 @@ class PoseGraphProblem:
             raise SingularSystemError(f"{self.graph.name}: H is not positive definite: no pose is fixed, so the "
                                       "whole graph can move (3 gauge freedoms); fix one pose")
         H = lin.with_diagonal_added(damping)
-        h = np.asarray(self._solver.solve(H, lin.b), dtype=float)
-        if h.shape != lin.b.shape or not np.all(np.isfinite(h)) or (h @ lin.b > 0):
-            raise SingularSystemError(
-                f"{self.graph.name}: the sparse solve gave "
-                + ("a non-finite step" if h.shape == lin.b.shape else f"shape {h.shape}")
-                + " or an ascent direction: H is not positive definite (is a pose fixed?)"
-            )
-        h[self._fixed_dof] = 0.0
-        return h
+        return checked_step(self._solver, H, lin.b, self._fixed_dof, self.graph.name)
 
     def retract(self, x, h):
         """SE(2) update as in the source: add, then wrap the angles."""

@@ -18,14 +18,13 @@ e_k``, ``Omega_k = L_k L_k^T``), reweighted, and handed to the assembler with un
 import numpy as np
 
 from course.core import impl as impl_loader
-from course.core import peers
-from course.core.errors import SingularSystemError, check_array
+from course.core.errors import check_array
 from course.geometry import se3
 from course.problems.posegraph3d.graph import PoseGraph3D
 from course.solver import robust
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
-from course.solver.superlu import SuperLUSolver
+from course.solver.superlu import checked_step, sparse_solver
 
 
 def pack(t, R) -> np.ndarray:
@@ -62,13 +61,7 @@ class PoseGraph3DProblem:
         self.x0 = pack(graph.t, graph.R)
         self.num_poses = graph.num_poses
         self._edges = self.impl.module("pose_graph_3d")
-        if solver is None:
-            if peers.installed("qdldl"):
-                solver = self.impl.module("sparse_solve").SparseCholeskySolver()
-            else:
-                peers.announce("qdldl")
-                solver = SuperLUSolver()
-        self._solver = solver
+        self._solver = sparse_solver(self.impl.module("sparse_solve")) if solver is None else solver
         self._assembler = self.impl.module("pose_graph_3d_assembly").SparseAssembler3D(
             graph.num_poses, graph.edges_i, graph.edges_j, graph.fixed)
         self._fixed_dof = (6 * graph.fixed[:, None] + np.arange(6)).ravel()
@@ -110,14 +103,8 @@ class PoseGraph3DProblem:
 
     def solve(self, lin: Linearization, damping=None):
         """Step (6N,) of ``(H + diag(damping)) h = -b``."""
-        h = np.asarray(self._solver.solve(lin.with_diagonal_added(damping), lin.b), dtype=float)
-        if h.shape != lin.b.shape or not np.all(np.isfinite(h)) or (h @ lin.b > 0):
-            raise SingularSystemError(
-                f"{self.graph.name}: the sparse solve gave "
-                + ("a non-finite step" if h.shape == lin.b.shape else f"shape {h.shape}")
-                + " or an ascent direction: H is not positive definite (is a pose fixed?)")
-        h[self._fixed_dof] = 0.0
-        return h
+        return checked_step(self._solver, lin.with_diagonal_added(damping), lin.b, self._fixed_dof,
+                            self.graph.name)
 
     def retract(self, x, h):
         t, R = unpack(x)
