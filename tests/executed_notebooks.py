@@ -107,3 +107,36 @@ def chapter_1_student_build(python: str) -> dict:
     result = {"tree": folder / "tree", "out": folder / "out", **json.loads((folder / "build.json").read_text())}
     _HERE["chapter_1_build"] = result
     return result
+
+
+def cell_text(nb) -> dict:
+    """``{code cell id: its printed text, then its result's text}``."""
+    return {c.id: "\n".join(o.get("text", "") for o in c.outputs if o.output_type == "stream") + "\n".join(
+        o["data"].get("text/plain", "") for o in c.outputs if o.output_type == "execute_result")
+        for c in nb.cells if c.cell_type == "code"}
+
+
+def cell_outputs(nb) -> tuple:
+    """``(outputs, text, results)``, each ``{code cell id: ...}``: the outputs, the printed text, the results' text."""
+    outputs = {c.id: c.outputs for c in nb.cells if c.cell_type == "code"}
+    text = {k: "".join(o.get("text", "") for o in v if o.output_type == "stream") for k, v in outputs.items()}
+    results = {k: "".join(o["data"].get("text/plain", "") for o in v if o.output_type == "execute_result")
+               for k, v in outputs.items()}
+    return outputs, text, results
+
+
+def assert_hints_and_checks_at_full_marks(nb, cells) -> None:
+    """No cell of ``nb`` (run with the reference) failed; for each ``(hint id, check id, exercise)`` of ``cells``
+    the hint cell printed level 1 alone, the check cell graded ``exercise`` to full marks, both before the
+    experiments."""
+    errors = [(c.id, o.get("ename"), o.get("evalue")) for c in nb.cells if c.cell_type == "code"
+              for o in c.outputs if o.output_type == "error"]
+    assert not errors, errors
+    text = cell_text(nb)
+    order = [c.id for c in nb.cells]
+    for hint_id, check_id, exercise in cells:
+        assert "hint 1 of 3" in text[hint_id] and "Hint 2" not in text[hint_id], hint_id
+        assert "Autograder: implementation solutions, public checks" in text[check_id]
+        assert f"{exercise} (solutions): " in text[check_id]
+        assert "full marks on the public checks" in text[check_id], text[check_id]
+        assert order.index(hint_id) < order.index(check_id) < order.index("experiments-md")

@@ -8,7 +8,7 @@ import nbformat
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from executed_notebooks import chapter_1_student_build, executed_small
+from executed_notebooks import cell_text, chapter_1_student_build, executed_small
 
 from course.core import peers
 from course.core.impl import REPO_ROOT
@@ -260,13 +260,7 @@ def test_reference_answers_of_every_question_stay_out_of_the_student_tree():
 # ---------------------------------------------------------------- the notebook, quick setting
 
 
-def _outputs(nb):
-    text = {}
-    for c in nb.cells:
-        if c.cell_type == "code":
-            text[c.id] = "\n".join(o.get("text", "") for o in c.outputs if o.output_type == "stream") + "\n".join(
-                o["data"].get("text/plain", "") for o in c.outputs if o.output_type == "execute_result")
-    return text
+_outputs = cell_text
 
 
 @pytest.fixture(scope="module")

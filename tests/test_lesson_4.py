@@ -9,7 +9,7 @@ import re
 import nbformat
 import numpy as np
 import pytest
-from executed_notebooks import chapter_1_student_build, executed_small
+from executed_notebooks import cell_outputs, chapter_1_student_build, executed_small
 
 from course import check_jacobian
 from course.core.impl import REPO_ROOT
@@ -247,12 +247,7 @@ def normal_equations_parallel(r, J_cam, J_point, camera_index, point_index, num_
 # ---------------------------------------------------------------- the lesson, run
 
 
-def _outputs(nb):
-    outputs = {c.id: c.outputs for c in nb.cells if c.cell_type == "code"}
-    text = {k: "".join(o.get("text", "") for o in v if o.output_type == "stream") for k, v in outputs.items()}
-    results = {k: "".join(o["data"].get("text/plain", "") for o in v if o.output_type == "execute_result")
-               for k, v in outputs.items()}
-    return outputs, text, results
+_outputs = cell_outputs
 
 
 @pytest.mark.slow
