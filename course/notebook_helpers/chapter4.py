@@ -14,16 +14,16 @@ that need an exercise call *that* implementation's function. A cell that calls t
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from course.app import plot
 from course.geometry.jacobian_check import Space, numerical_jacobian
 from course.geometry.so3 import skew, so3_exp
-from course.notebook_helpers.lesson import exercise
+from course.notebook_helpers.lesson import JacobianSetup, exercise
 from course.problems.bal.dataset import BALProblem, rotate
 
 # ---------------------------------------------------------------- the camera model
@@ -160,18 +160,6 @@ POINT = Space("bal point", lambda x: np.asarray(x).size, _plus, 3, (("X", slice(
 ROWS = [("x", slice(0, 1)), ("y", slice(1, 2))]
 
 
-class ObservationSetup(NamedTuple):
-    """What ``course.check_jacobian(f, x, J=J, plus=plus, names=names, rows=rows)`` needs for one
-    observation: ``f(camera (9,), point (3,))`` the residual (2,), ``x = [camera, point]``, ``J =
-    [J_cam (2, 9), J_point (2, 3)]``, all from the implementation's
-    ``reprojection_residuals_and_jacobians``."""
-
-    f: Callable
-    x: list
-    J: list
-    plus: list
-    names: list
-    rows: list
 
 
 def generic_observation(problem: BALProblem, angle: float = 2.0) -> int:
@@ -188,9 +176,9 @@ def observation_line(problem: BALProblem, k: int) -> str:
             f"{np.linalg.norm(problem.cameras[c, :3]):.2f} rad), point {int(problem.point_index[k])}")
 
 
-def observation_setup(problem: BALProblem, k: int, impl: Any = "solutions") -> ObservationSetup:
+def observation_setup(problem: BALProblem, k: int, impl: Any = "solutions") -> JacobianSetup:
     """The implementation's residual and Jacobians of observation ``k`` of ``problem`` alone, as
-    :class:`ObservationSetup`. Raises ``NotImplementedError`` while the function is a TODO."""
+    :class:`JacobianSetup`. Raises ``NotImplementedError`` while the function is a TODO."""
     ba = exercise("bundle_adjustment", impl)
     obs = problem.observations[k:k + 1]
     index = np.zeros(1, dtype=np.int64)
@@ -203,7 +191,7 @@ def observation_setup(problem: BALProblem, k: int, impl: Any = "solutions") -> O
     camera = problem.cameras[problem.camera_index[k]].copy()
     point = problem.points[problem.point_index[k]].copy()
     _, J_cam, J_point = ba.reprojection_residuals_and_jacobians(camera[None], point[None], index, index, obs)
-    return ObservationSetup(f, [camera, point], [np.asarray(J_cam)[0], np.asarray(J_point)[0]], [CAMERA, POINT],
+    return JacobianSetup(f, [camera, point], [np.asarray(J_cam)[0], np.asarray(J_point)[0]], [CAMERA, POINT],
                             ["camera", "point"], ROWS)
 
 

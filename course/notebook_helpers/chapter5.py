@@ -24,9 +24,9 @@ The window and marginalisation (exercise ``marginalisation``):
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
@@ -34,6 +34,7 @@ from course.app import plot
 from course.core import impl as impl_loader
 from course.core.impl import not_implemented_reason
 from course.geometry.so3 import so3_exp, so3_log
+from course.notebook_helpers.lesson import JacobianSetup
 from course.problems.vio.imu_jacobians import imu_residual_jacobian
 from course.problems.vio.sim import VioSim
 from course.problems.vio.window import FIRST_SIGMAS
@@ -243,15 +244,6 @@ def preintegration_study(sim: VioSim, impl: Any = "solutions", keyframe: int = 1
 INCREMENT_ROWS = [("Log(delta R)", slice(0, 3)), ("delta v", slice(3, 6)), ("delta p", slice(6, 9))]
 
 
-class JacobianSetup(NamedTuple):
-    """The arguments of one ``check_jacobian(f, x, J=J, plus=plus, names=names, rows=rows)``."""
-
-    f: Callable
-    x: list
-    J: list
-    plus: list
-    names: list
-    rows: list
 
 
 def bias_jacobian_setup(interval: Interval, impl: Any = "solutions") -> JacobianSetup:

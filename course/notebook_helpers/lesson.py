@@ -8,8 +8,9 @@ feedback. It never imports the student's code into the notebook's kernel.
 
 import contextlib
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from autograder import hints as hint_texts
 from autograder import report
@@ -91,3 +92,16 @@ def todo_as_one_line(out=print) -> Iterator[None]:
 def exercise(name: str, impl="solutions"):
     """The module ``name`` of implementation ``impl`` (``"solutions"``, ``"exercises"`` or a path)."""
     return impl_loader.load(impl).module(name)
+
+
+class JacobianSetup(NamedTuple):
+    """The arguments of one ``course.check_jacobian(f, x, J=J, plus=plus, names=names, rows=rows)``: the
+    function, the point (one array per variable), the Jacobian blocks to check, each variable's space,
+    the blocks' names and the residual's rows."""
+
+    f: Callable
+    x: list
+    J: list
+    plus: list
+    names: list
+    rows: list
