@@ -29,6 +29,10 @@ Inputs at the edges of the contract (each is a check input):
 import numpy as np
 import scipy.sparse as sp
 
+#: a variable's own block of H is summed variable by variable (one product of its factors' rows
+#: stacked) where the variables of a slot are in at least this many factors each, on average
+MANY = 8
+
 
 class BlockSparseAssembler:
     """``assemble`` H (upper triangle, CSC), b and chi2 of whitened factor blocks, into a pattern found once.
@@ -52,13 +56,22 @@ class BlockSparseAssembler:
             for a in range(key.shape[1]):
                 for c in range(key.shape[1]):
                     da, dc = int(dims[key[0, a]]), int(dims[key[0, c]])
-                    r = offsets[key[:, a]][:, None, None] + np.arange(da)[None, :, None]
-                    q = offsets[key[:, c]][:, None, None] + np.arange(dc)[None, None, :]
+                    variables, groups = key[:, a], None
+                    if a == c:  # a variable's own block: by variable where each is in many factors
+                        shared, count = np.unique(variables, return_counts=True)
+                        if len(variables) >= MANY * len(shared):
+                            order = np.argsort(variables, kind="stable")
+                            groups = (order, np.concatenate([[0], np.cumsum(count)]))
+                            variables = shared
+                    r = offsets[variables][:, None, None] + np.arange(da)[None, :, None]
+                    q = offsets[variables if a == c else key[:, c]][:, None, None] + np.arange(dc)[None, None, :]
                     r, q = np.broadcast_arrays(r, q)
                     keep = r <= q  # the upper triangle of H
+                    if not keep.any():  # the pair (c, a) holds this block's transpose
+                        continue
                     rows.append(r[keep])
                     cols.append(q[keep])
-                    pairs.append((a, c, keep))
+                    pairs.append((a, c, None if keep.all() else np.flatnonzero(keep), groups))
             self._plan.append(pairs)
         rows.append(np.arange(n))  # every diagonal entry is in the pattern (the damping adds to it)
         cols.append(np.arange(n))
@@ -75,7 +88,7 @@ class BlockSparseAssembler:
             fixed_dof[offsets[v]:offsets[v + 1]] = True
         self._fixed_dof = fixed_dof
         column = np.repeat(np.arange(n), np.diff(self._indptr))
-        self._dead = fixed_dof[self._indices] | fixed_dof[column]
+        self._dead = np.flatnonzero(fixed_dof[self._indices] | fixed_dof[column])
         self._offsets = offsets
         self._keys = [np.asarray(key, dtype=np.int64) for key in keys]
         # END SOLUTION
@@ -91,8 +104,16 @@ class BlockSparseAssembler:
         b = np.zeros(n)
         chi2 = 0.0
         for key, pairs, (r, J) in zip(self._keys, self._plan, blocks):
-            for a, c, keep in pairs:
-                values.append(np.matmul(J[a].transpose(0, 2, 1), J[c])[keep])
+            for a, c, keep, groups in pairs:
+                if groups is None:  # one block per factor
+                    block = np.matmul(J[a].transpose(0, 2, 1), J[c]).ravel()
+                else:  # one per variable: the rows of its factors stacked, J^T J in one product
+                    order, bounds = groups
+                    stacked = J[a][order].reshape(-1, J[a].shape[2])
+                    m = J[a].shape[1]
+                    block = np.stack([stacked[m * lo:m * hi].T @ stacked[m * lo:m * hi]
+                                      for lo, hi in zip(bounds[:-1], bounds[1:])]).ravel()
+                values.append(block if keep is None else block[keep])
             for a in range(len(J)):
                 g = np.einsum("mra,mr->ma", J[a], r)
                 idx = self._offsets[key[:, a]][:, None] + np.arange(J[a].shape[2])

@@ -125,7 +125,8 @@ class Jet:
     __radd__ = __add__
 
     def __sub__(self, other):
-        return self + (-other)
+        v, g = _parts(other)
+        return Jet(self.value - v, self.grad if g is None else self.grad - g)
 
     def __rsub__(self, other):
         return (-self) + other
@@ -138,7 +139,7 @@ class Jet:
         v, g = _parts(other)
         grad = _times(v, self.grad)
         if g is not None:
-            grad = grad + _times(self.value, g)
+            grad += _times(self.value, g)  # both terms have the broadcast shape: add in place
         return Jet(self.value * v, grad)
         # END SOLUTION
 
@@ -151,7 +152,7 @@ class Jet:
         quotient = self.value / v
         grad = _times(1.0 / v, self.grad)
         if g is not None:
-            grad = grad - _times(quotient / v, g)
+            grad -= _times(quotient / v, g)
         return Jet(quotient, grad)
         # END SOLUTION
 

@@ -10,9 +10,9 @@ custom factors (``gtsam-custom``), with each one's ratio to ``ours``. The runs a
 
 Where a back end changes the problem or the solve:
 
-- the factor graph solves the full H by the sparse Cholesky factorisation where chapter 4 eliminates
-  the points first (the Schur complement): on ladybug-49 that is part of the gap per iteration, and
-  the linearisation's ratio is the automatic differentiation's own;
+- the factor graph eliminates the points first, as chapter 4 does, but from the H its generic
+  assembly stores (``course.solver.schur_elimination``), where chapter 4's problem keeps H as its
+  blocks: the linearisation's ratio is the automatic differentiation's and the generic assembly's;
 - ``jax``: the same problem and the same minimizer; only the factors' residuals and Jacobians in
   each linearisation come from JAX (``course.backends.factorgraph.jax_factors``). Its compilation
   (once per factor type and size, before the first linearisation) is kept out of both times and

@@ -38,6 +38,18 @@ def where(mask, a, b):
     return kind(np.where(mask, value_of(a), value_of(b)), np.where(mask[..., None], grad(a), grad(b)))
 
 
+def branches(small, series, closed):
+    """``where(small, series(), closed())`` for arrays and Jets, each branch computed only if some entry
+    takes it: ``series`` and ``closed`` return a tuple of values each, ``small`` is a boolean array.
+    A batch of rotations rarely holds both kinds, and each branch is a dozen Jet operations."""
+    small = np.asarray(small)
+    if not small.any():
+        return closed()
+    if small.all():
+        return series()
+    return tuple(where(small, s, c) for s, c in zip(series(), closed()))
+
+
 def wrap_angle(theta):
     """``theta`` wrapped to ``[-pi, pi)``: a constant multiple of 2 pi subtracted (derivative 1)."""
     turns = np.floor((value_of(theta) + np.pi) / (2.0 * np.pi))
@@ -47,6 +59,11 @@ def wrap_angle(theta):
 def dot3(a, b):
     """``a . b`` over the last axis of two (..., 3) vectors."""
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def squared_norm3(a):
+    """``|a|^2`` (...,) of (..., 3) vectors, by squares (on Jets one product each, not two)."""
+    return a[..., 0] ** 2 + a[..., 1] ** 2 + a[..., 2] ** 2
 
 
 def skew(v):
@@ -89,11 +106,15 @@ def cross(a, b):
 def rodrigues_coefficients(phi):
     """``(a, b) = (sin t / t, (1 - cos t) / t^2)`` with ``t = |phi|`` (...,), and their series below
     ``SMALL_ANGLE_SQUARED`` (where the closed forms divide 0 by 0)."""
-    t2 = dot3(phi, phi)
+    t2 = squared_norm3(phi)
     small = value_of(t2) < SMALL_ANGLE_SQUARED
-    safe = where(small, 1.0, t2)
-    t = np.sqrt(safe)
-    return where(small, 1.0 - t2 / 6.0, np.sin(t) / t), where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(t)) / safe)
+
+    def closed():
+        safe = where(small, 1.0, t2) if small.any() else t2
+        t = np.sqrt(safe)
+        return np.sin(t) / t, (1.0 - np.cos(t)) / safe
+
+    return branches(small, lambda: (1.0 - t2 / 6.0, 0.5 - t2 / 24.0), closed)
 
 
 def so3_rotate(phi, v):
@@ -117,10 +138,13 @@ def so3_log(R):
     vee(R)``, ``sin t = |w|``, ``cos t = (tr R - 1) / 2``; ``w (1 + |w|^2 / 6)`` for small angles.
     Within about 1e-3 of pi, ``sin t`` carries no accuracy: use ``course.geometry.so3`` there."""
     w = vee(R)
-    s2 = dot3(w, w)
+    s2 = squared_norm3(w)
     small = value_of(s2) < SMALL_ANGLE_SQUARED
-    safe = where(small, 1.0, s2)
-    sin_t = np.sqrt(safe)
-    cos_t = 0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0)
-    scale = where(small, 1.0 + s2 / 6.0, np.arctan2(sin_t, cos_t) / sin_t)
+
+    def closed():
+        sin_t = np.sqrt(where(small, 1.0, s2) if small.any() else s2)
+        cos_t = 0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0)
+        return (np.arctan2(sin_t, cos_t) / sin_t,)
+
+    scale, = branches(small, lambda: (1.0 + s2 / 6.0,), closed)
     return w * scale[..., None]

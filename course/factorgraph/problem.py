@@ -8,7 +8,9 @@ Jacobians (``jacobians``: ``"autodiff"`` by the implementation's Jets and ``auto
 ``FactorGraphProblem``), whitened by the square root of the information, and all groups assembled
 by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pattern found once. The
 step comes from the implementation's sparse Cholesky solver (chapter 2), or SuperLU where qdldl is
-not installed.
+not installed; where one kind of variable is never joined to another of its kind by a factor (the
+points of bundle adjustment, the landmarks of SLAM), those are eliminated first
+(``course.solver.schur_elimination``, chapter 4's Schur complement for any graph).
 """
 
 import numpy as np
@@ -20,6 +22,7 @@ from course.factorgraph.graph import FactorGraph
 from course.factorgraph.numeric import central_differences
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
+from course.solver.schur_elimination import SchurElimination
 from course.solver.superlu import checked_step, sparse_solver
 
 JACOBIANS = ("autodiff", "numeric")
@@ -36,9 +39,12 @@ class FactorGraphProblem:
     ``factor_jacobians`` gathers them): the hook through which another automatic differentiation
     (``course.backends.factorgraph.jax_factors``) linearises the same graph for the same minimizer.
     The error (``chi2``) is always the factor types' own residual.
+
+    ``eliminate``: ``"auto"`` eliminates the kind of variable that :func:`eliminated_kind` finds,
+    ``None`` solves the whole H.
     """
 
-    def __init__(self, graph: FactorGraph, impl="solutions", jacobians="autodiff", solver=None):
+    def __init__(self, graph: FactorGraph, impl="solutions", jacobians="autodiff", solver=None, eliminate="auto"):
         if isinstance(jacobians, str) and jacobians not in JACOBIANS or \
                 not isinstance(jacobians, str) and not callable(jacobians):
             raise ValueError(f"jacobians must be one of {JACOBIANS} or a function, got {jacobians!r}")
@@ -59,6 +65,10 @@ class FactorGraphProblem:
             self._by_kind[kind] = (members, self._x_offsets[members][:, None] + np.arange(size),
                                    self._h_offsets[members][:, None] + np.arange(kind.dim))
         self._groups = [(group.type, *group.arrays()) for group in graph.groups.values()]
+        # per group, per slot: the entries of x that hold its variables' values, and their shape
+        self._gathers = [[(self._x_offsets[keys[:, a]][:, None] + np.arange(int(np.prod(kind.shape))),
+                           (len(keys),) + kind.shape) for a, kind in enumerate(ftype.kinds)]
+                         for ftype, keys, _, _ in self._groups]
         self._whitening = [noise.whitening(info, ftype.dim, len(keys), f"{graph.name}: {ftype.name}")
                            for ftype, keys, _, info in self._groups]
         self._fixed = np.array(sorted(set(graph.fixed)), dtype=np.int64)
@@ -68,6 +78,12 @@ class FactorGraphProblem:
             dims, [keys for _, keys, _, _ in self._groups], self._fixed)
         self._solver = sparse_solver(self.impl.module("sparse_solve")) if solver is None else solver
         self._held_checked = False
+        if eliminate not in ("auto", None):
+            raise ValueError(f"eliminate must be 'auto' or None, got {eliminate!r}")
+        kind = eliminated_kind(graph) if eliminate == "auto" else None
+        self.eliminated = kind
+        self._schur = None if kind is None else SchurElimination(
+            dims, self._by_kind[kind][0], self._solver, graph.name, graph.keys)
 
     # ------------------------------------------------------------ values
 
@@ -78,14 +94,16 @@ class FactorGraphProblem:
         index = self._x_offsets[np.asarray(variables)][:, None] + np.arange(size)
         return np.asarray(x)[index].reshape((len(variables),) + kind.shape)
 
-    def _slots(self, x, ftype, keys):
-        return [self.values(x, keys[:, a]) for a in range(len(ftype.kinds))]
+    def _slots(self, x, group: int):
+        """The values of group ``group``'s variables at ``x``, slot by slot (M, *shape_a)."""
+        x = np.asarray(x)
+        return [x[index].reshape(shape) for index, shape in self._gathers[group]]
 
     def residuals(self, x) -> list:
         """Per group, the whitened residuals (M_g, m_g) at ``x``."""
         out = []
-        for (ftype, keys, z, _), W in zip(self._groups, self._whitening):
-            r = np.asarray(ftype.residual(z, *self._slots(x, ftype, keys)), dtype=float)
+        for group, ((ftype, keys, z, _), W) in enumerate(zip(self._groups, self._whitening)):
+            r = np.asarray(ftype.residual(z, *self._slots(x, group)), dtype=float)
             out.append(r if W is None else np.einsum("mab,mb->ma", W, r))
         return out
 
@@ -103,7 +121,7 @@ class FactorGraphProblem:
 
         retractions = [kind.retract for kind in ftype.kinds]
         dims = [kind.dim for kind in ftype.kinds]
-        xs = self._slots(x, ftype, keys)
+        xs = self._slots(x, group)
         if callable(self.jacobians):
             r, J = self.jacobians(ftype, z, xs)
             return check_array(r, (len(keys), ftype.dim), "jacobians", "r"), [
@@ -151,6 +169,10 @@ class FactorGraphProblem:
 
     def solve(self, lin: Linearization, damping=None):
         """The step (n,) of ``(H + diag(damping)) h = -b``; fixed variables' steps are 0."""
+        if self._schur is not None:
+            h = self._schur.solve(lin.H, lin.b, damping)
+            h[self._fixed_dof] = 0.0
+            return h
         return checked_step(self._solver, lin.with_diagonal_added(damping), lin.b, self._fixed_dof,
                             self.graph.name, "variable")
 
@@ -162,3 +184,25 @@ class FactorGraphProblem:
             moved = kind.retract(out[x_index].reshape((len(members),) + kind.shape), h[h_index])
             out[x_index] = np.asarray(moved, dtype=float).reshape(len(members), -1)
         return out
+
+
+def eliminated_kind(graph: FactorGraph):
+    """The kind of variable to eliminate first, or None: of the kinds that no factor joins to another
+    variable of their kind and that hold no fixed variable, while all other variables share one
+    tangent size, the one with the most degrees of freedom, if it has at least as many as the rest."""
+    kinds = graph.kinds
+    fixed = set(graph.fixed)
+    candidates = []
+    for kind in dict.fromkeys(kinds):
+        members = [v for v, k in enumerate(kinds) if k == kind]
+        if any(v in fixed for v in members):
+            continue
+        if any(sum(k == kind for k in group.type.kinds) > 1 for group in graph.groups.values()):
+            continue
+        if len({k.dim for k in kinds if k != kind}) != 1:
+            continue
+        dof = kind.dim * len(members)
+        rest = sum(k.dim for k in kinds) - dof
+        if dof >= rest:
+            candidates.append((dof, kind))
+    return max(candidates, key=lambda c: c[0])[1] if candidates else None

@@ -1366,11 +1366,11 @@ FL_FIXED, FL_ONE = FL + "fixed variables held still", FL + "one factor of one va
 
 BUGS_FACTOR_GRAPH = {
     "jets_product_rule_one_term": V(
-        "jets.py", ["def __mul__"], "grad = grad + _times(self.value, g)", "grad = grad", {J_ARITH, J_RES},
+        "jets.py", ["def __mul__"], "grad += _times(self.value, g)", "pass", {J_ARITH, J_RES},
         "the product rule has two terms"),
     "jets_quotient_rule_plus": V(
-        "jets.py", ["def __truediv__"], "grad = grad - _times(quotient / v, g)",
-        "grad = grad + _times(quotient / v, g)",
+        "jets.py", ["def __truediv__"], "grad -= _times(quotient / v, g)",
+        "grad += _times(quotient / v, g)",
         {J_ARITH, J_RES}, "the quotient rule subtracts"),
     "jets_power_naive_at_zero": V(
         "jets.py", ["def __pow__"], "if p == 0.0:", "if False:", {J_POW}, "x ** 0 is the constant 1"),
