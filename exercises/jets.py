@@ -125,7 +125,8 @@ class Jet:
     __radd__ = __add__
 
     def __sub__(self, other):
-        return self + (-other)
+        v, g = _parts(other)
+        return Jet(self.value - v, self.grad if g is None else self.grad - g)
 
     def __rsub__(self, other):
         return (-self) + other

@@ -29,10 +29,6 @@ Inputs at the edges of the contract (each is a check input):
 import numpy as np
 import scipy.sparse as sp
 
-#: a variable's own block of H is summed variable by variable (one product of its factors' rows
-#: stacked) where the variables of a slot are in at least this many factors each, on average
-MANY = 8
-
 
 class BlockSparseAssembler:
     """``assemble`` H (upper triangle, CSC), b and chi2 of whitened factor blocks, into a pattern found once.
@@ -50,6 +46,9 @@ class BlockSparseAssembler:
         self._shape = (n, n)
         rows, cols = [], []
         self._plan = []  # per group, per (a, c) slot pair with a <= c: which entries of the block are kept
+        # a variable's own block of H is summed variable by variable (one product of its factors' rows
+        # stacked) where the variables of a slot are in at least this many factors each, on average
+        many = 8
         for key in keys:
             key = np.asarray(key, dtype=np.int64)
             pairs = []
@@ -59,7 +58,7 @@ class BlockSparseAssembler:
                     variables, groups = key[:, a], None
                     if a == c:  # a variable's own block: by variable where each is in many factors
                         shared, count = np.unique(variables, return_counts=True)
-                        if len(variables) >= MANY * len(shared):
+                        if len(variables) >= many * len(shared):
                             order = np.argsort(variables, kind="stable")
                             groups = (order, np.concatenate([[0], np.cumsum(count)]))
                             variables = shared

@@ -9,7 +9,7 @@ from course.factorgraph import BETWEEN_SE2, RANGE_BEARING, SE2, FactorGraph, Fac
 from course.factorgraph.factors import REPROJECTION_BAL
 from course.factorgraph.problem import eliminated_kind
 from course.factorgraph.variables import BAL_CAMERA
-from course.solver import minimize
+from course.solver import SolverOptions, StopReason, minimize
 
 
 def _slam(poses=6, marks=12, seed=0):
@@ -97,3 +97,41 @@ def test_ladybug_49s_step_with_the_points_eliminated_is_the_whole_hs(data_folder
     damping = 1e-4 * lin.diagonal()
     h, h_ref = schur.solve(lin, damping), whole.solve(lin, damping)
     assert np.abs(h - h_ref).max() <= 1e-9 * np.abs(h_ref).max()
+
+
+@pytest.mark.parametrize("loss", [("huber", 2.0), ("cauchy", 1.0), ("tukey", 4.0)])
+def test_a_robust_loss_on_the_graph_is_chapter_4s(loss):
+    """Bundle adjustment with 10% outliers and a robust loss: the factor graph's chi2, b and step are the
+    chapter-4 problem's with the same loss, and with Huber's (where both solves converge) its minimum."""
+    from course.problems.bal.dataset import synthetic
+    from course.problems.bal.factor_graph import as_factor_graph
+    from course.problems.bal.problem import BundleAdjustmentProblem
+
+    bal = synthetic(6, 80, seed=2, noise=1.0, outliers=0.1)
+    chapter4, graph = BundleAdjustmentProblem(bal, loss=loss), FactorGraphProblem(as_factor_graph(bal, loss=loss))
+    plain = FactorGraphProblem(as_factor_graph(bal))
+    x0 = chapter4.x0
+    assert graph.chi2(x0) == pytest.approx(chapter4.chi2(x0), rel=1e-12) and graph.chi2(x0) < 0.9 * plain.chi2(x0)
+    ours, theirs = graph.linearize(x0), chapter4.linearize(x0)
+    assert ours.chi2 == pytest.approx(theirs.chi2, rel=1e-12)
+    np.testing.assert_allclose(ours.b, theirs.b, rtol=0, atol=1e-9 * np.abs(theirs.b).max())
+    damping = 1e-3 * theirs.diagonal() + 1e-6  # Tukey leaves a point whose every observation is an outlier no block
+    h, h_ref = graph.solve(ours, damping), chapter4.solve(theirs, damping)
+    assert np.abs(h - h_ref).max() <= 1e-8 * np.abs(h_ref).max()
+    if loss[0] == "huber":  # convex in the residual: both converge (in about 140 steps) to one minimum
+        options = SolverOptions(max_iterations=300)
+        ours, theirs = minimize(graph, "lm-type3", options=options), minimize(chapter4, "lm-type3", options=options)
+        assert ours.stop_reason == theirs.stop_reason == StopReason.COST_TOLERANCE
+        assert ours.final_chi2 == pytest.approx(theirs.final_chi2, rel=1e-9)
+
+
+def test_gtsam_custom_says_it_does_not_translate_a_robust_loss():
+    pytest.importorskip("gtsam")
+    from course.backends.factorgraph import gtsam_custom
+
+    graph = _slam(poses=3, marks=2)
+    for group in list(graph.groups.values()):
+        keys, z, _ = group.arrays()
+        graph.add_many(group.type, keys[:1], z[:1], loss=("huber", 1.0))
+    with pytest.raises(ValueError, match="robust loss huber\\(a=1\\), which this back end does not translate"):
+        gtsam_custom.build(graph, "solutions")

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from course.factorgraph.factor_type import FactorType
+from course.solver.robust import RobustLoss
 
 
 def symbol(letter: str, index: int) -> str:
@@ -25,10 +26,12 @@ def symbol(letter: str, index: int) -> str:
 
 @dataclass
 class FactorGroup:
-    """M factors of one type: ``keys`` (M, s) variable indices, ``measurements`` (M, ...),
-    ``information`` (M, dim, dim) or None (unit)."""
+    """M factors of one type and one loss: ``keys`` (M, s) variable indices, ``measurements`` (M, ...),
+    ``information`` (M, dim, dim) or None (unit); ``loss`` None (least squares) or a
+    :class:`course.solver.robust.RobustLoss` on each factor's whitened ``s = |r|^2``."""
 
     type: FactorType
+    loss: RobustLoss | None = None
     keys: list = field(default_factory=list)
     measurements: list = field(default_factory=list)
     information: list = field(default_factory=list)
@@ -78,16 +81,18 @@ class FactorGraph:
         """Hold variable ``key`` at its value (its step is 0)."""
         self.fixed.append(self._variable(key, "fix"))
 
-    def add(self, factor_type: FactorType, keys, measurement, information=None) -> None:
+    def add(self, factor_type: FactorType, keys, measurement, information=None, loss=None) -> None:
         """One factor of ``factor_type`` on the variables ``keys`` (one per slot)."""
         z = np.asarray(measurement, dtype=float)[None]
         info = None if information is None else np.asarray(information, dtype=float)[None]
-        self.add_many(factor_type, [keys], z, info)
+        self.add_many(factor_type, [keys], z, info, loss)
 
-    def add_many(self, factor_type: FactorType, keys, measurements, information=None) -> None:
+    def add_many(self, factor_type: FactorType, keys, measurements, information=None, loss=None) -> None:
         """M factors of ``factor_type``: ``keys`` (M, s) variable keys (or indices), ``measurements``
-        (M, ...), ``information`` (M, dim, dim), (dim, dim) or None (unit)."""
+        (M, ...), ``information`` (M, dim, dim), (dim, dim) or None (unit); ``loss`` None or a robust
+        loss such as ``("huber", 2.0)`` (chapter 4's kernels, on the whitened ``|r|^2`` of each factor)."""
         where = f"{self.name}: {factor_type.name}"
+        loss = RobustLoss.of(loss)
         indices = np.array([[self._variable(k, where) for k in row] for row in keys], dtype=np.int64) \
             if len(keys) and not isinstance(keys, np.ndarray) else np.asarray(keys, dtype=np.int64)
         if indices.ndim != 2 or indices.shape[1] != len(factor_type.kinds):
@@ -108,7 +113,8 @@ class FactorGraph:
             info = np.asarray(information, dtype=float)
             if info.shape == (factor_type.dim, factor_type.dim):
                 info = np.broadcast_to(info, (len(indices),) + info.shape)
-        group = self.groups.setdefault(factor_type.name, FactorGroup(factor_type))
+        name = factor_type.name if loss is None else f"{factor_type.name} {loss}"
+        group = self.groups.setdefault(name, FactorGroup(factor_type, loss))
         group.keys.append(indices)
         group.measurements.append(z)
         group.information.append(info)

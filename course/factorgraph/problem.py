@@ -20,6 +20,7 @@ from course.core.errors import ShapeError, check_array
 from course.factorgraph import noise
 from course.factorgraph.graph import FactorGraph
 from course.factorgraph.numeric import central_differences
+from course.solver import robust
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
 from course.solver.schur_elimination import SchurElimination
@@ -71,6 +72,8 @@ class FactorGraphProblem:
                          for ftype, keys, _, _ in self._groups]
         self._whitening = [noise.whitening(info, ftype.dim, len(keys), f"{graph.name}: {ftype.name}")
                            for ftype, keys, _, info in self._groups]
+        self._losses = [group.loss for group in graph.groups.values()]
+        self._kernels = self.impl.module("robust_kernels") if any(self._losses) else None
         self._fixed = np.array(sorted(set(graph.fixed)), dtype=np.int64)
         self._fixed_dof = np.concatenate([np.arange(self._h_offsets[v], self._h_offsets[v + 1])
                                           for v in self._fixed]) if len(self._fixed) else np.zeros(0, np.int64)
@@ -108,7 +111,9 @@ class FactorGraphProblem:
         return out
 
     def chi2(self, x) -> float:
-        return float(sum(np.vdot(r, r) for r in self.residuals(x)))
+        """``sum r^T r`` over the whitened residuals, ``sum rho(r^T r)`` in a group with a robust loss."""
+        return float(sum(float(np.vdot(r, r)) if loss is None else robust.robust_chi2(self._kernels, loss, r)
+                         for r, loss in zip(self.residuals(x), self._losses)))
 
     # ------------------------------------------------------------ the linearisation
 
@@ -154,10 +159,15 @@ class FactorGraphProblem:
 
     def linearize(self, x) -> Linearization:
         blocks = []
-        for group, W in enumerate(self._whitening):
-            r, J = self.factor_jacobians(x, group)
-            blocks.append(noise.whiten(W, r, J))
+        robust_correction = 0.0  # a robust group's chi2 is sum rho, not the reweighted residuals' sum r~^T r~
+        for group, (W, loss) in enumerate(zip(self._whitening, self._losses)):
+            r, J = noise.whiten(W, *self.factor_jacobians(x, group))
+            if loss is not None:  # r~, J~ with J~^T J~ = J^T W_rho J and J~^T r~ = rho' J^T r (chapter 4)
+                r, J, rho = robust.reweight(self._kernels, loss, r, J)
+                robust_correction += rho - float(np.vdot(r, r))
+            blocks.append((r, list(J)))
         H, b, chi2 = self._assembler.assemble(blocks)
+        chi2 = float(chi2) + robust_correction
         n = int(self._h_offsets[-1])
         b = check_array(b, (n,), "factor_linearisation.BlockSparseAssembler.assemble", "b")
         if not self._held_checked:  # the structure does not change between iterations: once is enough

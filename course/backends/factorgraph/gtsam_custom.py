@@ -107,6 +107,9 @@ def build(graph, impl="solutions"):
     constant_chi2 = 0.0
     for group in graph.groups.values():
         ftype = group.type
+        if group.loss is not None:  # GTSAM's robust models reweight (IRLS), ours adds the curvature term
+            raise ValueError(f"gtsam-custom: the {ftype.name} factors of {graph.name} have the robust loss "
+                             f"{group.loss}, which this back end does not translate; solve it with ours-autodiff")
         keys, z, info = group.arrays()
         for m in range(len(keys)):
             variables = [int(v) for v in keys[m]]

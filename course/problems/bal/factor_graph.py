@@ -10,8 +10,9 @@ from course.factorgraph.variables import BAL_CAMERA, Vector
 from course.problems.bal.dataset import BALProblem
 
 
-def as_factor_graph(problem: BALProblem) -> FactorGraph:
-    """The factor graph of ``problem``: cameras first (keys ``c<k>``), then points (``p<k>``)."""
+def as_factor_graph(problem: BALProblem, loss=None) -> FactorGraph:
+    """The factor graph of ``problem``: cameras first (keys ``c<k>``), then points (``p<k>``); ``loss``
+    None or a robust loss such as ``("huber", 2.0)`` on every observation (chapter 4's)."""
     fg = FactorGraph(problem.name or "bal")
     for k, camera in enumerate(np.asarray(problem.cameras, dtype=float)):
         fg.add_variable(f"c{k}", BAL_CAMERA, camera)
@@ -20,5 +21,5 @@ def as_factor_graph(problem: BALProblem) -> FactorGraph:
         fg.add_variable(f"p{k}", point, X)
     C = len(problem.cameras)
     keys = np.stack([problem.camera_index, C + np.asarray(problem.point_index)], axis=1)
-    fg.add_many(REPROJECTION_BAL, keys, problem.observations)
+    fg.add_many(REPROJECTION_BAL, keys, problem.observations, loss=loss)
     return fg
