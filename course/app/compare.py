@@ -105,8 +105,9 @@ def filter_pairs(pairs, methods, backends, what: str, default=None) -> list:
     ``ValueError`` listing the valid ones for ``what``, in table order.
     """
     offered = pairs
-    if methods is None and default is not None:
-        pairs = default
+    if methods is None and default is not None:  # the default, and every method of a named back end it leaves out
+        in_default = {p[0] for p in default}
+        pairs = [p for p in offered if p in default or backends is not None and p[0] not in in_default]
     for names, index, kind in ((backends, 0, "backend"), (methods, 1, "method")):
         if names is None:
             continue
@@ -396,7 +397,8 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
     Ours: ``minimize(BundleAdjustmentProblem(problem, impl, fix_gauge), method)``: by default
     the gauge is fixed (camera 0's pose and one coordinate of camera 1), as every peer fixes it
     (pycolmap by itself, GTSAM with priors); ``fix_gauge=False`` shows what the free gauge does
-    (Gauss-Newton then fails, and LM with lambda I converges slowly);
+    (Gauss-Newton then fails, and LM with lambda I converges slowly); the factor-graph back ends
+    (chapter 7, run when named) solve its factor graph with the gauge free;
     the peers: ``course.backends.bal.colmap`` (Ceres), ``gtsam_bal``, ``scipy_bal``. Returns
     ``list[BALRunResult]`` (``course.backends.bal.common``: ``params`` the flat state,
     ``final_chi2`` our ``sum |r|^2`` over all observations, and each peer's own cost beside
@@ -419,6 +421,12 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
         return BALRunResult.from_run(result, problem, peer_cost="ours: 0.5 sum |r|^2 over all observations")
 
     def peer(backend, method):
+        if backend in FACTOR_GRAPH_BACKENDS or backend in registry.FACTOR_GRAPH_PEERS:
+            from course.problems.bal.factor_graph import as_factor_graph
+
+            result = factor_graph_run(as_factor_graph(problem), backend, method, impl, options)
+            return BALRunResult.from_run(result, problem, peer_cost="ours: 0.5 sum |r|^2 over all observations "
+                                         "(the factor graph leaves the gauge free: it fixes whole variables only)")
         return _run_peer("bal", backend, problem, method, max_iterations)
 
     return _run_pairs(plan, ours, peer, repeat, unimplemented, progress, failures=SingularSystemError)
@@ -690,9 +698,16 @@ def advice(runs, kind: str, impl) -> list:
     best chi2 of the peers' runs of the same kind of method (``_family``; of every peer when none
     ran) by more than ``ABOVE_PEERS`` (relative), or at the iteration
     limit. Each names the exercise to look at (``METHOD_EXERCISES``), and the problem's model
-    (``MODEL_EXERCISES``) when every method of ours is off. None for the reference (``solutions``)."""
+    (``MODEL_EXERCISES``) when every method of ours is off; none for the reference (``solutions``).
+    Before them, whatever the implementation, the whole message of every other back end's failed row."""
+    lines = []
+    others = [r for r in runs if r.backend != "ours" and r.not_run.startswith("failed:")]
+    for backend in dict.fromkeys(r.backend for r in others):
+        for reason in dict.fromkeys(r.not_run for r in others if r.backend == backend):
+            methods = [r.method for r in others if r.backend == backend and r.not_run == reason]
+            lines.append(f"{backend} {', '.join(methods)} {reason}")
     if str(impl) == "solutions":
-        return []
+        return lines
     ours = [r for r in runs if r.backend == "ours" and not r.not_run]
     peers = [r for r in runs if r.backend != "ours" and not r.not_run and np.isfinite(r.final_chi2)]
     flagged = []
@@ -712,8 +727,7 @@ def advice(runs, kind: str, impl) -> list:
             flagged.append((r, reasons))
     failed = [r for r in runs if r.backend == "ours" and r.not_run.startswith("failed:")]
     if not flagged and not failed:
-        return []
-    lines = []
+        return lines
     for reason in dict.fromkeys(r.not_run for r in failed):  # each failure once, with every method it stopped
         methods = [r.method for r in failed if r.not_run == reason]
         look = _failed_exercise(reason, impl) or METHOD_EXERCISES.get(methods[0], methods[0])

@@ -80,7 +80,7 @@ PEERS: dict[str, dict[str, tuple[str, dict[str, str]]]] = {
 
 
 #: the kinds whose problems are also factor graphs (chapter 7: ``ours-autodiff``, ``ours-numeric``)
-FACTOR_GRAPH_KINDS = ("posegraph", "posegraph3d")
+FACTOR_GRAPH_KINDS = ("posegraph", "posegraph3d", "bal")
 
 #: what each kind is, for ``--help``
 KINDS = {"curve": "the curve (curve)", "posegraph": "2D pose graphs", "posegraph3d": "3D pose graphs",
