@@ -274,8 +274,9 @@ check("autodiff_factor")
 # With the whitened residual $r = L^\top e$ and Jacobians $\tilde J = L^\top J$, the cost is a plain sum of
 # squares, $H = \sum \tilde J^\top \tilde J$ and $b = \sum \tilde J^\top r$: the assembly needs no
 # $\Omega$, and every factor type, whatever its $m$ and its noise, looks the same to it. (The framework
-# whitens each group in one batched product, `course.factorgraph.noise`; chapter 4's robust kernels would
-# scale $r$ and $\tilde J$ the same way.)
+# whitens each group in one batched product, `course.factorgraph.noise`. A group may also carry one of
+# chapter 4's robust losses, `graph.add_many(..., loss=("huber", 2.0))`: its whitened $r$ and $\tilde J$
+# are then reweighted as chapter 4 does, and the assembly still sees plain squares.)
 #
 # **Groups.** All factors of one type share their code and their sizes, so the framework evaluates a type
 # once for all its $M$ factors: residuals $(M, m)$ and Jacobian blocks $(M, m, d_a)$, one Jet evaluation
@@ -363,12 +364,14 @@ for name in [g for g in GRAPHS if g != "ladybug-49"]:  # ladybug-49's solves: th
 #
 # `python -m course benchmark --autodiff`: the median time of one linearisation (the Jacobians, $H$ and
 # $b$) and of one iteration of a whole solve, ours against the factor graph's, the runs interleaved so
-# that the machine's load falls on all alike. The factor graph solves the full $H$ by a sparse Cholesky
-# factorisation where chapter 4 eliminates the points first: on ladybug-49 that is part of the gap per
-# iteration, while the linearisation's ratio is the automatic differentiation's own; and there the 50
-# iterations stop short of the minimum, where the two paths part in the sixth digit (nothing is fixed:
-# the scene's seven free directions leave H nearly singular, and the two factorisations round
-# differently along them). In the small setting one round: the times are noisy.
+# that the machine's load falls on all alike. On ladybug-49 the factor graph eliminates the points first,
+# as chapter 4 does, but from the $H$ its generic assembly stores (`course.solver.schur_elimination`: any
+# kind of variable that no factor joins to another of its kind, here the points), where chapter 4 keeps
+# $H$ as its blocks; so the linearisation's ratio is the automatic differentiation's and the generic
+# assembly's together. There the 50 iterations stop short of the minimum: the two paths step alike to
+# rounding for ten iterations, then part (by $10^{-6}$ at step 20; nothing is fixed, and the scene's seven
+# free directions leave $H$ nearly singular, so the two computations round differently along them).
+# In the small setting one round: the times are noisy.
 
 # %% id="cost"
 with todo_as_one_line():
