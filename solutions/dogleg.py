@@ -95,7 +95,8 @@ HINTS = {
     ),
     "dogleg_step": (
         """For each case, put the step into ``L(0) - L(h) = -g^T h - h^T H h / 2`` and use what is
-        known about it: ``H h_gn = -g``; ``alpha g^T H g = |g|^2``. For beta, write ``|a + beta (h_gn -
+        known about it: ``H h_gn = -g``, and what makes alpha the Cauchy point's (the model's slope along
+        ``-g`` is zero there). For beta, write ``|a + beta (h_gn -
         a)|^2 = radius^2`` as a quadratic in beta and take the root in (0, 1).""",
         """With ``diff = h_gn - a``, ``c = a^T diff``: ``|diff|^2 beta^2 + 2 c beta + |a|^2 - radius^2 = 0``,
         whose positive root is ``(-c + d) / |diff|^2``, ``d = sqrt(c^2 + |diff|^2 (radius^2 - |a|^2))``;
