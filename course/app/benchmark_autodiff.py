@@ -27,6 +27,13 @@ Where a back end changes the problem or the solve:
   that stopped; on bundle adjustment (ladybug-49) only its linearisation is timed (about 11 s here),
   not its solve: its first LM iteration from ladybug-49's start took 342 s (GTSAM's retries, each
   one evaluating the 31843 callbacks).
+- the references (``REFERENCES``): GTSAM's native factors (``BetweenFactorPose2``,
+  ``BetweenFactorPose3``, ``GeneralSFMFactorCal3Bundler``: C++ Jacobians written by hand), g2o
+  (C++) and Ceres (pycolmap's C++ cost on bundle adjustment; on pose graphs pyceres evaluating our
+  edge cost in Python, so not a compiled reference there), each its own Levenberg-Marquardt for
+  ``REFERENCE_ITERATIONS`` iterations from the same start, per iteration; GTSAM's linearisation
+  (``NonlinearFactorGraph.linearize``) timed beside ours. Their problems differ where chapter 4 and 6
+  say: GTSAM fixes BAL's gauge with priors, pycolmap deletes the points behind a camera.
 """
 
 import statistics
@@ -45,6 +52,10 @@ METHOD = "lm-type3"
 GTSAM_CUSTOM_ITERATIONS = 5
 #: the graphs on which only gtsam-custom's linearisation is timed, not its solve (see the module doc)
 GTSAM_CUSTOM_LINEARISATION_ONLY = ("ladybug-49",)
+#: the references run beside (``course.backends.registry``'s peers): backend -> its Levenberg-Marquardt
+REFERENCES = {"gtsam": "levenberg-marquardt", "g2o": "levenberg", "ceres": "levenberg-marquardt"}
+#: iterations of each reference per solve
+REFERENCE_ITERATIONS = 10
 
 
 def factor_graph(name: str, impl="solutions"):
@@ -69,6 +80,60 @@ def factor_graph(name: str, impl="solutions"):
 
     data = datasets_2d.load_dataset(name)
     return PoseGraphProblem(data, impl), graph_2d(data)
+
+
+def family(name: str) -> str:
+    """The kind of problem (``course.backends.registry.KINDS``) of a graph of ``GRAPHS`` or a 2D one."""
+    return {"ladybug-49": "bal", "sphere2500": "posegraph3d"}.get(name, "posegraph")
+
+
+class _Reference:
+    """One reference's row: its solve (``REFERENCE_ITERATIONS`` iterations of its LM) and, for GTSAM's
+    native factors, its linearisation."""
+
+    def __init__(self, kind: str, backend: str, data, impl):
+        from course.backends import registry
+
+        self.kind, self.backend, self.data, self.impl = kind, backend, data, impl
+        self._solve = registry.peer_solver(kind, backend)  # PeerMissing where its library is not here
+        self.factors = self.values = None
+        if backend == "gtsam":
+            if kind == "bal":
+                from course.backends.bal.gtsam import to_gtsam as build
+            elif kind == "posegraph3d":
+                from course.backends.posegraph3d.gtsam import build_factor_graph as build
+            else:
+                from course.backends.posegraph.gtsam import build_factor_graph as build
+            self.factors, self.values = build(data)[:2]
+
+    def linearize_seconds(self) -> float:
+        if self.factors is None:
+            return float("nan")
+        start = time.perf_counter()
+        self.factors.linearize(self.values)
+        return time.perf_counter() - start
+
+    def solve(self):
+        kwargs = {"impl": self.impl} if self.backend == "ceres" and self.kind != "bal" else {}
+        return self._solve(self.data, REFERENCES[self.backend], REFERENCE_ITERATIONS, **kwargs)
+
+
+def references(name: str, ours, impl) -> dict:
+    """``{backend: _Reference}`` of the references offered for ``name``'s kind and installed here
+    (a missing library is said once on stderr by ``course.core.peers``)."""
+    from course.backends import registry
+
+    kind = family(name)
+    data = ours.problem if kind == "bal" else ours.graph
+    out = {}
+    for backend, method in REFERENCES.items():
+        if method not in registry.PEERS[kind].get(backend, (None, {}))[1]:
+            continue
+        try:
+            out[backend] = _Reference(kind, backend, data, impl)
+        except peers.PeerMissing:
+            continue
+    return out
 
 
 def problems(name: str, impl="solutions") -> dict:
@@ -112,7 +177,8 @@ def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int =
     chosen = problems(name, impl)
     custom = _GtsamCustom(chosen[OURS_AUTODIFF].graph, impl) if peers.installed("gtsam") else None
     custom_solves = name not in GTSAM_CUSTOM_LINEARISATION_ONLY
-    names = list(chosen) + ([GTSAM_CUSTOM] if custom is not None else [])
+    native = references(name, chosen[OURS], impl)
+    names = list(chosen) + ([GTSAM_CUSTOM] if custom is not None else []) + list(native)
     lin: dict = {b: [] for b in names}
     per_iteration: dict = {b: [] for b in names}
     last: dict = {}
@@ -131,6 +197,12 @@ def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int =
                 result = custom.solve()
                 per_iteration[GTSAM_CUSTOM].append(result.seconds / max(result.iterations, 1))
                 last[GTSAM_CUSTOM] = result
+        for backend, reference in native.items():
+            lin[backend].append(reference.linearize_seconds())
+            result = reference.solve()
+            if not result.not_run:
+                per_iteration[backend].append(result.seconds / max(result.iterations, 1))
+                last[backend] = result
     nan = float("nan")
     rows = {b: (statistics.median(lin[b]), statistics.median(per_iteration[b]) if per_iteration[b] else nan,
                 last[b].final_chi2 if b in last else nan, last[b].iterations if b in last else 0) for b in names}
@@ -141,8 +213,9 @@ def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int =
 
 def main(repeats: int = 5, impl="solutions", graphs=GRAPHS, out=print) -> None:
     out(f"automatic against analytic Jacobians: medians of {repeats} interleaved rounds, {METHOD} "
-        f"({GTSAM_CUSTOM}: GTSAM's LM, {GTSAM_CUSTOM_ITERATIONS} iterations at most), "
-        "ratio = the back end's time / ours")
+        f"({GTSAM_CUSTOM}: GTSAM's LM, {GTSAM_CUSTOM_ITERATIONS} iterations at most; {', '.join(REFERENCES)}: "
+        f"GTSAM's native factors and the compiled references, their own LM, {REFERENCE_ITERATIONS} iterations; "
+        "nan: not timed), ratio = the back end's time / ours")
     out(f"{'graph':12} {'backend':14} {'ms/linearize':>12} {'ratio':>6} {'ms/iter':>9} {'ratio':>6} "
         f"{'iters':>5} {'final chi2':>16}")
     for name in graphs:
