@@ -3,6 +3,7 @@ the whole H's, the graphs that have no such variables solve the whole H, and a s
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from course.core.errors import SingularSystemError
 from course.factorgraph import BETWEEN_SE2, RANGE_BEARING, SE2, FactorGraph, FactorGraphProblem, Vector
@@ -51,6 +52,25 @@ def test_the_landmarks_are_eliminated_and_the_step_is_the_whole_hs():
         assert np.all(h[10:13] == 0.0) and np.all(h[:10] != 0.0)  # x2, after x0 l0 x1 l1, is fixed
     for method in ("gauss-newton", "lm-type3", "dogleg"):
         assert minimize(schur, method).final_chi2 == pytest.approx(minimize(whole, method).final_chi2, rel=1e-9)
+
+
+def test_a_large_reduced_system_is_solved_sparsely_and_a_duplicate_entry_summed(monkeypatch):
+    from course.solver import schur_elimination
+
+    graph = _slam()
+    schur, whole = FactorGraphProblem(graph), FactorGraphProblem(graph, eliminate=None)
+    lin = schur.linearize(schur.x0)
+    damping = 1e-3 * lin.diagonal()
+    h_ref = whole.solve(lin, damping)
+    H = lin.H  # its first stored entry split in two halves, stored twice: not canonical
+    data = np.concatenate([[0.5 * H.data[0], 0.5 * H.data[0]], H.data[1:]])
+    indices = np.concatenate([[H.indices[0]], H.indices])
+    split = sp.csc_matrix((data, indices, np.concatenate([[0], H.indptr[1:] + 1])), shape=H.shape)
+    assert not split.has_canonical_format
+    for limit in (schur_elimination.DENSE_LIMIT, 0):  # S dense, then sparse
+        monkeypatch.setattr(schur_elimination, "DENSE_LIMIT", limit)
+        for lin.H in (H, split):
+            np.testing.assert_allclose(schur.solve(lin, damping), h_ref, rtol=0, atol=1e-10 * np.abs(h_ref).max())
 
 
 def test_graphs_without_point_like_variables_solve_the_whole_h():

@@ -122,6 +122,9 @@ class SchurElimination:
     def solve(self, H_upper, b_vector, damping=None) -> np.ndarray:
         """``h`` (n,) of ``(H + diag(damping)) h = -b``; ``H_upper`` the upper triangle (n, n), CSC."""
         H = H_upper if sp.isspmatrix_csc(H_upper) else sp.csc_matrix(H_upper)
+        if not H.has_canonical_format:  # duplicate entries are summed, as a factorisation would read them
+            H = H.copy()
+            H.sum_duplicates()
         if self._pattern is None or not self._same_pattern(H):
             self._analyse(H)
         a, b, C, P, n = self.a, self.b, self._C, self._P, self._n
