@@ -36,6 +36,7 @@ Where a back end changes the problem or the solve:
   say: GTSAM fixes BAL's gauge with priors, pycolmap deletes the points behind a camera.
 """
 
+import importlib
 import statistics
 import time
 
@@ -98,12 +99,9 @@ class _Reference:
         self._solve = registry.peer_solver(kind, backend)  # PeerMissing where its library is not here
         self.factors = self.values = None
         if backend == "gtsam":
-            if kind == "bal":
-                from course.backends.bal.gtsam import to_gtsam as build
-            elif kind == "posegraph3d":
-                from course.backends.posegraph3d.gtsam import build_factor_graph as build
-            else:
-                from course.backends.posegraph.gtsam import build_factor_graph as build
+            module = {"bal": "course.backends.bal.gtsam", "posegraph3d": "course.backends.posegraph3d.gtsam",
+                      "posegraph": "course.backends.posegraph.gtsam"}[kind]
+            build = getattr(importlib.import_module(module), "to_gtsam" if kind == "bal" else "build_factor_graph")
             self.factors, self.values = build(data)[:2]
 
     def linearize_seconds(self) -> float:

@@ -105,7 +105,7 @@ class FactorGraphProblem:
     def residuals(self, x) -> list:
         """Per group, the whitened residuals (M_g, m_g) at ``x``."""
         out = []
-        for group, ((ftype, keys, z, _), W) in enumerate(zip(self._groups, self._whitening)):
+        for group, ((ftype, _, z, _), W) in enumerate(zip(self._groups, self._whitening)):
             r = np.asarray(ftype.residual(z, *self._slots(x, group)), dtype=float)
             out.append(r if W is None else np.einsum("mab,mb->ma", W, r))
         return out

@@ -44,7 +44,7 @@ class SchurElimination:
 
     def __init__(self, dims, eliminated, solver, name: str = "factor graph", keys=None):
         dims = np.asarray(dims, dtype=np.int64)
-        eliminated = np.asarray(eliminated, dtype=np.int64)
+        eliminated = np.unique(np.asarray(eliminated, dtype=np.int64))  # sorted: numbered in the graph's order
         is_eliminated = np.zeros(len(dims), dtype=bool)
         is_eliminated[eliminated] = True
         kept = np.flatnonzero(~is_eliminated)
@@ -66,7 +66,11 @@ class SchurElimination:
         self._dof_block = number[owner]
         self._dof_local = local
         self._C, self._P, self._n = len(kept), len(eliminated), n
-        self._pattern = None
+        # the kept dofs in the reduced system's order (kept variable by kept variable), the eliminated ones
+        # in D's: both are the graph's order, variables being numbered in it
+        self._k_dofs = np.flatnonzero(~self._dof_is_e)
+        self._e_dofs = np.flatnonzero(self._dof_is_e)
+        self._pattern: tuple = ()
 
     # ------------------------------------------------------------ the index arrays, once per pattern
 
@@ -106,11 +110,6 @@ class SchurElimination:
         self._w = _gather_plan(m_src, w_pos, len(pairs) * a * b)
         self._camera_index, self._point_index = (pairs // P).astype(np.int64), (pairs % P).astype(np.int64)
         self._k = (k_src, kr * nk + kq, kq * nk + kr)
-        self._k_dofs = np.flatnonzero(~self._dof_is_e)
-        self._e_dofs = np.flatnonzero(self._dof_is_e)  # in variable order: eliminated variable by variable
-        # kept dofs in (variable, local) order, eliminated ones likewise
-        self._k_dofs = self._k_dofs[np.argsort(self._dof_block[self._k_dofs] * a + self._dof_local[self._k_dofs])]
-        self._e_dofs = self._e_dofs[np.argsort(self._dof_block[self._e_dofs] * b + self._dof_local[self._e_dofs])]
 
     def _same_pattern(self, H) -> bool:
         indptr, indices = self._pattern
@@ -125,7 +124,7 @@ class SchurElimination:
         if not H.has_canonical_format:  # duplicate entries are summed, as a factorisation would read them
             H = H.copy()
             H.sum_duplicates()
-        if self._pattern is None or not self._same_pattern(H):
+        if not self._pattern or not self._same_pattern(H):
             self._analyse(H)
         a, b, C, P, n = self.a, self.b, self._C, self._P, self._n
         data = H.data
