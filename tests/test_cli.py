@@ -214,3 +214,16 @@ def test_demo_offers_lm_scaled_nielsen_too(tmp_path, capsys):
     assert re.search(r"^ours +lm-scaled-nielsen +\d+ ", capsys.readouterr().out, flags=re.M)
     (run,) = json.loads((tmp_path / "out" / "curve.json").read_text())["runs"]
     assert run["method"] == "lm-scaled-nielsen" and run["final_chi2"] < run["initial_chi2"]
+
+
+def test_chapter_7s_back_ends_run_only_when_named():
+    """``--methods`` alone keeps to the default back ends (gtsam-custom's LM on ladybug-49 takes minutes);
+    ``--backends`` naming one runs it, every method it offers unless ``--methods`` says which."""
+    from course.app import compare
+
+    plan = compare.plan_for("bal", methods=["lm-type1", "levenberg-marquardt", "trf"])
+    assert {b for b, _ in plan} == {"ours", "ceres", "gtsam", "scipy"}
+    assert compare.plan_for("posegraph", methods=["dogleg"], backends=["ours", "ours-autodiff"]) == [
+        ("ours", "dogleg"), ("ours-autodiff", "dogleg")]
+    named = compare.plan_for("bal", backends=["ours", "gtsam-custom"])
+    assert ("gtsam-custom", "levenberg-marquardt") in named and ("ours", "lm-type3") in named

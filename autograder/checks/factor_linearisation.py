@@ -6,7 +6,8 @@ calls it every iteration). The blocks are random: whitened residuals and Jacobia
 linearisation hands them over. Public inputs: a 2D graph of three SE(2) poses and two landmarks
 (between factors, one from a later to an earlier pose; range-bearing factors; a prior on one pose,
 a factor of one variable; two factors on the same two poses), pose 0 fixed; a graph of two SE(3)
-poses, two 3D points and a rotation (6, 3 and 3 tangent sizes) with no fixed variable; one factor on
+poses, two 3D points and a rotation (6, 3 and 3 tangent sizes) with no fixed variable, each pose in
+8 point factors (as a camera in bundle adjustment, where summing by variable pays); one factor on
 one variable (each its own check: the assembler's judge reads one call).
 Hidden: other numbers and keys from the hidden seed, same structure. H is compared as
 a dense matrix of its upper triangle (1e-10 of its largest entry), b and chi2 to 1e-9.
@@ -64,7 +65,7 @@ def mixed(seed=None):
     prior = ([[1]], 3)
     dims3 = [6, 3, 6, 3, 3]  # SE(3) poses 0, 2; points 1, 3; a rotation 4
     poses = ([[0, 2], [2, 0]], 6)
-    points = ([[0, 1], [2, 1], [2, 3], [0, 3]], 2)
+    points = ([[0, 1], [2, 1], [2, 3], [0, 3]] * 4, 2)  # each pose in 8 of them: a camera seeing many points
     rotation = ([[4, 2]], 3)
     hidden = seed is not None
     return {"2d": [_graph(rng, dims2, [between, ranges, prior], [0],

@@ -98,16 +98,22 @@ def plan_for(kind: str, methods=None, backends=None) -> list:
 
 
 def filter_pairs(pairs, methods, backends, what: str, default=None) -> list:
-    """``pairs`` whose backend is in ``backends`` and method in ``methods`` (None = all, or the
-    pairs of ``default`` when it is given and ``methods`` is None).
+    """``pairs`` whose backend is in ``backends`` and method in ``methods`` (None = all). With
+    ``default`` given, a back end that ``default`` leaves out (chapter 7's) runs only when ``backends``
+    names it, with every method it offers unless ``methods`` says which; ``methods=None`` otherwise
+    means the pairs of ``default``.
 
     A method name selects it in every backend that has it; unknown names raise
     ``ValueError`` listing the valid ones for ``what``, in table order.
     """
     offered = pairs
-    if methods is None and default is not None:  # the default, and every method of a named back end it leaves out
+    if default is not None:  # a back end the default leaves out runs when --backends names it
         in_default = {p[0] for p in default}
-        pairs = [p for p in offered if p in default or backends is not None and p[0] not in in_default]
+        named = set(backends or ())
+        if methods is None:  # the default, and every method of a named back end it leaves out
+            pairs = [p for p in offered if p in default or p[0] in named and p[0] not in in_default]
+        else:
+            pairs = [p for p in offered if p[0] in in_default or p[0] in named]
     for names, index, kind in ((backends, 0, "backend"), (methods, 1, "method")):
         if names is None:
             continue
