@@ -210,7 +210,7 @@ def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int =
                 per_iteration[backend].append(result.seconds / max(result.iterations, 1))
                 last[backend] = result
     nan = float("nan")
-    rows = {b: (statistics.median(lin[b]), statistics.median(per_iteration[b]) if per_iteration[b] else nan,
+    rows: dict = {b: (statistics.median(lin[b]), statistics.median(per_iteration[b]) if per_iteration[b] else nan,
                 last[b].final_chi2 if b in last else nan, last[b].iterations if b in last else 0) for b in names}
     if JAX in chosen:
         rows["jax compile"] = chosen[JAX].jacobians.compile_seconds
