@@ -125,7 +125,10 @@ def _known(call, ref):
         for name in ("value", "grad"):
             value = np.asarray(slip[name], dtype=float)
             want = np.asarray(ref[name], dtype=float)
-            if value.shape == want.shape and not np.array_equal(np.nan_to_num(value), np.nan_to_num(want)):
+            # a slip that coincides with the reference here (the transpose of a symmetric A) is left out, to
+            # rounding: the reference may take another path than the slip's einsum, on another CPU another one
+            if value.shape == want.shape and not np.allclose(np.nan_to_num(value), np.nan_to_num(want),
+                                                            rtol=1e-12, atol=1e-14):
                 known[name].append((value, why))
     return known
 
