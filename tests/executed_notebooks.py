@@ -140,3 +140,22 @@ def assert_hints_and_checks_at_full_marks(nb, cells) -> None:
         assert f"{exercise} (solutions): " in text[check_id]
         assert "full marks on the public checks" in text[check_id], text[check_id]
         assert order.index(hint_id) < order.index(check_id) < order.index("experiments-md")
+
+
+def assert_no_level_3_hint_line(lesson: str, exercises, strip: str = " :`") -> int:
+    """No line of the exercises' level-3 hints (those longer than 24 characters that hold a formula: ``=``,
+    ``^`` or ``(``) stands in ``lesson`` (its text, whitespace folded): the lesson stops where the
+    exercise starts. Returns how many hint lines were looked for."""
+    from autograder.hints import hint_sources
+
+    lesson = " ".join(lesson.split())
+    sources = hint_sources()
+    checked = 0
+    for exercise in exercises:
+        for owner, levels in sources[exercise].items():
+            for line in levels[2].splitlines():
+                line = " ".join(line.strip(strip).split())
+                if len(line) > 24 and any(c in line for c in "=^("):
+                    assert line not in lesson, (exercise, owner, line)
+                    checked += 1
+    return checked

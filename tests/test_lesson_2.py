@@ -8,7 +8,7 @@ import nbformat
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from executed_notebooks import cell_text, chapter_1_student_build, executed_small
+from executed_notebooks import assert_no_level_3_hint_line, cell_text, chapter_1_student_build, executed_small
 
 from course.core import peers
 from course.core.impl import REPO_ROOT
@@ -206,19 +206,8 @@ def test_the_lesson_is_in_order_theory_experiments_questions():
 
 def test_the_lesson_does_not_print_the_level_3_hints():
     """No line of the five exercises' level-3 hints is in the lesson's cells (the outputs: the slow test)."""
-    from autograder.hints import hint_sources
-
     lesson = " ".join("\n".join(c.source for c in _lesson().cells).split())
-    sources = hint_sources()
-    checked = 0
-    for exercise in EXERCISES:
-        for owner, levels in sources.get(exercise, {}).items():
-            for line in levels[2].splitlines():
-                line = " ".join(line.strip(" :`").split())
-                if len(line) > 24 and any(c in line for c in "=^("):
-                    assert line not in lesson, (exercise, owner, line)
-                    checked += 1
-    assert checked >= 5
+    assert assert_no_level_3_hint_line(lesson, EXERCISES) >= 5
     # nor the Jacobians' matrices written out
     for words in ("[[-R_ij^T R_i^T", "A_ij = [[", "H[i,i] += A^T Omega A", "-Q, (-sin phi dx"):
         assert words not in lesson
@@ -287,15 +276,7 @@ def test_the_lesson_runs_with_a_hint_a_check_and_a_checker_per_exercise(executed
         "ceres-jacobian-check"]
     assert "Jacobian OK: 186 x 372" in text["fast-jacobian-check"]
     # nor do the outputs hold a line of the level-3 hints
-    from autograder.hints import hint_sources
-
-    printed = " ".join("\n".join(text.values()).split())
-    for exercise in EXERCISES:
-        for levels in hint_sources().get(exercise, {}).values():
-            for line in levels[2].splitlines():
-                line = " ".join(line.strip(" :`").split())
-                if len(line) > 24 and any(c in line for c in "=^("):
-                    assert line not in printed, (exercise, line)
+    assert_no_level_3_hint_line("\n".join(text.values()), EXERCISES)
 
 
 @pytest.mark.slow
