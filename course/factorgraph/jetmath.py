@@ -134,17 +134,60 @@ def so3_exp(phi):
 
 
 def so3_log(R):
-    """``Log(R)`` (..., 3) of rotations (..., 3, 3) with angles below pi: ``w t / sin t`` with ``w =
-    vee(R)``, ``sin t = |w|``, ``cos t = (tr R - 1) / 2``; ``w (1 + |w|^2 / 6)`` for small angles.
-    Within about 1e-3 of pi, ``sin t`` carries no accuracy: use ``course.geometry.so3`` there."""
+    """``Log(R)`` (..., 3) of rotations (..., 3, 3), the angle ``t`` in [0, pi], right at every angle:
+
+    - ``w (1 + |w|^2 / 6)`` for small angles (``w = vee(R) = sin t u``, ``cos t > 0``);
+    - ``w t / sin t`` with ``t = atan2(|w|, cos t)``, ``cos t = (tr R - 1) / 2``, up to a right angle;
+    - beyond it (:func:`so3_log_wide`) the axis from the symmetric part, where ``w`` has lost the
+      direction: near pi ``sin t`` is rounding noise, and ``w / sin t`` with it (its derivative ~ 1/sin^2 t).
+    """
     w = vee(R)
     s2 = squared_norm3(w)
-    small = value_of(s2) < SMALL_ANGLE_SQUARED
+    cos_v = 0.5 * (value_of(R[..., 0, 0]) + value_of(R[..., 1, 1]) + value_of(R[..., 2, 2]) - 1.0)
+    wide = cos_v < 0.0
+    small = (value_of(s2) < SMALL_ANGLE_SQUARED) & ~wide
 
     def closed():
         sin_t = np.sqrt(where(small, 1.0, s2) if small.any() else s2)
         cos_t = 0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0)
         return (np.arctan2(sin_t, cos_t) / sin_t,)
 
+    if wide.all():
+        return so3_log_wide(R, w)
     scale, = branches(small, lambda: (1.0 + s2 / 6.0,), closed)
-    return w * scale[..., None]
+    narrow = w * scale[..., None]
+    if not wide.any():
+        return narrow
+    return where(wide[..., None], so3_log_wide(R, w, wide), narrow)
+
+
+def so3_log_wide(R, w, wide=None):
+    """``Log(R)`` (..., 3) for angles beyond a right angle (``cos t < 0``), exact at pi.
+
+    ``B = (R + R^T) / 2 - cos t I = (1 - cos t) u u^T``: the axis is the column ``k`` of B with the
+    largest diagonal, ``u = B[:, k] / sqrt((1 - cos t) B_kk)`` (``B_kk >= (1 - cos t) / 3 > 0``), its
+    sign that of ``u . w``; then ``sin t = u . w`` (smooth through pi, unlike ``|w|``) and
+    ``t = atan2(sin t, cos t)``. ``wide`` (...,) marks the entries that take this branch: the others
+    get a harmless value (they are discarded by the caller)."""
+    cos_t = 0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0)
+    one_minus = 1.0 - cos_t
+    diag = np.stack([value_of(R[..., i, i]) for i in range(3)], axis=-1) - value_of(cos_t)[..., None]
+    k = np.argmax(diag, axis=-1)
+    if wide is not None:
+        k = np.where(wide, k, 0)
+    u = None
+    for col in range(3):
+        chosen = k == col
+        if not chosen.any():
+            continue
+        B_col = np.stack([0.5 * (R[..., i, col] + R[..., col, i]) - (cos_t if i == col else 0.0)
+                          for i in range(3)], axis=-1)
+        norm2 = one_minus * B_col[..., col]
+        if wide is not None or not chosen.all():
+            usable = chosen & (wide if wide is not None else True)
+            norm2 = where(usable, norm2, 1.0)
+        candidate = B_col / np.sqrt(norm2)[..., None]
+        u = candidate if u is None else where(chosen[..., None], candidate, u)
+    flip = np.where(value_of(dot3(u, w)) < 0.0, -1.0, 1.0)
+    u = u * flip[..., None]
+    return u * np.arctan2(dot3(u, w), cos_t)[..., None]

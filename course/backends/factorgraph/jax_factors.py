@@ -65,14 +65,25 @@ def so3_rotate(phi, v):
 
 
 def so3_log(R):
-    """``Log(R)`` for angles below pi: ``w t / sin t``, ``w = vee(R)``, as ``jetmath.so3_log``."""
+    """``Log(R)``, the angle in [0, pi], with the branches of ``jetmath.so3_log``: the series for small
+    angles, ``w t / sin t`` up to a right angle, beyond it the axis from the symmetric part
+    ``(R + R^T) / 2 - cos t I = (1 - cos t) u u^T`` and ``t = atan2(u . w, cos t)`` (exact at pi).
+    Every branch is evaluated at safe values where it is not taken, so that its derivative is finite."""
     w = 0.5 * jnp.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
     s2 = w @ w
-    small = s2 < SMALL_ANGLE_SQUARED
-    safe = jnp.where(small, 1.0, s2)
-    sin_t = jnp.sqrt(safe)
     cos_t = 0.5 * (jnp.trace(R) - 1.0)
-    return w * jnp.where(small, 1.0 + s2 / 6.0, jnp.arctan2(sin_t, cos_t) / sin_t)
+    wide = cos_t < 0.0
+    small = (s2 < SMALL_ANGLE_SQUARED) & ~wide
+    safe = jnp.where(small | wide, 1.0, s2)
+    sin_t = jnp.sqrt(safe)
+    narrow = w * jnp.where(small, 1.0 + s2 / 6.0, jnp.arctan2(sin_t, cos_t) / sin_t)
+    B = 0.5 * (R + R.T) - cos_t * jnp.eye(3)
+    k = jnp.argmax(jnp.diag(B))
+    safe_cos = jnp.where(wide, cos_t, -1.0)
+    column = jnp.where(wide, B[:, k], jnp.eye(3)[k])
+    u = column / jnp.sqrt((1.0 - safe_cos) * jnp.where(wide, B[k, k], 0.5))
+    u = jnp.where(u @ w < 0.0, -u, u)
+    return jnp.where(wide, u * jnp.arctan2(u @ w, safe_cos), narrow)
 
 
 def se3_parts(x):
