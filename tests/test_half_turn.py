@@ -11,7 +11,7 @@ from conftest import needs
 
 from course.core import impl as impl_loader
 from course.factorgraph import BETWEEN_SE3, SE3, FactorGraph, FactorGraphProblem, jetmath
-from course.geometry.so3 import so3_exp, so3_log, skew
+from course.geometry.so3 import skew, so3_exp, so3_log
 
 GAPS = (1.0, 1e-3, 1e-5, 1e-7, 0.0)  # pi minus the angle
 AXIS = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
