@@ -88,7 +88,8 @@ class FactorGraph:
         self.add_many(factor_type, [keys], z, info, loss)
 
     def add_many(self, factor_type: FactorType, keys, measurements, information=None, loss=None) -> None:
-        """M factors of ``factor_type``: ``keys`` (M, s) variable keys (or indices), ``measurements``
+        """M factors of ``factor_type``: ``keys`` (M, s) registered variable keys, or an integer array of
+        variable indices (the order of ``add_variable``), ``measurements``
         (M, ...), ``information`` (M, dim, dim), (dim, dim) or None (unit); ``loss`` None or a robust
         loss such as ``("huber", 2.0)`` (chapter 4's kernels, on the whitened ``|r|^2`` of each factor)."""
         where = f"{self.name}: {factor_type.name}"
@@ -115,15 +116,23 @@ class FactorGraph:
                 info = np.broadcast_to(info, (len(indices),) + info.shape)
         name = factor_type.name if loss is None else f"{factor_type.name} {loss}"
         group = self.groups.setdefault(name, FactorGroup(factor_type, loss))
+        if group.type != factor_type:
+            raise ValueError(f"{where}: two factor types are named {factor_type.name!r} (residuals "
+                             f"{_function_name(group.type.residual)} and {_function_name(factor_type.residual)}): "
+                             "give each factor type a name of its own")
         group.keys.append(indices)
         group.measurements.append(z)
         group.information.append(info)
 
     def _variable(self, key, where) -> int:
-        if isinstance(key, (int, np.integer)) and not isinstance(key, bool) and key not in self.index:
-            if 0 <= key < self.num_variables:
-                return int(key)
+        """The index of the registered variable ``key`` (a key is never taken as an index: ``add_many``
+        takes an integer array of indices for that)."""
         try:
             return self.index[key]
         except KeyError:
-            raise ValueError(f"{self.name}: {where}: no variable {key!r}") from None
+            prefix = "" if where.startswith(f"{self.name}: ") else f"{self.name}: "
+            raise ValueError(f"{prefix}{where}: no variable {key!r} (keys are the names given to add_variable)") from None
+
+
+def _function_name(function) -> str:
+    return f"{getattr(function, '__module__', '?')}.{getattr(function, '__qualname__', repr(function))}"

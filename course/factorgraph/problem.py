@@ -16,7 +16,7 @@ points of bundle adjustment, the landmarks of SLAM), those are eliminated first
 import numpy as np
 
 from course.core import impl as impl_loader
-from course.core.errors import ShapeError, check_array
+from course.core.errors import NonFiniteError, ShapeError, SingularSystemError, check_array
 from course.factorgraph import noise
 from course.factorgraph.graph import FactorGraph
 from course.factorgraph.numeric import central_differences
@@ -129,11 +129,12 @@ class FactorGraphProblem:
         xs = self._slots(x, group)
         if callable(self.jacobians):
             r, J = self.jacobians(ftype, z, xs)
-            return check_array(r, (len(keys), ftype.dim), "jacobians", "r"), [
-                check_array(block, (len(keys), ftype.dim, d), "jacobians", f"J[{a}]")
+            return self._checked(r, (len(keys), ftype.dim), "jacobians", "r", group, 0), [
+                self._checked(block, (len(keys), ftype.dim, d), "jacobians", f"J[{a}]", group, 0)
                 for a, (block, d) in enumerate(zip(J, dims))]
         if self.jacobians == "numeric":
-            return central_differences(residual, retractions, dims, xs)
+            r, J = central_differences(residual, retractions, dims, xs)
+            return self._checked(r, (len(keys), ftype.dim), "the residual", "r", group, 0), J
         jet = self.impl.module("jets").Jet
         tangent_jacobians = self.impl.module("autodiff_factor").tangent_jacobians
         where = "autodiff_factor.tangent_jacobians"
@@ -147,15 +148,57 @@ class FactorGraphProblem:
                 return ftype.residual(z_part, *points)
 
             r, J = tangent_jacobians(residual_of_part, retractions, dims, [x[part] for x in xs], jet)
-            rs.append(check_array(r, (count, m), where, "r"))
+            rs.append(self._checked(r, (count, m), where, "r", group, start))
             if not isinstance(J, (list, tuple)) or len(J) != len(dims):
                 raise ShapeError(f"{where} returned {len(J) if isinstance(J, (list, tuple)) else type(J).__name__} "
                                  f"Jacobian blocks for a factor with {len(dims)} variables")
-            Js.append([check_array(block, (count, m, d), where, f"J[{a}]")
+            Js.append([self._checked(block, (count, m, d), where, f"J[{a}]", group, start)
                        for a, (block, d) in enumerate(zip(J, dims))])
         if len(rs) == 1:
             return rs[0], Js[0]
         return np.concatenate(rs), [np.concatenate([J[a] for J in Js]) for a in range(len(dims))]
+
+    def describe_factor(self, group: int, row: int) -> str:
+        """``"factor 3000 of type 'between_se3' on 'x12', 'x13'"``: factor ``row`` of group ``group``."""
+        ftype, keys, _, _ = self._groups[group]
+        names = ", ".join(repr(self.graph.keys[v]) for v in keys[row])
+        return f"factor {row} of type {ftype.name!r} on {names}"
+
+    def _checked(self, value, shape, where: str, what: str, group: int, start: int) -> np.ndarray:
+        """``check_array`` of a group's output (or of a chunk of it starting at factor ``start``), a
+        non-finite entry named by its factor: its index in the group, its type and its variables' keys."""
+        arr = np.asarray(value, dtype=float) if isinstance(value, np.ndarray) else value
+        if isinstance(arr, np.ndarray) and arr.shape == tuple(shape) and not np.all(np.isfinite(arr)):
+            index = tuple(int(k) for k in np.argwhere(~np.isfinite(arr))[0])
+            row = start + index[0]
+            raise NonFiniteError(
+                f"{where} returned a non-finite {what} for {self.describe_factor(group, row)} "
+                f"({self.graph.name}): {what}[{', '.join(map(str, (row,) + index[1:]))}] = {arr[index]}")
+        return check_array(value, shape, where, what)
+
+    def free_gauges(self) -> list:
+        """The connected parts of the graph (by its factors) that hold no fixed variable and no factor on
+        one variable alone (a prior): ``[(number of variables, first key)]``. Their global pose is free."""
+        parent = list(range(self.graph.num_variables))
+
+        def root(v):
+            while parent[v] != v:
+                parent[v] = parent[parent[v]]
+                v = parent[v]
+            return v
+
+        anchored = set(int(v) for v in self._fixed)
+        for _, keys, _, _ in self._groups:
+            if keys.shape[1] == 1:
+                anchored.update(int(v) for v in keys[:, 0])
+            for a in range(1, keys.shape[1]):
+                for u, v in zip(keys[:, 0], keys[:, a]):
+                    parent[root(int(u))] = root(int(v))
+        held = {root(v) for v in anchored}
+        parts: dict = {}
+        for v in range(self.graph.num_variables):
+            parts.setdefault(root(v), []).append(v)
+        return [(len(members), self.graph.keys[members[0]]) for r, members in parts.items() if r not in held]
 
     def linearize(self, x) -> Linearization:
         blocks = []
@@ -178,13 +221,23 @@ class FactorGraphProblem:
                              diagonal_positions=getattr(self._assembler, "diagonal_positions", None))
 
     def solve(self, lin: Linearization, damping=None):
-        """The step (n,) of ``(H + diag(damping)) h = -b``; fixed variables' steps are 0."""
-        if self._schur is not None:
-            h = self._schur.solve(lin.H, lin.b, damping)
-            h[self._fixed_dof] = 0.0
-            return h
-        return checked_step(self._solver, lin.with_diagonal_added(damping), lin.b, self._fixed_dof,
-                            self.graph.name, "variable")
+        """The step (n,) of ``(H + diag(damping)) h = -b``; fixed variables' steps are 0. A singular
+        system says which parts of the graph have a free gauge (:meth:`free_gauges`), if any."""
+        try:
+            if self._schur is not None:
+                h = self._schur.solve(lin.H, lin.b, damping)
+                h[self._fixed_dof] = 0.0
+                return h
+            return checked_step(self._solver, lin.with_diagonal_added(damping), lin.b, self._fixed_dof,
+                                self.graph.name, "variable")
+        except SingularSystemError as exc:
+            free = self.free_gauges()
+            if not free:
+                raise
+            parts = "; ".join(f"the {n} variable(s) joined to {key!r}" for n, key in free[:3])
+            raise SingularSystemError(
+                f"{exc}. The gauge is free: {parts} have no fixed variable and no prior, so their global "
+                f"pose is not determined; fix one (graph.fix({free[0][1]!r})) or add a prior") from exc
 
     def retract(self, x, h):
         """Every variable moved by its step, kind by kind (vectorised)."""

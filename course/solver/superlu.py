@@ -57,7 +57,13 @@ def checked_step(solver, H, b, fixed_dof, name: str, what: str = "pose") -> np.n
     the entries ``fixed_dof`` set to 0. A step of another shape, not finite, or uphill (``h . b > 0``)
     means H is not positive definite: ``SingularSystemError`` naming ``name`` (the problem) and asking
     whether a ``what`` is fixed."""
-    h = np.asarray(solver.solve(H, b), dtype=float)
+    try:
+        h = np.asarray(solver.solve(H, b), dtype=float)
+    except (ValueError, RuntimeError, ArithmeticError) as exc:  # qdldl: "not quasi-definite", SuperLU: singular
+        if isinstance(exc, SingularSystemError):
+            raise
+        raise SingularSystemError(f"{name}: the sparse solve failed ({exc}): H is not positive definite "
+                                  f"(is a {what} fixed?)") from exc
     if h.shape != np.shape(b) or not np.all(np.isfinite(h)) or (h @ b > 0):
         raise SingularSystemError(
             f"{name}: the sparse solve gave "

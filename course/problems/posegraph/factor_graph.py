@@ -13,7 +13,7 @@ def as_factor_graph(graph: PoseGraph) -> FactorGraph:
     for k, pose in enumerate(np.asarray(graph.poses, dtype=float)):
         fg.add_variable(f"x{k}", SE2, pose)
     for k in graph.fixed:
-        fg.fix(int(k))
+        fg.fix(f"x{int(k)}")
     fg.add_many(BETWEEN_SE2, np.stack([graph.edges_i, graph.edges_j], axis=1), graph.measurements,
                 graph.information)
     return fg

@@ -15,7 +15,7 @@ def as_factor_graph(graph: PoseGraph3D) -> FactorGraph:
     for k, value in enumerate(se3_value(graph.t, graph.R)):
         fg.add_variable(f"x{k}", SE3, value)
     for k in graph.fixed:
-        fg.fix(int(k))
+        fg.fix(f"x{int(k)}")
     fg.add_many(BETWEEN_SE3, np.stack([graph.edges_i, graph.edges_j], axis=1), se3_value(graph.t_z, graph.R_z),
                 graph.information)
     return fg
