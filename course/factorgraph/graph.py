@@ -131,7 +131,8 @@ class FactorGraph:
             return self.index[key]
         except KeyError:
             prefix = "" if where.startswith(f"{self.name}: ") else f"{self.name}: "
-            raise ValueError(f"{prefix}{where}: no variable {key!r} (keys are the names given to add_variable)") from None
+            raise ValueError(f"{prefix}{where}: no variable {key!r} "
+                             "(keys are the names given to add_variable)") from None
 
 
 def _function_name(function) -> str:
