@@ -20,6 +20,7 @@ from course.core.errors import NonFiniteError, ShapeError, SingularSystemError, 
 from course.factorgraph import noise
 from course.factorgraph.graph import FactorGraph
 from course.factorgraph.numeric import central_differences
+from course.factorgraph.values import Values
 from course.solver import robust
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
@@ -96,6 +97,10 @@ class FactorGraphProblem:
         size = int(np.prod(kind.shape))
         index = self._x_offsets[np.asarray(variables)][:, None] + np.arange(size)
         return np.asarray(x)[index].reshape((len(variables),) + kind.shape)
+
+    def values_of(self, x) -> Values:
+        """Every variable of ``x`` by key, typed (:class:`course.factorgraph.values.Values`)."""
+        return Values(self.graph, x, self._x_offsets)
 
     def _slots(self, x, group: int):
         """The values of group ``group``'s variables at ``x``, slot by slot (M, *shape_a)."""

@@ -33,6 +33,10 @@ class VariableKind:
         """``x (+) delta``: (M, *shape) from ``x`` (M, *shape) and ``delta`` (M, dim), arrays or Jets."""
         raise NotImplementedError
 
+    def typed(self, value: np.ndarray):
+        """One stored value (``shape``) as its users read it: an array here; an SE(3) pose a :class:`Pose3`."""
+        return np.array(value, dtype=float).reshape(self.shape)
+
     def check(self, value, where: str) -> np.ndarray:
         """``value`` as a float array of this kind's shape, or a ``ValueError`` naming ``where``."""
         arr = np.asarray(value, dtype=float)
@@ -68,9 +72,26 @@ class SO3Kind(VariableKind):
         return x @ jetmath.so3_exp(delta)
 
 
+@dataclass(frozen=True)
+class Pose3:
+    """An SE(3) pose: ``t`` (3,), ``R`` (3, 3); ``matrix()`` the 4x4 ``[[R, t], [0, 1]]``."""
+
+    t: np.ndarray
+    R: np.ndarray
+
+    def matrix(self) -> np.ndarray:
+        out = np.eye(4)
+        out[:3, :3], out[:3, 3] = self.R, self.t
+        return out
+
+
 class SE3Kind(VariableKind):
     def __init__(self):
         super().__init__("SE3", (12,), 6)
+
+    def typed(self, value: np.ndarray) -> Pose3:
+        t, R = se3_parts(np.array(value, dtype=float))
+        return Pose3(t, R)
 
     def retract(self, x, delta):
         t, R = se3_parts(x)
