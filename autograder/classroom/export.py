@@ -89,14 +89,14 @@ def _members(extra: dict) -> list:
     else the upload's name, sid and e-mail (a group's values are "; "-joined)."""
     kept = extra.get("roster")
     if isinstance(kept, list) and kept:
-        return [roster.Student(**{key: str(row.get(key) or "") for key in gradebook.ROSTER_FIELDS}) for row in kept]
+        return [roster.student(row) for row in kept if isinstance(row, dict)]
     keys = ("name", "sid", "email")
     parts = [str(extra.get(key) or "").split("; ") for key in keys]
     count = max(len(p) for p in parts)
     if count > 1 and all(len(p) in (1, count) for p in parts):
-        return [roster.Student(**{key: p[i] if len(p) == count else (p[0] if key == "name" else "")
-                                  for key, p in zip(keys, parts)}) for i in range(count)]
-    return [roster.Student(**{key: str(extra.get(key) or "") for key in keys})]
+        return [roster.student({key: p[i] if len(p) == count else (p[0] if key == "name" else "")
+                                for key, p in zip(keys, parts)}) for i in range(count)]
+    return [roster.student(extra)]
 
 
 def _fill(person: Person, student: roster.Student) -> None:

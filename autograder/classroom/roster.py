@@ -77,6 +77,13 @@ class Student:
         return next(k for k in (self.id, self.sid, self.login, self.email, self.canvas_id) if k)
 
 
+def student(values: dict) -> Student:
+    """The :class:`Student` of the text fields ``values`` (name, sid, email, login, canvas_id, section, id)."""
+    text = {key: str(values.get(key) or "") for key in ("id", "sid", "email", "name", "section", "login", "canvas_id")}
+    return Student(id=text["id"], sid=text["sid"], email=text["email"], name=text["name"], section=text["section"],
+                   login=text["login"], canvas_id=text["canvas_id"])
+
+
 def _wanted(keys) -> set:
     return {part.strip().lower() for key in keys if key for part in str(key).split(";") if part.strip()}
 
@@ -153,7 +160,7 @@ def _canvas(path: Path, reader, fields: list) -> Roster:
         if values.get("name", "") in ("Points Possible", CANVAS_TEST_STUDENT) or not (
                 values.get("canvas_id") or values.get("sid") or values.get("login")):
             continue  # Canvas' points row, its muted row of old exports, its test student
-        roster.students.append(Student(**values))
+        roster.students.append(student(values))
     if not roster.students:
         raise RosterError(f"{path}: Canvas' gradebook export with no student (no row with an ID, SIS User ID or "
                           "SIS Login ID)")
@@ -173,7 +180,7 @@ def _gradescope(path: Path, reader) -> Roster:
             values["name"] = " ".join(part for part in ((row.get(names["first name"]) or "").strip(),
                                                         (row.get(names["last name"]) or "").strip()) if part)
         if values.get("sid") or values.get("email"):
-            roster.students.append(Student(**values))
+            roster.students.append(student(values))
     if not roster.students:
         raise RosterError(f"{path}: Gradescope's grades export with no student (no row with an SID or Email)")
     return roster
