@@ -87,8 +87,9 @@ def parser() -> argparse.ArgumentParser:
                    help="the fraction lost per started hour late")
     p.add_argument("--cutoff-days", type=float, default=None, metavar="N",
                    help="more than N days late scores 0")
-    p.add_argument("--roster", metavar="CSV", help="who is who, submission times, extensions "
-                   "(columns id, sid, email, name, submitted, due, ...: autograder/classroom/roster.py)")
+    p.add_argument("--roster", metavar="CSV", help="who is in the class (each a row; 0 without a submission), "
+                   "submission times, extensions: columns id, sid, email, name, submitted, due, ..., or Canvas' or "
+                   "Gradescope's grades export as downloaded (autograder/classroom/roster.py)")
     p.add_argument("--overrides", metavar="CSV", help="the instructor's overrides (default DIR/overrides.csv; "
                    "columns id, check, points, reason)")
     p.add_argument("--shard", default="1/1", metavar="I/N", help="grade the I-th of N parts (default 1/1)")

@@ -216,9 +216,11 @@ def main(argv=None) -> int:
     p.add_argument("dirs", nargs="+", metavar="DIR", help="the --out folders of batch runs, one per assignment")
     p.add_argument("--canvas", metavar="OUT.csv", help="write Canvas' gradebook import file")
     p.add_argument("--moodle", metavar="OUT.csv", help="write Moodle's grade import file")
-    p.add_argument("--roster", metavar="CSV", help="ids, e-mails, logins, sections where the uploads lack them")
+    p.add_argument("--roster", metavar="CSV", help="every student of the class (0 where no record), their ids, "
+                   "e-mails, logins, sections: the course's roster, or Canvas' or Gradescope's grades export")
     p.add_argument("--column", action="append", metavar="NAME=HEADER",
-                   help="the column of assignment NAME (repeatable); default: its name")
+                   help="the platform's column of assignment NAME, e.g. ch1='Homework 1 (4521)' (repeatable); "
+                        "default: its name, or the Canvas export's column NAME (id)")
     args = p.parse_args(argv)
     if not args.canvas and not args.moodle:
         p.error("say what to write: --canvas OUT.csv and/or --moodle OUT.csv")

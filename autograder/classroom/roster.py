@@ -118,8 +118,8 @@ def read(path) -> Roster:
     if {"Student", "ID"} <= set(fields) and {"SIS User ID", "SIS Login ID"} & set(fields):
         return _canvas(path, reader, fields)
     lowered = {name.lower() for name in fields}
-    if {"sid", "email"} <= lowered and ({"first name", "last name"} <= lowered or "name" in lowered) \
-            and not {"id", "canvas_id", "login", "submitted", "due"} & lowered:
+    if {"sid", "email"} <= lowered and ({"first name", "last name"} <= lowered or (
+            "name" in lowered and {"sections", "total score", "max points", "status"} & lowered)):
         return _gradescope(path, reader)
     header = {(name or "").strip().lower(): name for name in reader.fieldnames or []}
     if not set(KEYS) & set(header):
