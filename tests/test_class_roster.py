@@ -96,14 +96,16 @@ def test_a_roster_of_five_with_one_missing_submission_gives_five_rows(tmp_path):
         index = {row["folder"]: row for row in csv.DictReader(file)}
     assert index["9005"]["sid"] == "9005" and index["9005"]["total"] == "0"
 
-    # Alan submits after all: his no-submission record and its feedback folder go
+    # Alan submits after all: his no-submission record and its feedback folder go (the roster kept with the class)
     (uploads / "alan").mkdir()
     (uploads / "alan" / "damping.py").write_text(reference)
-    run("batch", uploads, "--out", out, *ARGS, "--roster", tmp_path / "canvas-export.csv")
+    assert (out / "roster.csv").read_text() == CANVAS_EXPORT
+    run("batch", uploads, "--out", out, *ARGS)
     with open(out / "grades.csv", newline="") as file:
         again = {row["sid"]: row for row in csv.DictReader(file)}
     assert len(again) == 5 and again["9005"]["id"] == "alan" and float(again["9005"]["total"]) == maximum
     assert not (out / "results" / "9005.json").exists() and not (out / "feedback" / "9005").exists()
+    assert gradebook.load(out / "results" / "alan.json")["extra_data"]["roster"][0]["canvas_id"] == "505"
 
 
 def test_canvas_and_gradescope_exports_are_rosters(tmp_path):

@@ -18,7 +18,8 @@ With ``--roster`` (:mod:`autograder.classroom.roster`: the course's own columns,
 Gradescope's grades export as downloaded), every roster student is a row: one whom no submission
 names has a record with status ``no submission`` and every check 0 (``results/<key>.json``, the key
 the roster's id, else sid, login or e-mail), and each record keeps its student's roster row (the
-platforms' ids and the section, for ``export``).
+platforms' ids and the section, for ``export``). The roster is kept with the class (``DIR/roster.csv``,
+as given): a later run without ``--roster`` reads it, one with ``--roster`` replaces it.
 
 Resumable: a student whose record exists (graded with the same set, ``--only`` and
 ``--assignment``, from the same files: the record keeps a hash of the exercise files it graded)
@@ -58,10 +59,13 @@ from pathlib import Path
 from autograder import report, sandbox, submission
 from autograder.classroom import gradebook, intake, overrides, roster, student_feedback
 from autograder.late import LatePolicy, lateness
+from course.core import jsonio
 from course.core.impl import REPO_ROOT
 
 #: ``--regrade`` without an id: everyone
 EVERYONE = "*"
+#: the class's roster, kept in the output folder
+ROSTER_FILE = "roster.csv"
 
 
 def parser() -> argparse.ArgumentParser:
@@ -177,6 +181,18 @@ def adjusted(data: dict, sub, due: datetime | None, policy: LatePolicy | None, f
                             due=due if late is not None else None, submitted=sub.submitted,
                             source=sub.submitted_from)
 
+def class_roster(given, out: Path) -> roster.Roster:
+    """The roster ``given`` (``--roster``; copied to ``out/roster.csv``), else the one kept there, else none;
+    ``RosterError`` for a malformed one."""
+    kept = out / ROSTER_FILE
+    if given:
+        known = roster.read(given)
+        if Path(given).resolve() != kept.resolve():
+            jsonio.write_text(kept, Path(given).read_text(encoding="utf-8-sig"))
+        return known
+    return roster.read(kept) if kept.is_file() else roster.Roster()
+
+
 def students_of(known: roster.Roster, sub) -> list:
     """The roster rows that name ``sub`` (a group's submission: each member's)."""
     return known.matches(sub.id, sub.path.name, sub.sid, sub.email) if known.students else []
@@ -261,7 +277,7 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     try:
         subs = intake.read(args.submissions, unpack_to=out / "export")
-        known = roster.read(args.roster) if args.roster else roster.Roster()
+        known = class_roster(args.roster, out)
         found_overrides = overrides.read(args.overrides or out / "overrides.csv")
     except (intake.IntakeError, roster.RosterError, overrides.OverridesError) as exc:
         p.error(str(exc))
