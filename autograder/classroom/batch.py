@@ -181,6 +181,7 @@ def adjusted(data: dict, sub, due: datetime | None, policy: LatePolicy | None, f
                             due=due if late is not None else None, submitted=sub.submitted,
                             source=sub.submitted_from)
 
+
 def class_roster(given, out: Path) -> roster.Roster:
     """The roster ``given`` (``--roster``; copied to ``out/roster.csv``), else the one kept there, else none;
     ``RosterError`` for a malformed one."""
