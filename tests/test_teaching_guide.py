@@ -1,6 +1,7 @@
 """Every command of the teaching guide (docs/teaching.md) runs, in order, from a working folder of
 its own, with the class it grades made here: two students' uploads of chapter 1 (one complete, one
-with a wrong residual sign, submitted after the due date), a roster and an override."""
+with a wrong residual sign, submitted after the due date), a roster of three (one sent nothing),
+Canvas' gradebook export and an override."""
 
 import csv
 import os
@@ -45,7 +46,11 @@ def make_class(work: Path) -> None:
     for path in (work / "semester" / "uploads" / "bob").iterdir():
         os.utime(path, (late, late))
     (work / "semester" / "roster.csv").write_text("id,sid,email,name\nada,9001,ada@example.edu,Ada\n"
-                                                  "bob,9002,bob@example.edu,Bob\n")
+                                                  "bob,9002,bob@example.edu,Bob\ncy,9003,cy@example.edu,Cy\n")
+    (work / "semester" / "canvas-export.csv").write_text(  # as Canvas exports its gradebook
+        "Student,ID,SIS User ID,SIS Login ID,Section,Homework 1 (4521),Current Score\n"
+        "Points Possible,,,,,10,(read only)\n\"Lovelace, Ada\",501,9001,ada,S1,,\n"
+        "\"Bob, Bob\",502,9002,bob,S1,,\n\"Cy, Cy\",503,9003,cy,S2,,\n")
     (work / "semester" / "overrides.csv").write_text(
         "id,check,points,reason\nbob,curve_model.residuals_and_jacobian: r values,2,the sign slip was the only one\n")
 
@@ -65,6 +70,11 @@ def test_every_command_of_the_guide_runs(tmp_path):
     assert float(table["ada"]["total"]) == pytest.approx(float(table["ada"]["max"]))
     assert float(table["bob"]["total"]) < float(table["ada"]["total"]) and float(table["bob"]["penalty"]) > 0
     assert "sign slip" in table["bob"]["overrides"]
+    assert table["cy"]["status"] == "no submission" and float(table["cy"]["total"]) == 0
     with open(semester / "canvas.csv", newline="") as file:
-        assert next(csv.reader(file))[:5] == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section"]
+        canvas = list(csv.reader(file))
+    assert canvas[0] == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section", "Homework 1 (4521)"]
+    assert ["Cy, Cy", "503", "9003", "cy", "S2", "0"] in canvas and len(canvas) == 2 + 3
+    feedback = (semester / "ch1-grades" / "feedback" / "bob" / "feedback.txt").read_text()
+    assert "Override by the instructor" in feedback and feedback.splitlines()[1].startswith("Total: ")
     assert (semester / "moodle.csv").read_text().startswith("Full name,ID number,Email address")

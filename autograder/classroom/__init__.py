@@ -4,7 +4,8 @@ Gradescope's export), graded in one run (``batch``), recorded (``gradebook``:
 and summed up (``report``: ``report.html`` with scores, pass rates per check, the known
 mistakes, the submissions that failed to run, and the pairs ``similarity`` finds whose code
 is unusually similar once the shipped stubs and the reference are discounted, and the files
-that reproduce the reference), exported to a learning platform (``export``: Canvas, Moodle).
+that reproduce the reference), exported to a learning platform (``export``: Canvas, Moodle),
+and returned to each student (``student_feedback``: ``feedback/<id>/``).
 Around the grading: the instructor's ``roster`` (who, when, extensions) and ``overrides`` (a
 check's points and why), applied to the records with the late penalty (``gradebook.adjust``).
 Submissions are only read as text here, never imported.

@@ -10,7 +10,16 @@ class, the expected outputs computed once, ``--jobs`` children at a time.
 ``DIR`` receives, per student, ``results/<id>.json`` (Gradescope's format with the
 feedback, :mod:`autograder.classroom.gradebook`) and ``results/<id>.txt`` (the terminal
 table), each written as soon as that student is graded; then ``grades.csv`` (atomically),
-``report.html`` and a line per student in ``grading.log``.
+``report.html``, ``feedback/<id>/`` (what each student gets back: ``feedback.txt`` and their
+``results.json``, :mod:`autograder.classroom.student_feedback`) and a line per student in
+``grading.log``.
+
+With ``--roster`` (:mod:`autograder.classroom.roster`: the course's own columns, or Canvas' or
+Gradescope's grades export as downloaded), every roster student is a row: one whom no submission
+names has a record with status ``no submission`` and every check 0 (``results/<key>.json``, the key
+the roster's id, else sid, login or e-mail), and each record keeps its student's roster row (the
+platforms' ids and the section, for ``export``). The roster is kept with the class (``DIR/roster.csv``,
+as given): a later run without ``--roster`` reads it, one with ``--roster`` replaces it.
 
 Resumable: a student whose record exists (graded with the same set, ``--only`` and
 ``--assignment``, from the same files: the record keeps a hash of the exercise files it graded)
@@ -48,12 +57,15 @@ from datetime import datetime, timedelta
 from pathlib import Path
 
 from autograder import report, sandbox, submission
-from autograder.classroom import gradebook, intake, overrides, roster
+from autograder.classroom import gradebook, intake, overrides, roster, student_feedback
 from autograder.late import LatePolicy, lateness
+from course.core import jsonio
 from course.core.impl import REPO_ROOT
 
 #: ``--regrade`` without an id: everyone
 EVERYONE = "*"
+#: the class's roster, kept in the output folder
+ROSTER_FILE = "roster.csv"
 
 
 def parser() -> argparse.ArgumentParser:
@@ -79,8 +91,9 @@ def parser() -> argparse.ArgumentParser:
                    help="the fraction lost per started hour late")
     p.add_argument("--cutoff-days", type=float, default=None, metavar="N",
                    help="more than N days late scores 0")
-    p.add_argument("--roster", metavar="CSV", help="who is who, submission times, extensions "
-                   "(columns id, sid, email, name, submitted, due, ...: autograder/classroom/roster.py)")
+    p.add_argument("--roster", metavar="CSV", help="who is in the class (each a row; 0 without a submission), "
+                   "submission times, extensions: columns id, sid, email, name, submitted, due, ..., or Canvas' or "
+                   "Gradescope's grades export as downloaded (autograder/classroom/roster.py)")
     p.add_argument("--overrides", metavar="CSV", help="the instructor's overrides (default DIR/overrides.csv; "
                    "columns id, check, points, reason)")
     p.add_argument("--shard", default="1/1", metavar="I/N", help="grade the I-th of N parts (default 1/1)")
@@ -168,6 +181,56 @@ def adjusted(data: dict, sub, due: datetime | None, policy: LatePolicy | None, f
                             due=due if late is not None else None, submitted=sub.submitted,
                             source=sub.submitted_from)
 
+
+def class_roster(given, out: Path) -> roster.Roster:
+    """The roster ``given`` (``--roster``; copied to ``out/roster.csv``), else the one kept there, else none;
+    ``RosterError`` for a malformed one."""
+    kept = out / ROSTER_FILE
+    if given:
+        known = roster.read(given)
+        if Path(given).resolve() != kept.resolve():
+            jsonio.write_text(kept, Path(given).read_text(encoding="utf-8-sig"))
+        return known
+    return roster.read(kept) if kept.is_file() else roster.Roster()
+
+
+def students_of(known: roster.Roster, sub) -> list:
+    """The roster rows that name ``sub`` (a group's submission: each member's)."""
+    return known.matches(sub.id, sub.path.name, sub.sid, sub.email) if known.students else []
+
+
+def absent_students(known: roster.Roster, subs, shard: int, shards: int, out: Path) -> list:
+    """``(Submission, Student)`` of each roster student whom no submission names, in the part
+    ``shard`` of ``shards``: the submission (its id the student's :meth:`roster.Student.key`, made
+    safe, with a suffix if a submission has that id) stands for them in the gradebook."""
+    present = {id(student) for sub in subs for student in students_of(known, sub)}
+    taken = {sub.id for sub in subs}
+    absent = []
+    for student in known.students:
+        if id(student) in present:
+            continue
+        key = intake.safe_id(student.key())
+        key = key if key not in taken else f"{key}-no-submission"
+        taken.add(key)
+        if shard_of(key, shards) == shard:
+            absent.append((intake.Submission(key, student.name or student.key(), out / "no submission",
+                                             sid=student.sid, email=student.email), student))
+    return absent
+
+
+def _forget_absent(results_dir: Path, keep: set) -> None:
+    """Remove the ``no submission`` records not in ``keep`` (a student who has since submitted, or
+    who left the roster)."""
+    for path in results_dir.glob("*.json"):
+        try:
+            extra = gradebook.load(path)["extra_data"]
+        except ValueError:
+            continue
+        if extra.get("status") == gradebook.NO_SUBMISSION and extra["id"] not in keep:
+            path.unlink()
+            path.with_suffix(".txt").unlink(missing_ok=True)
+
+
 class Log:
     """``grading.log``: one line per event, flushed at once (it survives a killed run)."""
 
@@ -215,11 +278,12 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     try:
         subs = intake.read(args.submissions, unpack_to=out / "export")
-        known = roster.read(args.roster) if args.roster else roster.Roster()
+        known = class_roster(args.roster, out)
         found_overrides = overrides.read(args.overrides or out / "overrides.csv")
     except (intake.IntakeError, roster.RosterError, overrides.OverridesError) as exc:
         p.error(str(exc))
     subs = [roster.apply(sub, known.find(sub.id, sub.path.name, sub.sid, sub.email)) for sub in subs]
+    absent = absent_students(known, subs, shard, shards, out)
     extensions = {key.lower(): s.due for s in known.students if s.due is not None
                   for key in (s.id, s.sid, s.email) if key}
     if extensions and policy is not None:
@@ -272,7 +336,7 @@ def main(argv=None) -> int:
 
     def save(data: dict) -> dict:
         sub = by_id[data["extra_data"]["id"]]
-        data = adjusted(data, sub, due, policy, found_overrides)
+        data = adjusted(gradebook.with_roster(data, students_of(known, sub)), sub, due, policy, found_overrides)
         gradebook.save(results_dir, data)
         _retable(results_dir / f"{sub.id}.txt", data)
         return data
@@ -343,12 +407,23 @@ def main(argv=None) -> int:
         except ValueError as exc:
             log(f"{sub.id}: {exc}")
             continue
-        after = adjusted(before, sub, due, policy, found_overrides)
+        after = adjusted(gradebook.with_roster(before, students_of(known, sub)), sub, due, policy, found_overrides)
         if after != before:
             gradebook.save(results_dir, after)
             _retable(path.with_suffix(".txt"), after)
-    _check_overrides(found_overrides, mine, results_dir, shards == 1)
+    for sub, student in absent:  # every roster student is a row: 0 and "no submission" where none
+        data = gradebook.with_roster(gradebook.no_submission(sub, names, grading), [student])
+        data = adjusted(data, sub, None, None, found_overrides)
+        gradebook.save(results_dir, data)
+        (results_dir / f"{sub.id}.txt").write_text(gradebook.table_with_adjustments("No submission.", data))
+    _forget_absent(results_dir, {sub.id for sub, _ in absent})
+    if absent:
+        log(f"batch: no submission from {len(absent)} roster students: {', '.join(sub.id for sub, _ in absent)}")
+        print(f"{len(absent)} roster student{'s' if len(absent) != 1 else ''} without a submission "
+              f"(0 points): {', '.join(sub.id for sub, _ in absent)}")
+    _check_overrides(found_overrides, mine + [sub for sub, _ in absent], results_dir, shards == 1)
     gradebook.write_table(out)
+    student_feedback.write(out)
     if not args.no_report:
         from autograder.classroom import report as class_report
 

@@ -2,31 +2,41 @@
 file a learning platform imports, from the ``--out`` folders of ``batch`` (one per assignment).
 
 Each DIR is one assignment: its name is the ``--assignment`` its records were graded with, else
-the folder's name (``--column NAME=HEADER`` renames its column, e.g. to Canvas' ``Homework 1
-(4521)``, which matches an existing Canvas assignment by its id). Every student of every DIR is one
-row; a group submission gives each submitter a row with the group's score. The score is the
-record's total after the overrides and the late penalty. A student without a record in a DIR has
-an empty cell (the platform leaves that grade alone).
+the folder's name. Its column is named for it unless ``--column NAME=HEADER`` maps it to the
+platform's name (Canvas matches ``Homework 1 (4521)`` to its assignment by the id in parentheses;
+a header it does not know makes it create a new assignment); a NAME that is no DIR's assignment is
+an error naming the assignments. Given Canvas' gradebook export as the roster, an assignment whose
+name is a Canvas column's name without its ``(id)`` is mapped to it, and a column Canvas does not
+have is named on stderr.
+
+Every student of every DIR is one row, and so is every roster student (of ``--roster``, or the
+roster rows ``batch --roster`` kept in the records); a group submission gives each submitter a row
+with the group's score. The score is the record's total after the overrides and the late penalty;
+a roster student without a record in a DIR scores 0 there (``batch --roster`` writes them a ``no
+submission`` record); a student in no roster without a record in a DIR has an empty cell (the
+platform leaves that grade alone).
 
 * **Canvas** (Grades, Import): columns ``Student``, ``ID`` (Canvas' user id), ``SIS User ID``,
   ``SIS Login ID``, ``Section``, then one per assignment; the second row is ``Points Possible``
   (each assignment's maximum), as Canvas' own export has it. Canvas matches a row by ``ID``,
   ``SIS User ID`` or ``SIS Login ID``: the sid of the upload goes in ``SIS User ID``; the roster
-  gives the others (``canvas_id``, ``login``, ``section``).
+  gives the others (``canvas_id``, ``login``, ``section``: Canvas' own export as the roster gives
+  them all).
 * **Moodle** (Grade administration, Import, CSV file): columns ``Full name``, ``ID number``,
   ``Email address``, then one per assignment; map users "from" ``Email address`` "to" email
   address, or ``ID number`` to ID number, and each assignment column to its grade item.
 
-A roster (``--roster``, :mod:`autograder.classroom.roster`) fills in the sid, e-mail, login,
-Canvas id, section and name where the uploads lack them (a folder of uploads has only folder
-names: the roster's ``id`` column is that name). Rows the platform could not match to a user are
-named on stderr. Every text cell a spreadsheet would run as a formula is written as text
-(:func:`autograder.classroom.gradebook.cell`).
+A roster (``--roster``, :mod:`autograder.classroom.roster`, or the rows ``batch --roster`` kept in
+each record) fills in the sid, e-mail, login, Canvas id, section and name where the uploads lack
+them (a folder of uploads has only folder names: the roster's ``id`` column is that name). Rows
+the platform could not match to a user are named on stderr. Every text cell a spreadsheet would run
+as a formula is written as text (:func:`autograder.classroom.gradebook.cell`).
 """
 
 import argparse
 import csv
 import io
+import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -75,39 +85,58 @@ def load_assignment(folder: Path, headers: dict) -> Assignment:
 
 
 def _members(extra: dict) -> list:
-    """``(name, sid, email)`` of each submitter of a record (a group's values are "; "-joined)."""
-    parts = [str(extra.get(key) or "").split("; ") for key in ("name", "sid", "email")]
+    """A :class:`roster.Student` per submitter of a record: the roster rows ``batch`` kept in it,
+    else the upload's name, sid and e-mail (a group's values are "; "-joined)."""
+    kept = extra.get("roster")
+    if isinstance(kept, list) and kept:
+        return [roster.student(row) for row in kept if isinstance(row, dict)]
+    keys = ("name", "sid", "email")
+    parts = [str(extra.get(key) or "").split("; ") for key in keys]
     count = max(len(p) for p in parts)
     if count > 1 and all(len(p) in (1, count) for p in parts):
-        return [tuple(p[i] if len(p) == count else (p[0] if i == 0 else "") for p in parts) for i in range(count)]
-    return [tuple(str(extra.get(key) or "") for key in ("name", "sid", "email"))]
+        return [roster.student({key: p[i] if len(p) == count else (p[0] if key == "name" else "")
+                                for key, p in zip(keys, parts)}) for i in range(count)]
+    return [roster.student(extra)]
+
+
+def _fill(person: Person, student: roster.Student) -> None:
+    """``person``'s empty fields from ``student``."""
+    for key in ("name", "sid", "email", "login", "canvas_id", "section"):
+        if not getattr(person, key):
+            setattr(person, key, getattr(student, key))
 
 
 def people(assignments, known: roster.Roster) -> list:
-    """The rows: every submitter of every assignment, joined across assignments by the roster's
-    row, else by sid, else by e-mail, else by submission id."""
+    """The rows: every submitter of every assignment and every roster student, joined across
+    assignments by the roster's row, else by sid, else by e-mail, else by login, else by
+    submission id. A roster student scores 0 in an assignment where no record is theirs."""
     rows: dict = {}
     for assignment in assignments:
         for record in assignment.records:
             extra = record["extra_data"]
             sub_id = str(extra["id"])
-            for name, sid, email in _members(extra):
-                found = known.find(sid, email, sub_id if len(_members(extra)) == 1 else "")
+            members = _members(extra)
+            for member in members:
+                found = known.find(member.sid, member.email, member.login, sub_id if len(members) == 1 else "")
                 key: tuple
                 if found is not None:
                     key = ("roster", known.students.index(found))
                 else:
-                    key = ("sid", sid.lower()) if sid else ("email", email.lower()) if email else ("id", sub_id)
+                    key = next(((kind, value.lower()) for kind, value in (("sid", member.sid),
+                                                                          ("email", member.email),
+                                                                          ("login", member.login)) if value),
+                               ("id", sub_id))
                 person = rows.setdefault(key, Person())
-                person.name = person.name or (found.name if found and found.name else name)
-                person.sid = person.sid or (found.sid if found else "") or sid
-                person.email = person.email or (found.email if found else "") or email
                 if found is not None:
-                    person.login = person.login or found.login
-                    person.canvas_id = person.canvas_id or found.canvas_id
-                    person.section = person.section or found.section
+                    _fill(person, found)
+                _fill(person, member)
                 person.ids.append(sub_id)
                 person.scores[assignment.name] = float(record["score"])
+    for index, student in enumerate(known.students):
+        person = rows.setdefault(("roster", index), Person())
+        _fill(person, student)
+        for assignment in assignments:
+            person.scores.setdefault(assignment.name, 0.0)
     return sorted(rows.values(), key=lambda p: (p.name.lower(), p.sid, p.email, p.ids))
 
 
@@ -154,27 +183,67 @@ def _headers(pairs) -> dict:
     return headers
 
 
+#: Canvas' assignment column: its name, then its id in parentheses
+CANVAS_ASSIGNMENT = re.compile(r"^(.*\S)\s+\((\d+)\)$")
+
+
+def mapped(assignments, headers: dict, platform_columns) -> list:
+    """``assignments`` with their columns: ``headers`` (``--column``; a name no assignment has is a
+    ``ValueError`` naming the assignments), else the platform's column whose name without its
+    ``(id)`` is the assignment's (``platform_columns``: Canvas' export's assignment columns)."""
+    names = [a.name for a in assignments]
+    unknown = [name for name in headers if name not in names]
+    if unknown:
+        raise ValueError(f"--column {unknown[0]}={headers[unknown[0]]}: no assignment {unknown[0]!r} in the DIRs; "
+                         f"their assignments (the names --column maps) are: {', '.join(names)}")
+    by_name: dict = {}
+    for column in platform_columns:
+        m = CANVAS_ASSIGNMENT.match(column)
+        if m:
+            by_name.setdefault(m.group(1).lower(), []).append(column)
+    out = []
+    for a in assignments:
+        header = headers.get(a.name)
+        if header is None:
+            candidates = by_name.get(a.name.lower(), [])
+            header = candidates[0] if len(candidates) == 1 else a.name
+        out.append(Assignment(a.name, header, a.maximum, a.records))
+    return out
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m autograder export", description=__doc__.splitlines()[0])
     p.add_argument("dirs", nargs="+", metavar="DIR", help="the --out folders of batch runs, one per assignment")
     p.add_argument("--canvas", metavar="OUT.csv", help="write Canvas' gradebook import file")
     p.add_argument("--moodle", metavar="OUT.csv", help="write Moodle's grade import file")
-    p.add_argument("--roster", metavar="CSV", help="ids, e-mails, logins, sections where the uploads lack them")
+    p.add_argument("--roster", metavar="CSV", help="every student of the class (0 where no record), their ids, "
+                   "e-mails, logins, sections: the course's roster, or Canvas' or Gradescope's grades export")
     p.add_argument("--column", action="append", metavar="NAME=HEADER",
-                   help="the column of assignment NAME (repeatable); default: its name")
+                   help="the platform's column of assignment NAME, e.g. ch1='Homework 1 (4521)' (repeatable); "
+                        "default: its name, or the Canvas export's column NAME (id)")
     args = p.parse_args(argv)
     if not args.canvas and not args.moodle:
         p.error("say what to write: --canvas OUT.csv and/or --moodle OUT.csv")
     try:
         headers = _headers(args.column)
         known = roster.read(args.roster) if args.roster else roster.Roster()
-        assignments = [load_assignment(Path(d), headers) for d in args.dirs]
+        assignments = [load_assignment(Path(d), {}) for d in args.dirs]
     except ValueError as exc:  # RosterError too
         p.error(str(exc))
     names = [a.name for a in assignments]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         p.error(f"assignment {', '.join(twice)} is in more than one DIR")
+    try:
+        assignments = mapped(assignments, headers, known.assignments)
+    except ValueError as exc:
+        p.error(str(exc))
+    if args.canvas and known.assignments:
+        for a in assignments:
+            if a.header not in known.assignments:
+                print(f"export: {args.canvas}: column {a.header!r} (assignment {a.name}) is not an assignment of "
+                      f"{args.roster}: Canvas would create a new one; map it with --column {a.name}=HEADER, one of: "
+                      f"{', '.join(known.assignments) or 'none'}", file=sys.stderr)
     rows = people(assignments, known)
     for flag, write, needs in ((args.canvas, canvas, "ID, SIS User ID or SIS Login ID"),
                                (args.moodle, moodle, "ID number or e-mail address")):

@@ -4,7 +4,10 @@ The record is Gradescope's ``results.json`` (score, execution_time, output, test
 ``extra_data`` at the top (id, name, sid, email, status, seconds, what was graded, the
 set and ``--only`` it was graded with) and in each test (exercise, hidden, status, the
 known mistake it matched). ``status`` of a submission: ``ok``, ``timed out`` (a check ran
-out of time), ``crashed`` (a child died) or ``no files`` (no exercise file in the upload).
+out of time), ``crashed`` (a child died), ``no files`` (no exercise file in the upload) or ``no
+submission`` (a roster student who sent nothing: every check 0, :func:`no_submission`). Where a
+roster names the student, ``extra_data["roster"]`` holds their rows (name, sid, email, login,
+canvas_id, section; one per member of a group): ``export`` takes the platforms' ids from there.
 
 After grading, :func:`adjust` applies the instructor's overrides (a check's points, with a
 reason) and the late penalty to a record, from the scores the judge gave (kept in the record), so
@@ -13,7 +16,7 @@ or policy changes the penalty without grading anyone again. ``extra_data`` then 
 ``graded_score`` (the judge's total), ``score_before_penalty`` (with the overrides), ``late``
 (submission time, due date, how late, the fraction kept, the penalty in points) and ``overrides``.
 
-``grades.csv``: one row per record; columns id, name, sid, email, status, total (after overrides
+``grades.csv``: one row per record (:func:`row`); columns id, name, sid, email, status, total (after overrides
 and penalty), max, before_penalty, penalty, submitted, days_late, assignment, overrides, one per
 exercise, one per check (in the registry's order, public then hidden). A text cell a spreadsheet
 would run as a formula is written as text (:func:`cell`).
@@ -27,7 +30,10 @@ from pathlib import Path
 from autograder import report
 from course.core import jsonio
 
-STATUSES = ("ok", "timed out", "crashed", "no files")
+STATUSES = ("ok", "timed out", "crashed", "no files", "no submission")
+NO_SUBMISSION = "no submission"
+#: what a record keeps of each roster row of its student(s)
+ROSTER_FIELDS = ("name", "sid", "email", "login", "canvas_id", "section")
 FIXED_COLUMNS = ("id", "name", "sid", "email", "status", "total", "max", "before_penalty", "penalty", "submitted",
                  "days_late", "assignment", "overrides")
 #: a cell starting with one of these is a formula to a spreadsheet (=1+1, +cmd, -2+3, @SUM, a tab, a CR)
@@ -75,6 +81,26 @@ def no_files(sub, message: str, tasks, grading: dict) -> dict:
     return {"score": 0.0, "execution_time": 0.0, "output": message, "tests": tests,
             "extra_data": {"id": sub.id, "name": sub.name, "sid": sub.sid, "email": sub.email, "status": "no files",
                            "seconds": 0.0, "graded": message, **grading}}
+
+
+def no_submission(sub, tasks, grading: dict) -> dict:
+    """The record of a roster student who sent nothing (``sub``: a
+    :class:`autograder.classroom.intake.Submission` made from the roster row): every check 0."""
+    data = no_files(sub, "No submission.", tasks, grading)
+    data["extra_data"]["status"] = NO_SUBMISSION
+    return data
+
+
+def with_roster(data: dict, students) -> dict:
+    """``data`` with ``extra_data["roster"]``: the rows of ``students``
+    (:class:`autograder.classroom.roster.Student`) that name its submitter(s); none removes it."""
+    data = dict(data, extra_data=dict(data["extra_data"]))
+    rows = [{key: getattr(s, key) for key in ROSTER_FIELDS} for s in students]
+    if rows:
+        data["extra_data"]["roster"] = rows
+    else:
+        data["extra_data"].pop("roster", None)
+    return data
 
 
 def _total(tests) -> float:
@@ -172,8 +198,8 @@ def load_all(folder: Path) -> list:
     return sorted((load(path) for path in Path(folder).glob("*.json")), key=lambda d: d["extra_data"]["id"])
 
 
-def table(records) -> str:
-    """``grades.csv``'s text."""
+def columns(records) -> tuple:
+    """``(exercises, checks)``: the per-exercise and per-check columns of ``records``, in order."""
     checks: list = []
     exercises: list = []
     for data in records:
@@ -183,27 +209,43 @@ def table(records) -> str:
             exercise = test.get("extra_data", {}).get("exercise", "")
             if exercise and exercise not in exercises:
                 exercises.append(exercise)
+    return exercises, checks
+
+
+def header(exercises, checks) -> list:
+    """``grades.csv``'s first row."""
+    return [*FIXED_COLUMNS, *map(cell, exercises), *map(cell, checks)]
+
+
+def row(data: dict, exercises, checks) -> list:
+    """The row of ``grades.csv`` of the record ``data`` (the cells of :func:`header`)."""
+    extra = data["extra_data"]
+    late = extra.get("late") or {}
+    before = extra.get("score_before_penalty", data["score"])
+    scores = {test["name"]: test["score"] for test in data["tests"]}
+    by_exercise = dict.fromkeys(exercises, 0.0)
+    for test in data["tests"]:
+        exercise = test.get("extra_data", {}).get("exercise", "")
+        if exercise:
+            by_exercise[exercise] += test["score"]
+    maximum = sum(test["max_score"] for test in data["tests"])
+    overridden = "; ".join(f"{o['check']}: {number(o['points'])} ({o['reason']})"
+                           for o in extra.get("overrides") or [])
+    return [*map(cell, (extra["id"], extra.get("name", ""), extra.get("sid", ""), extra.get("email", ""),
+                        extra.get("status", ""))), number(data["score"]), number(maximum),
+            number(before), number(late.get("penalty", 0.0)), cell(extra.get("submitted_at") or ""),
+            number(late.get("days", "")), cell(extra.get("assignment") or ""), cell(overridden),
+            *(number(by_exercise[e]) for e in exercises), *(number(scores.get(c, "")) for c in checks)]
+
+
+def table(records) -> str:
+    """``grades.csv``'s text: :func:`header`, then a :func:`row` per record."""
+    exercises, checks = columns(records)
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow([*FIXED_COLUMNS, *map(cell, exercises), *map(cell, checks)])
+    writer.writerow(header(exercises, checks))
     for data in records:
-        extra = data["extra_data"]
-        late = extra.get("late") or {}
-        before = extra.get("score_before_penalty", data["score"])
-        scores = {test["name"]: test["score"] for test in data["tests"]}
-        by_exercise = dict.fromkeys(exercises, 0.0)
-        for test in data["tests"]:
-            exercise = test.get("extra_data", {}).get("exercise", "")
-            if exercise:
-                by_exercise[exercise] += test["score"]
-        maximum = sum(test["max_score"] for test in data["tests"])
-        overridden = "; ".join(f"{o['check']}: {number(o['points'])} ({o['reason']})"
-                               for o in extra.get("overrides") or [])
-        writer.writerow([*map(cell, (extra["id"], extra.get("name", ""), extra.get("sid", ""), extra.get("email", ""),
-                                     extra.get("status", ""))), number(data["score"]), number(maximum),
-                         number(before), number(late.get("penalty", 0.0)), cell(extra.get("submitted_at") or ""),
-                         number(late.get("days", "")), cell(extra.get("assignment") or ""), cell(overridden),
-                         *(number(by_exercise[e]) for e in exercises), *(number(scores.get(c, "")) for c in checks)])
+        writer.writerow(row(data, exercises, checks))
     return out.getvalue()
 
 

@@ -2,7 +2,7 @@
 
 Each PART is the ``--out`` folder of one shard. Their records (``results/``) and staged
 submissions (``submissions/``) are copied into ``DIR``; a student graded in two parts is an
-error naming both, unless the two records are the same. Then ``grades.csv`` and
+error naming both, unless the two records are the same. Then ``grades.csv``, ``feedback/`` and
 ``report.html`` are written for the whole class, as ``batch`` does.
 """
 
@@ -11,7 +11,7 @@ import filecmp
 import shutil
 from pathlib import Path
 
-from autograder.classroom import gradebook
+from autograder.classroom import gradebook, student_feedback
 
 
 def merge(parts, out: Path) -> int:
@@ -50,6 +50,7 @@ def main(argv=None) -> int:
     except ValueError as exc:
         p.error(str(exc))
     gradebook.write_table(Path(args.out))
+    student_feedback.write(Path(args.out))
     if not args.no_report:
         from autograder.classroom import report
 
