@@ -6,9 +6,9 @@ set and ``--only`` it was graded with) and in each test (exercise, hidden, statu
 known mistake it matched). ``status`` of a submission: ``ok``, ``timed out`` (a check ran
 out of time), ``crashed`` (a child died) or ``no files`` (no exercise file in the upload).
 
-After grading, :func:`adjust` applies the instructor's overrides (a check's points, or the
-assignment's total, with a reason) and the late penalty to a record, from the scores the judge gave
-(kept in the record), so that it can run again on every batch run: an override survives a regrade, and a changed due date
+After grading, :func:`adjust` applies the instructor's overrides (a check's points, with a
+reason, or the total) and the late penalty to a record, from the scores the judge gave (kept in the record), so
+that it can run again on every batch run: an override survives a regrade, and a changed due date
 or policy changes the penalty without grading anyone again. ``extra_data`` then also holds
 ``graded_score`` (the judge's total), ``score_before_penalty`` (with the overrides), ``late``
 (submission time, due date, how late, the fraction kept, the penalty in points) and ``overrides``.
