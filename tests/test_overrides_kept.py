@@ -25,7 +25,8 @@ HEADER = "id,check,points,reason,twin\n"
 
 def test_merge_replaces_the_same_student_and_check_and_appends_the_rest():
     kept = [Override("ada", R, 1.0, "first"), Override("bob", R, 2.0, "bob's")]
-    merged, added, replaced = overrides.merge(kept, [Override("ADA", R, 3.0, "again"), Override("ada", "total", 9, "x")])
+    new = [Override("ADA", R, 3.0, "again"), Override("ada", "total", 9, "x")]
+    merged, added, replaced = overrides.merge(kept, new)
     assert (added, replaced) == (1, 1)
     assert [(o.student, o.points, o.reason) for o in merged] == [("ADA", 3.0, "again"), ("bob", 2.0, "bob's"),
                                                                  ("ada", 9, "x")]
