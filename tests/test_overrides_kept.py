@@ -133,3 +133,14 @@ def test_a_check_name_that_matches_nothing_stops_the_run_with_the_close_names(gr
     assert "typo.csv: line 2: column check: 'curve_model.residuals_and_jacobian: r valeus' names no check" in err
     assert f"close: {R}" in err
     assert ((out / "overrides.csv").read_text() if before is not None else None) == before  # nothing stored
+
+
+def test_merge_of_shards_joins_the_overrides_they_keep(tmp_path):
+    from autograder.classroom import merge
+
+    for part, line in (("p1", f"ada,{R},1,first\n"), ("p2", f"bob,{R},2,second\nada,{R},1.5,later\n")):
+        (tmp_path / part / "results").mkdir(parents=True)
+        (tmp_path / part / "overrides.csv").write_text(HEADER + line)
+    merge.merge([tmp_path / "p1", tmp_path / "p2"], tmp_path / "out")
+    kept = overrides.read(tmp_path / "out" / "overrides.csv")
+    assert [(o.student, o.points) for o in kept] == [("ada", 1.5), ("bob", 2.0)]
