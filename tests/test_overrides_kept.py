@@ -46,11 +46,11 @@ def test_a_check_s_override_covers_its_hidden_twin_unless_it_says_no():
 
 def test_the_file_s_twin_column_and_a_name_that_matches_nothing(tmp_path):
     path = tmp_path / "overrides.csv"
-    path.write_text(HEADER + f"ada,{R},1.23456,regraded,no\nbob,{R},2,ok,\n")
+    path.write_text(HEADER + f"ada,{R},1.23456,regraded,no\nbob,{R},1234.5678,ok,\n")
     first, second = overrides.read(path)
     assert (first.points, first.twin, second.twin) == (1.2346, False, True)  # on the grid of 0.0001
     overrides.write(tmp_path / "again.csv", [first, second])
-    assert overrides.read(tmp_path / "again.csv") == [first, second]
+    assert overrides.read(tmp_path / "again.csv") == [first, second] and second.points == 1234.5678
     path.write_text(HEADER + f"ada,{R},1,regraded,maybe\n")
     with pytest.raises(overrides.OverridesError, match="line 2: column twin: expected yes or no"):
         overrides.read(path)

@@ -120,7 +120,8 @@ def write(path, overrides) -> Path:
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow([*COLUMNS, TWIN])
     for item in overrides:
-        writer.writerow([item.student, item.check, f"{item.points:g}", item.reason, "" if item.twin else "no"])
+        points = f"{item.points:.{point_grid.DECIMALS}f}".rstrip("0").rstrip(".")
+        writer.writerow([item.student, item.check, points, item.reason, "" if item.twin else "no"])
     return jsonio.write_text(Path(path), out.getvalue())
 
 
