@@ -111,7 +111,9 @@ def main(argv=None) -> int:
         for check in checks:
             extra = "  (extra credit)" if assignment is not None and assignment.is_extra(check) else ""
             print(f"{check.points:>4g}  {check.name}{extra}")
-        print(f"{sum(c.points for c in checks):>4g}  total")
+        from autograder.point_grid import total
+
+        print(f"{total(c.points for c in checks):>4g}  total")
         return 0
     lateness = lateness_of(args, p, assignment)
     if args.timeout <= 0 or args.workers < 1 or args.memory_mb <= 0 or args.budget <= 0:

@@ -45,7 +45,9 @@ Points: each check starts at its ``Check.points``; ``points`` keys set a check m
 exercise's (its checks scaled together) or one check's points, the most specific winning; then
 ``total`` scales every check so that the maximum is ``total``. The maximum is the sum over the
 required (not optional) checks, public and, when ``hidden_counts``, hidden (each check's hidden
-twin has its points). The public set alone, as a student tree grades it, is half of that.
+twin has its points). The public set alone, as a student tree grades it, is half of that. Points
+are computed exactly, then put on a grid of 0.0001 (:mod:`autograder.point_grid`) so that the
+required checks' points sum to ``total`` exactly and a full score equals its maximum.
 
 Every mistake raises :class:`ConfigError` naming the file, the key path
 (``assignments.ch2.points.pose_graph_edge``) and what was expected.
@@ -64,10 +66,12 @@ import json
 import sys
 from dataclasses import dataclass, field, replace
 from datetime import date, datetime, timedelta
+from fractions import Fraction
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from autograder import point_grid
 from autograder.late import Lateness, LatePolicy, lateness
 
 HERE = Path(__file__).resolve().parent
@@ -147,9 +151,9 @@ class Assignment:
         from autograder.checks import module_of
 
         owner = module_of()
-        required = sum(p for name, p in self.points.items() if owner[name] not in self.optional)
+        required = [p for name, p in self.points.items() if owner[name] not in self.optional]
         sets = {"public": 1, "hidden": 1 if self.hidden_counts else 0, "all": 2 if self.hidden_counts else 1}
-        return round(required * sets[which], 6)
+        return point_grid.total(required * sets[which])
 
     def lateness(self, submitted: datetime, student: tuple = (), due: datetime | None = None) -> Lateness:
         """How late ``submitted`` is and what it costs (``due``: when the assignment has none)."""
@@ -355,10 +359,12 @@ def _late(raw, key, path) -> LatePolicy:
 
 
 def _points(raw, key, path, exercises, registry, optional, counts) -> dict:
-    """``{check name: points}`` of the assignment's checks (see the module docstring)."""
+    """``{check name: points}`` of the assignment's checks (see the module docstring), computed exactly
+    and then put on the grid of :mod:`autograder.point_grid`: the required checks' points sum to
+    ``total`` exactly (to their exact sum rounded to the grid without one)."""
     checks = [check for exercise in exercises for check in registry[exercise].CHECKS]
     owner = {check.name: exercise for exercise in exercises for check in registry[exercise].CHECKS}
-    points = {check.name: float(check.points) for check in checks}
+    points = {check.name: point_grid.exact(check.points) for check in checks}
     given = _table(raw.get("points", {}), f"{key}.points", path)
     exercise_names = {check.exercise for check in checks}
     known = list(exercises) + sorted(exercise_names) + list(points)
@@ -380,15 +386,22 @@ def _points(raw, key, path, exercises, registry, optional, counts) -> dict:
                 continue
             base = sum(points[m] for m in members)
             for member in members:
-                points[member] = float(value) * points[member] / base if base else float(value) / len(members)
+                share = points[member] / base if base else Fraction(1, len(members))
+                points[member] = point_grid.exact(value) * share
+    sets = 2 if counts else 1
     if "total" in raw:
         total = _number(raw["total"], f"{key}.total", path, "a number of points > 0")
-        required = sum(p for name, p in points.items() if owner[name] not in optional) * (2 if counts else 1)
+        required = sum(p for name, p in points.items() if owner[name] not in optional) * sets
         if total <= 0 or required <= 0:
             raise ConfigError(path, f"{key}.total", f"expected a number of points > 0 with some required points, "
                               f"got {raw['total']!r}")
-        points = {name: p * total / required for name, p in points.items()}
-    return {name: round(p, 6) for name, p in points.items()}
+        if (point_grid.exact(raw["total"]) * point_grid.STEPS / sets).denominator != 1:
+            raise ConfigError(path, f"{key}.total", f"expected a multiple of {sets / point_grid.STEPS:g} points "
+                              f"(the public and the hidden checks get half each), got {raw['total']!r}")
+        points = {name: p * point_grid.exact(raw["total"]) / required for name, p in points.items()}
+    grid = {**point_grid.apportion({n: p for n, p in points.items() if owner[n] not in optional}),
+            **point_grid.apportion({n: p for n, p in points.items() if owner[n] in optional})}
+    return {name: grid[name] for name in points}
 
 
 # ---------------------------------------------------------------- a released tree, a submission

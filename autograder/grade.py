@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from autograder import expected as expected_data
-from autograder import sandbox
+from autograder import point_grid, sandbox
 from autograder.checks import all_checks, module_of, select
 from autograder.records import Check, Context, Verdict
 from course.core import peers
@@ -144,8 +144,8 @@ def not_run(task: Task) -> CheckResult:
     """The result of a check whose library is not installed here: 0 points, and why."""
     message = (f"not run: {task.missing} is not installed here, and this check needs it; it runs where "
                f"{task.missing} is (Gradescope has it): `{peers.INSTALL[task.missing]}` where it has a wheel")
-    return CheckResult(task.name, task.check.exercise, 0.0, float(task.check.points), message, hidden=task.hidden,
-                       status="not run")
+    return CheckResult(task.name, task.check.exercise, 0.0, point_grid.on_grid(task.check.points), message,
+                       hidden=task.hidden, status="not run")
 
 
 def known_mistake(message: str, expected: expected_data.Expected) -> str:
@@ -177,9 +177,10 @@ def judge_task(task: Task, child) -> CheckResult:
         more = f"\n  | ... ({len(lines) - PRINTED_LINES} more lines)" if len(lines) > PRINTED_LINES else ""
         message += f"\nYour code printed (shown for information, never graded):\n{shown}{more}"
     mistake = known_mistake(verdict.message, want) if fraction < 1.0 else ""
-    return CheckResult(task.name, check.exercise, round(check.points * fraction, 4), float(check.points),
-                       message, tuple(verdict.not_implemented), child.printed, child.seconds, task.hidden,
-                       child.status, mistake)
+    # on one grid (autograder.point_grid): a full fraction scores the maximum itself
+    return CheckResult(task.name, check.exercise, point_grid.scaled(check.points, fraction),
+                       point_grid.on_grid(check.points), message, tuple(verdict.not_implemented), child.printed,
+                       child.seconds, task.hidden, child.status, mistake)
 
 
 class Hung:
@@ -215,8 +216,8 @@ class Hung:
 
 def skipped(task: "Task", why: str) -> CheckResult:
     """A check not run because a function it calls already timed out: 0 points, and why."""
-    return CheckResult(task.name, task.check.exercise, 0.0, float(task.check.points), why, hidden=task.hidden,
-                       status="not run")
+    return CheckResult(task.name, task.check.exercise, 0.0, point_grid.on_grid(task.check.points), why,
+                       hidden=task.hidden, status="not run")
 
 
 def grade(impl: str, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sandbox.DEFAULT_MEMORY_MB,

@@ -2,6 +2,7 @@
 
 import shutil
 
+from autograder import point_grid
 from course.core import jsonio
 
 NAME_WIDTH = 44
@@ -28,13 +29,14 @@ def not_implemented(results) -> list:
 
 
 def earned(results) -> float:
-    """The points earned: every counted check's, extra credit included."""
-    return sum(r.score for r in results if getattr(r, "counted", True))
+    """The points earned: every counted check's, extra credit included (exact: :mod:`autograder.point_grid`)."""
+    return point_grid.total(r.score for r in results if getattr(r, "counted", True))
 
 
 def maximum(results) -> float:
     """The most ``results`` can earn: counted checks, extra credit aside."""
-    return sum(r.max_score for r in results if getattr(r, "counted", True) and not getattr(r, "extra", False))
+    return point_grid.total(r.max_score for r in results
+                            if getattr(r, "counted", True) and not getattr(r, "extra", False))
 
 
 def total(results) -> str:
@@ -43,8 +45,8 @@ def total(results) -> str:
     text = f"{points(earned(results))} / {points(maximum(results))}"
     extra = [r for r in results if getattr(r, "extra", False) and getattr(r, "counted", True)]
     if extra:
-        text += (f" (extra credit included: {points(sum(r.score for r in extra))} of "
-                 f"{points(sum(r.max_score for r in extra))})")
+        text += (f" (extra credit included: {points(point_grid.total(r.score for r in extra))} of "
+                 f"{points(point_grid.total(r.max_score for r in extra))})")
     return text
 
 
@@ -52,7 +54,7 @@ def late_line(lateness, before: float) -> str:
     """The line saying how late a submission was and what it cost."""
     if lateness.fraction >= 1.0:
         return f"Submitted: {lateness.note}"
-    return (f"Late: {lateness.note}: {points(before)} -> {points(round(before * lateness.fraction, 4))} points")
+    return (f"Late: {lateness.note}: {points(before)} -> {points(point_grid.scaled(before, lateness.fraction))} points")
 
 
 def summary(results, lateness=None) -> str:
@@ -90,7 +92,7 @@ def next_step(results) -> str:
     graded: dict = {}
     for r in results:
         score, maximum = graded.get(r.exercise, (0.0, 0.0))
-        graded[r.exercise] = (score + r.score, maximum + r.max_score)
+        graded[r.exercise] = (point_grid.total((score, r.score)), point_grid.total((maximum, r.max_score)))
     if not graded:
         return ""
     units = _units()
@@ -98,7 +100,7 @@ def next_step(results) -> str:
     module = dict(units)
     for unit in sorted(graded, key=lambda u: order.index(u) if u in order else len(order)):
         score, maximum = graded[unit]
-        if score < maximum - 1e-9:
+        if score < maximum:
             return (f"next: finish {unit} ({points(score)} / {points(maximum)} points; "
                     f"`python -m autograder --only {unit}`)")
     last = max(order.index(u) for u in graded if u in order) if any(u in order for u in graded) else -1
@@ -136,7 +138,7 @@ def table(results, impl: str, seconds: float, workers: int, which: str = "public
             exercises.append(result.exercise)
     for exercise in exercises:
         rows = [r for r in results if r.exercise == exercise]
-        score, most = sum(r.score for r in rows), sum(r.max_score for r in rows)
+        score, most = point_grid.total(r.score for r in rows), point_grid.total(r.max_score for r in rows)
         extra = " (extra credit)" if rows and all(getattr(r, "extra", False) for r in rows) else ""
         out.append(f"{exercise:<{NAME_WIDTH}} {points(score):>6} {points(most):>5}{extra}")
         for r in rows:
@@ -169,7 +171,7 @@ def gradescope(results, seconds: float, lateness=None) -> dict:
     """
     tests = []
     for r in results:
-        score, most, output, name = round(r.score, 4), r.max_score, r.message, r.name
+        score, most, output, name = point_grid.on_grid(r.score), point_grid.on_grid(r.max_score), r.message, r.name
         if not getattr(r, "counted", True):
             output = f"Not counted in the grade ({points(score)} / {points(most)}).\n{output}"
             score, most = 0.0, 0.0
@@ -182,9 +184,8 @@ def gradescope(results, seconds: float, lateness=None) -> dict:
             "output": output,
             "visibility": getattr(r, "visibility", "") or ("after_published" if r.hidden else "visible"),
         })
-    score = earned(results) * (lateness.fraction if lateness is not None else 1.0)
     return {
-        "score": round(score, 4),
+        "score": point_grid.scaled(earned(results), lateness.fraction if lateness is not None else 1),
         "execution_time": round(seconds, 3),
         "output": "\n".join(filter(None, [summary(results, lateness), next_step(results)])),
         "tests": tests,

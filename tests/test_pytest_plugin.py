@@ -139,3 +139,20 @@ def test_pytest_never_imports_the_implementation(pytester, tmp_path, monkeypatch
     assert not [name for name in os.listdir(marks) if name.endswith(f"-{os.getpid()}")]
     (failure,) = result.reprec.getfailures()
     assert "RuntimeError" in failure.longreprtext and "imported!" in failure.longreprtext  # said by the child
+
+
+def test_an_assignment_out_of_100_passes_every_item_with_exactly_100_points(pytester, monkeypatch):
+    """``total = 100`` over checks worth thirds of a point (2.7778, 8.3333): the reference passes every
+    item, public and hidden, and the points line says 100 / 100 (``tests/test_exact_points.py``)."""
+    from autograder import course_config, pytest_plugin
+
+    thirds = course_config.parse({"assignments": {"thirds": {"exercises": ["curve_model", "gauss_newton"],
+                                                             "total": 100}}}).assignment("thirds")
+    monkeypatch.setattr(pytest_plugin, "assignment", lambda: thirds)  # as a tree of that assignment reads it
+    folder_of(pytester, "solutions")
+    result = pytester.runpytest()
+    count = 2 * len(thirds.checks())
+    result.assert_outcomes(passed=count)
+    assert (f"autograder: 100 / 100 points on the {count} checks run (public and hidden checks)"
+            in result.outlines)
+    assert any("[8.3333 pts]" in line for line in pytester.runpytest("--collect-only", "-q").outlines)

@@ -31,9 +31,11 @@ Late work: with ``--due`` (and ``--late-per-day`` or ``--late-per-hour``, ``--cu
 :class:`autograder.late.LatePolicy`), each record has the submission's time (the export's
 ``:created_at:``, the newest file's time in a folder of uploads, or the ``submitted`` column of
 ``--roster``), how late it was and the penalty; the roster's ``due`` column gives a student an
-extension. The instructor's overrides (``DIR/overrides.csv``, :mod:`autograder.classroom.overrides`)
-and the penalty are applied to every record on every run, from the judge's scores kept in it: an
-override survives a regrade, and a new due date or policy needs no regrade.
+extension. The instructor's overrides, kept in ``DIR/overrides.csv`` (:mod:`autograder.classroom.overrides`;
+``--overrides FILE`` adds FILE's lines to it, replacing those of the same student and check), and the
+penalty are applied to every record on every run, from the judge's scores kept in it: an override
+survives a regrade and a plain run, and a new due date or policy needs no regrade. An override naming
+no check of the assignment stops the run (exit status 2) with the close names.
 ``--assignment NAME`` grades that assignment of the course configuration (``autograder/course.toml``):
 its checks with its points, the earlier exercises it hands out solved in place of the student's, its
 due date and late policy (``--due`` and the late options override them); it labels the records and
@@ -94,8 +96,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--roster", metavar="CSV", help="who is in the class (each a row; 0 without a submission), "
                    "submission times, extensions: columns id, sid, email, name, submitted, due, ..., or Canvas' or "
                    "Gradescope's grades export as downloaded (autograder/classroom/roster.py)")
-    p.add_argument("--overrides", metavar="CSV", help="the instructor's overrides (default DIR/overrides.csv; "
-                   "columns id, check, points, reason)")
+    p.add_argument("--overrides", metavar="CSV", help="add these overrides to the ones DIR keeps (DIR/overrides.csv, "
+                   "applied on every run), replacing those of the same student and check; columns id, check, points, "
+                   "reason[, twin]")
+    p.add_argument("--config", metavar="FILE", default=None,
+                   help="the course configuration of --assignment (default autograder/course.toml)")
     p.add_argument("--shard", default="1/1", metavar="I/N", help="grade the I-th of N parts (default 1/1)")
     p.add_argument("--no-report", action="store_true", help="do not write report.html")
     return p
@@ -134,27 +139,28 @@ def keys_of(sub) -> set:
             if part.strip()}
 
 
-def assignment_of(name: str):
-    """The :class:`autograder.course_config.Assignment` ``name`` of the course configuration, or None
-    for no name; ``ValueError`` (:class:`autograder.course_config.ConfigError`) for an unknown one."""
+def assignment_of(name: str, config=None):
+    """The :class:`autograder.course_config.Assignment` ``name`` of the course configuration (``config``:
+    its file, default ``autograder/course.toml``), or None for no name; ``ValueError``
+    (:class:`autograder.course_config.ConfigError`) for an unknown one."""
     if not name:
         return None
     from autograder import course_config
 
-    return course_config.load().assignment(name)
+    return course_config.load(config).assignment(name)
 
 
-def assignment_settings(name: str) -> tuple:
+def assignment_settings(name: str, config=None) -> tuple:
     """``(due, policy)`` of the assignment ``name`` from the course configuration (``(None, None)``
     for no name): the command line's ``--due`` and late options override them."""
-    assignment = assignment_of(name)
+    assignment = assignment_of(name, config)
     return (None, None) if assignment is None else (assignment.due, assignment.late)
 
 
 def late_settings(args) -> tuple:
     """``(due, policy)`` from the command line, else from :func:`assignment_settings`;
     ``ValueError`` for a bad time or policy."""
-    due, policy = assignment_settings(args.assignment) if args.assignment else (None, None)
+    due, policy = assignment_settings(args.assignment, args.config) if args.assignment else (None, None)
     if args.due:
         due = intake.parse_time(args.due)
     given = {"per_day": args.late_per_day, "per_hour": args.late_per_hour}
@@ -279,7 +285,7 @@ def main(argv=None) -> int:
     try:
         subs = intake.read(args.submissions, unpack_to=out / "export")
         known = class_roster(args.roster, out)
-        found_overrides = overrides.read(args.overrides or out / "overrides.csv")
+        found_overrides = kept_overrides(out, args.overrides, assignment_of(args.assignment, args.config))
     except (intake.IntakeError, roster.RosterError, overrides.OverridesError) as exc:
         p.error(str(exc))
     subs = [roster.apply(sub, known.find(sub.id, sub.path.name, sub.sid, sub.email)) for sub in subs]
@@ -341,7 +347,7 @@ def main(argv=None) -> int:
         _retable(results_dir / f"{sub.id}.txt", data)
         return data
 
-    assignment = assignment_of(args.assignment)
+    assignment = assignment_of(args.assignment, args.config)
     checks = select(assignment.checks() if assignment is not None else all_checks(), args.only)
     names = [(c.name, c.exercise, c.points, False) for c in checks] if which != "hidden" else []
     names += [(c.name + HIDDEN_SUFFIX, c.exercise, c.points, True) for c in checks] if which != "public" else []
@@ -436,6 +442,31 @@ def main(argv=None) -> int:
     return 0
 
 
+def kept_overrides(out: Path, added, assignment) -> list:
+    """The overrides ``out`` keeps (``out/overrides.csv``), with those of the file ``added`` (None: none)
+    written into it first, replacing those of the same student and check; each checked against the
+    names of the checks ``assignment`` grades (None: every check), public and hidden."""
+    from autograder.checks import all_checks
+    from autograder.grade import HIDDEN_SUFFIX
+
+    checks = assignment.checks() if assignment is not None else all_checks()
+    names = [name for check in checks for name in (check.name, check.name + HIDDEN_SUFFIX)]
+    what = f"assignment {assignment.name}" if assignment is not None else "the course"
+    path = overrides.stored(out)
+    kept = overrides.read(path)
+    overrides.validate(kept, names, path, what)
+    if added is None:
+        return kept
+    new = overrides.read(added)
+    overrides.validate(new, names, added, what)
+    if Path(added).resolve() == path.resolve():
+        return kept
+    merged, count, replaced = overrides.merge(kept, new)
+    overrides.write(path, merged)
+    print(f"overrides: {count} added and {replaced} replaced in {path} ({len(merged)} kept, applied on every run)")
+    return overrides.read(path)
+
+
 def _retable(path: Path, data: dict) -> None:
     """``results/<id>.txt`` with the record's penalty and overrides on top."""
     if path.is_file():
@@ -446,6 +477,8 @@ def _check_overrides(found_overrides, mine, results_dir: Path, everyone: bool) -
     """Say on stderr which override names no submission (when this run sees the whole class) or a
     check its student's record does not have (a typo, or a check this run did not grade)."""
     for item in found_overrides:
+        if item.check == overrides.TOTAL:
+            continue
         subs = [sub for sub in mine if item.student.lower() in keys_of(sub)]
         if not subs:
             if everyone:

@@ -41,6 +41,7 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from autograder import point_grid
 from autograder.classroom import gradebook, roster
 from course.core import jsonio
 
@@ -80,7 +81,7 @@ def load_assignment(folder: Path, headers: dict) -> Assignment:
     if len(names) > 1:
         raise ValueError(f"{folder}: records of several assignments ({', '.join(names)}); one folder per assignment")
     name = names[0] if names else folder.resolve().name
-    maximum = max((sum(float(t["max_score"]) for t in r["tests"]) for r in records), default=0.0)
+    maximum = max((point_grid.total(t["max_score"] for t in r["tests"]) for r in records), default=0.0)
     return Assignment(name, headers.get(name, name), maximum, records)
 
 

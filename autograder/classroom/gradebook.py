@@ -10,7 +10,7 @@ roster names the student, ``extra_data["roster"]`` holds their rows (name, sid, 
 canvas_id, section; one per member of a group): ``export`` takes the platforms' ids from there.
 
 After grading, :func:`adjust` applies the instructor's overrides (a check's points, with a
-reason) and the late penalty to a record, from the scores the judge gave (kept in the record), so
+reason, or the total) and the late penalty to a record, from the scores the judge gave (kept in the record), so
 that it can run again on every batch run: an override survives a regrade, and a changed due date
 or policy changes the penalty without grading anyone again. ``extra_data`` then also holds
 ``graded_score`` (the judge's total), ``score_before_penalty`` (with the overrides), ``late``
@@ -27,7 +27,7 @@ import io
 import json
 from pathlib import Path
 
-from autograder import report
+from autograder import point_grid, report
 from course.core import jsonio
 
 STATUSES = ("ok", "timed out", "crashed", "no files", "no submission")
@@ -104,7 +104,7 @@ def with_roster(data: dict, students) -> dict:
 
 
 def _total(tests) -> float:
-    return round(sum(float(t["score"]) for t in tests), 4)
+    return point_grid.total(t["score"] for t in tests)
 
 
 def adjust(data: dict, overrides=(), lateness=None, due=None, submitted=None, source: str = "") -> dict:
@@ -127,8 +127,9 @@ def adjust(data: dict, overrides=(), lateness=None, due=None, submitted=None, so
             test["output"] = test_extra.pop("graded_output", test.get("output", ""))
         test_extra.pop("override", None)
     applied = []
+    whole = [item for item in overrides if item.check == "total"]  # the assignment's total (overrides.TOTAL)
     for item in overrides:
-        test = by_name.get(item.check)
+        test = by_name.get(item.check) if item.check != "total" else None
         if test is None:
             continue
         test_extra = test["extra_data"]
@@ -138,7 +139,7 @@ def adjust(data: dict, overrides=(), lateness=None, due=None, submitted=None, so
         line = (f"Override by the instructor: {number(item.points)} points instead of "
                 f"{number(test['score'])}: {item.reason}")
         test["output"] = line + ("\n\n" + test["output"] if test.get("output") else "")
-        test["score"] = float(item.points)
+        test["score"] = point_grid.on_grid(item.points)
         applied.append({"check": item.check, "points": item.points, "graded": test_extra["graded_score"],
                         "reason": item.reason})
         notes.append(f"{item.check}: {line}")
@@ -151,15 +152,21 @@ def adjust(data: dict, overrides=(), lateness=None, due=None, submitted=None, so
     extra["submitted_from"] = source if submitted is not None else ""
     score = before
     if lateness is not None:
-        score = round(before * lateness.fraction, 4)
+        score = point_grid.scaled(before, lateness.fraction)
         extra["late"] = {"due": due.isoformat() if due is not None else None,
                          "days": round(lateness.late.total_seconds() / 86400.0, 4),
-                         "fraction": lateness.fraction, "penalty": round(before - score, 4), "note": lateness.note}
+                         "fraction": lateness.fraction, "penalty": point_grid.total((before, -score)),
+                         "note": lateness.note}
         if lateness.late.total_seconds() > 0:
             notes.insert(0, f"Late: submitted {extra['submitted_at']}, due {extra['late']['due']}: {lateness.note}; "
                             f"{number(before)} points before the penalty, {number(score)} after.")
     else:
         extra["late"] = None
+    for item in whole[-1:]:  # the instructor's total replaces what the checks and the penalty give
+        line = f"Override by the instructor: {number(item.points)} points for the assignment instead of {number(score)}"
+        notes.append(f"{line}: {item.reason}")
+        applied.append({"check": item.check, "points": item.points, "graded": score, "reason": item.reason})
+        score = point_grid.on_grid(item.points)
     data["score"] = score
     extra["adjustments"] = notes
     data["output"] = "\n".join(notes) + ("\n\n" if notes else "") + extra["graded_output"]
@@ -223,12 +230,9 @@ def row(data: dict, exercises, checks) -> list:
     late = extra.get("late") or {}
     before = extra.get("score_before_penalty", data["score"])
     scores = {test["name"]: test["score"] for test in data["tests"]}
-    by_exercise = dict.fromkeys(exercises, 0.0)
-    for test in data["tests"]:
-        exercise = test.get("extra_data", {}).get("exercise", "")
-        if exercise:
-            by_exercise[exercise] += test["score"]
-    maximum = sum(test["max_score"] for test in data["tests"])
+    by_exercise = {e: point_grid.total(t["score"] for t in data["tests"]
+                                       if t.get("extra_data", {}).get("exercise", "") == e) for e in exercises}
+    maximum = point_grid.total(test["max_score"] for test in data["tests"])
     overridden = "; ".join(f"{o['check']}: {number(o['points'])} ({o['reason']})"
                            for o in extra.get("overrides") or [])
     return [*map(cell, (extra["id"], extra.get("name", ""), extra.get("sid", ""), extra.get("email", ""),

@@ -2,8 +2,10 @@
 
 Each PART is the ``--out`` folder of one shard. Their records (``results/``) and staged
 submissions (``submissions/``) are copied into ``DIR``; a student graded in two parts is an
-error naming both, unless the two records are the same. Then ``grades.csv``, ``feedback/`` and
-``report.html`` are written for the whole class, as ``batch`` does.
+error naming both, unless the two records are the same. The overrides each part keeps
+(``overrides.csv``) are joined into ``DIR/overrides.csv`` (a later part's line replacing an earlier
+one of the same student and check), so that a ``batch`` run into ``DIR`` applies them. Then
+``grades.csv``, ``feedback/`` and ``report.html`` are written for the whole class, as ``batch`` does.
 """
 
 import argparse
@@ -11,7 +13,7 @@ import filecmp
 import shutil
 from pathlib import Path
 
-from autograder.classroom import gradebook, student_feedback
+from autograder.classroom import gradebook, overrides, student_feedback
 
 
 def merge(parts, out: Path) -> int:
@@ -19,7 +21,10 @@ def merge(parts, out: Path) -> int:
     out = Path(out)
     (out / "results").mkdir(parents=True, exist_ok=True)
     origin: dict = {}
+    kept = overrides.read(overrides.stored(out))
     for part in map(Path, parts):
+        if overrides.stored(part).resolve() != overrides.stored(out).resolve():
+            kept = overrides.merge(kept, overrides.read(overrides.stored(part)))[0]
         if not (part / "results").is_dir():
             raise ValueError(f"{part}: no results/ folder (not the --out of `python -m autograder batch`)")
         for path in sorted((part / "results").glob("*.json")):
@@ -36,6 +41,8 @@ def merge(parts, out: Path) -> int:
             staged = part / "submissions" / sub_id
             if staged.is_dir() and staged.resolve() != (out / "submissions" / sub_id).resolve():
                 shutil.copytree(staged, out / "submissions" / sub_id, dirs_exist_ok=True)
+    if kept:
+        overrides.write(overrides.stored(out), kept)
     return len(origin)
 
 

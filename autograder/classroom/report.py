@@ -26,6 +26,7 @@ from pathlib import Path
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
+from autograder import point_grid
 from autograder.classroom import similarity
 from autograder.report import points
 
@@ -72,7 +73,7 @@ def load_students(out_dir: Path) -> tuple:
             students.append(Student(
                 sid=str(extra.get("id") or path.stem), name=str(extra.get("name") or ""),
                 status=str(extra.get("status") or "ok"), score=float(data.get("score") or 0.0),
-                max_score=sum(float(t.get("max_score") or 0.0) for t in tests), tests=tests))
+                max_score=point_grid.total(t.get("max_score") or 0 for t in tests), tests=tests))
         except (ValueError, TypeError, AttributeError, OSError) as exc:
             notes.append(f"{path.name}: not read ({exc})")
     return students, notes

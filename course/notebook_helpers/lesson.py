@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from autograder import hints as hint_texts
-from autograder import report
+from autograder import point_grid, report
 from autograder.grade import run
 from course.core import impl as impl_loader
 from course.core.impl import not_implemented_reason
@@ -67,7 +67,8 @@ def check(exercise: str, impl: str | None = None, timeout: float | None = None, 
     for line in notices:
         print(f"autograder: {line}")
     print(report.table(results, impl, seconds, workers, "public"))
-    return CheckSummary(exercise, impl, sum(r.score for r in results), sum(r.max_score for r in results),
+    return CheckSummary(exercise, impl, point_grid.total(r.score for r in results),
+                        point_grid.total(r.max_score for r in results),
                         sum(1 for r in results if r.not_implemented))
 
 
