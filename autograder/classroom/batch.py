@@ -24,7 +24,8 @@ Late work: with ``--due`` (and ``--late-per-day`` or ``--late-per-hour``, ``--cu
 ``--roster``), how late it was and the penalty; the roster's ``due`` column gives a student an
 extension. The instructor's overrides (``DIR/overrides.csv``, :mod:`autograder.classroom.overrides`)
 and the penalty are applied to every record on every run, from the judge's scores kept in it: an
-override survives a regrade, and a new due date or policy needs no regrade.
+override survives a regrade, and a new due date or policy needs no regrade. The marks of the written
+answers (``python -m autograder.classroom.written merge``) stay in a record graded again.
 ``--assignment NAME`` grades that assignment of the course configuration (``autograder/course.toml``):
 its checks with its points, the earlier exercises it hands out solved in place of the student's, its
 due date and late policy (``--due`` and the late options override them); it labels the records and
@@ -48,7 +49,7 @@ from datetime import datetime, timedelta
 from pathlib import Path
 
 from autograder import report, sandbox, submission
-from autograder.classroom import gradebook, intake, overrides, roster
+from autograder.classroom import gradebook, intake, marks, overrides, roster
 from autograder.late import LatePolicy, lateness
 from course.core.impl import REPO_ROOT
 
@@ -272,6 +273,7 @@ def main(argv=None) -> int:
 
     def save(data: dict) -> dict:
         sub = by_id[data["extra_data"]["id"]]
+        data = marks.keep(data, results_dir / f"{sub.id}.json")  # the written answers' marks stay
         data = adjusted(data, sub, due, policy, found_overrides)
         gradebook.save(results_dir, data)
         _retable(results_dir / f"{sub.id}.txt", data)
