@@ -48,6 +48,9 @@ def make_class(work: Path) -> None:
                                                   "bob,9002,bob@example.edu,Bob\n")
     (work / "semester" / "overrides.csv").write_text(
         "id,check,points,reason\nbob,curve_model.residuals_and_jacobian: r values,2,the sign slip was the only one\n")
+    (work / "semester" / "ch1-marks.csv").write_text(  # the written answers' marks: Ada's in full
+        "id,name,question,points,items,comment\nada,Ada,ch1-q1,,linearised;trust-region,\nada,Ada,ch1-q2,4,,\n"
+        "ada,Ada,ch1-q3,,rho-values;cap,\nbob,Bob,ch1-q1,1,,\"the step, not the reason\"\n")
 
 
 @pytest.mark.slow
@@ -65,6 +68,8 @@ def test_every_command_of_the_guide_runs(tmp_path):
     assert float(table["ada"]["total"]) == pytest.approx(float(table["ada"]["max"]))
     assert float(table["bob"]["total"]) < float(table["ada"]["total"]) and float(table["bob"]["penalty"]) > 0
     assert "sign slip" in table["bob"]["overrides"]
+    assert (table["ada"]["written"], table["bob"]["written"]) == ("12", "1")
+    assert "## ch1-q1 (4 points)" in (semester / "ch1-tree" / "answers.md").read_text()
     with open(semester / "canvas.csv", newline="") as file:
         assert next(csv.reader(file))[:5] == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section"]
     assert (semester / "moodle.csv").read_text().startswith("Full name,ID number,Email address")

@@ -5,7 +5,8 @@ Each DIR is one assignment: its name is the ``--assignment`` its records were gr
 the folder's name (``--column NAME=HEADER`` renames its column, e.g. to Canvas' ``Homework 1
 (4521)``, which matches an existing Canvas assignment by its id). Every student of every DIR is one
 row; a group submission gives each submitter a row with the group's score. The score is the
-record's total after the overrides and the late penalty. A student without a record in a DIR has
+record's total after the overrides and the late penalty, with the marks of the written answers
+(:mod:`autograder.classroom.written`; the maximum has their points too). A student without a record in a DIR has
 an empty cell (the platform leaves that grade alone).
 
 * **Canvas** (Grades, Import): columns ``Student``, ``ID`` (Canvas' user id), ``SIS User ID``,

@@ -87,7 +87,8 @@ def read(path, rubrics: dict, records) -> list:
     for record in records:
         for key in keys_of(record):
             students[key] = record["extra_data"]["id"]
-    found, seen = [], {}
+    found: list = []
+    seen: dict = {}
     for line, row in enumerate(reader, 2):
         values = {c: (row.get(header[c]) or "").strip() if c in header else "" for c in COLUMNS}
         if not any(values.values()):

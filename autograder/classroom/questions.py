@@ -87,7 +87,7 @@ def read_lesson(source: Path) -> list:
     chapter = chapter_of(source)
     where = f"notebooks/{source.with_suffix('.ipynb').name}"
     parts = QUESTION.split(text)
-    found = []
+    found: list = []
     for number, body in zip(parts[1::2], parts[2::2]):
         number = int(number)
         if number != len(found) + 1:
