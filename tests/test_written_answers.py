@@ -86,12 +86,16 @@ def test_the_export_command_writes_the_sheet_into_a_tree(tmp_path, capsys):
 
 
 def test_no_student_tree_holds_the_reference_answers_or_a_rubric(tmp_path):
+    from autograder.isolation import reference_paths
+
+    assert rubric.FOLDER.is_relative_to(REPO_ROOT / "solutions") and REPO_ROOT / "solutions" in reference_paths()
+    assert not [name for name in release.render(REPO_ROOT / "solutions") if name.startswith(("rubrics", "answers"))]
     release.release(check=True, student_dir=tmp_path / "course")
     handout.write_student_tree(tmp_path / "ch1", COURSE, CH1, release.render(REPO_ROOT / "solutions"))
     for tree in (tmp_path / "course", tmp_path / "ch1"):
         files = [p.relative_to(tree).as_posix() for p in tree.rglob("*") if p.is_file()]
         assert "autograder/classroom/written.py" in files and "autograder/classroom/rubric.py" in files
-        assert not [f for f in files if f.startswith(("solutions/", "autograder/rubrics/")) or "answers/" in f]
+        assert not [f for f in files if f.startswith("solutions/") or "answers/" in f or "rubrics/" in f]
         assert not [f for f in files if f.endswith(".md") and "Reference answers" in (tree / f).read_text()]
 
 

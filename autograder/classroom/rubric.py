@@ -1,4 +1,4 @@
-"""The rubric of an assignment's written questions: ``autograder/rubrics/<assignment>.toml``.
+"""The rubric of an assignment's written questions: ``solutions/rubrics/<assignment>.toml``.
 
 One table per question id (:mod:`autograder.classroom.questions`), its maximum and its rubric items::
 
@@ -15,9 +15,10 @@ an ``id`` (letters, digits, ``-`` and ``_``; unique in its question), its ``poin
 a question's points directly or as the items the answer earned. A question without a table, or an
 assignment without a file, has the default rubric (:func:`default`: 4 points in three items that
 point the grader to the reference answer, ``solutions/answers/chapterN.md``);
-``python -m autograder.classroom.written rubric`` writes it out to edit. The file's first line is
-the release's omit mark (:data:`OMIT`): its items say what a good answer holds, so no student tree
-carries it.
+``python -m autograder.classroom.written rubric`` writes it out to edit. Its items say what a good
+answer holds, so the file is the reference's: under ``solutions/``, which no student tree holds and
+the sandbox keeps from the students' code (Gradescope's zip included), and with the release's omit
+mark (:data:`OMIT`) as its first line, so that the release renders nothing of it into ``exercises/``.
 A mistake is a :class:`RubricError` naming the file, the key and the field.
 """
 
@@ -34,7 +35,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-FOLDER = REPO_ROOT / "autograder" / "rubrics"
+FOLDER = REPO_ROOT / "solutions" / "rubrics"
 OMIT = "# RELEASE: omit"
 ITEM_ID = re.compile(r"[A-Za-z0-9_-]+")
 #: the default rubric of a question: (id, points, text); {answers} is the reference answer's place

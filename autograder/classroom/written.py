@@ -5,7 +5,7 @@
   their code (PATH a file, or a folder such as the assignment's student tree: PATH/answers.md). It
   holds the questions and their points, nothing of the reference answers or the rubric's items.
 * ``rubric --assignment NAME --out FILE``: the assignment's rubric (its file's, or the default) as
-  a TOML file to edit into ``autograder/rubrics/NAME.toml`` (:mod:`autograder.classroom.rubric`).
+  a TOML file to edit into ``solutions/rubrics/NAME.toml`` (:mod:`autograder.classroom.rubric`).
 * ``marks-template --assignment NAME --class DIR --out FILE``: a marks CSV with a row per graded
   student and question, to fill (:mod:`autograder.classroom.marks`).
 * ``merge --assignment NAME --class DIR [--marks FILE]``: check the marks (FILE, copied to
