@@ -32,8 +32,10 @@ def test_the_guide_shows_commands_and_only_the_course_s():
 
 def make_class(work: Path) -> None:
     from autograder import course_config
+    from autograder.classroom import questions
 
     ch1 = course_config.load().assignment("ch1")
+    sheet = questions.sheet(ch1, questions.of_assignment(ch1))
     for student in ("ada", "bob"):
         (work / "semester" / "uploads" / student).mkdir(parents=True)
         for name in ("curve_model", "gauss_newton", "damping"):
@@ -41,6 +43,7 @@ def make_class(work: Path) -> None:
             if student == "bob" and name == "curve_model":
                 text = text.replace("r = y_hat - y", "r = y - y_hat")
             (work / "semester" / "uploads" / student / f"{name}.py").write_text(text)
+        (work / "semester" / "uploads" / student / "answers.md").write_text(sheet.replace("*(your answer)*", student))
     late = (ch1.due + timedelta(hours=5)).timestamp()
     for path in (work / "semester" / "uploads" / "bob").iterdir():
         os.utime(path, (late, late))
@@ -70,6 +73,7 @@ def test_every_command_of_the_guide_runs(tmp_path):
     assert "sign slip" in table["bob"]["overrides"]
     assert (table["ada"]["written"], table["bob"]["written"]) == ("12", "1")
     assert "## ch1-q1 (4 points)" in (semester / "ch1-tree" / "answers.md").read_text()
+    assert "## bob\n\nbob\n" in (semester / "ch1-answers" / "ch1-q3.md").read_text()
     with open(semester / "canvas.csv", newline="") as file:
         assert next(csv.reader(file))[:5] == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section"]
     assert (semester / "moodle.csv").read_text().startswith("Full name,ID number,Email address")

@@ -71,10 +71,30 @@ def test_a_filled_sheet_reads_back_by_question_and_a_wrong_heading_names_its_lin
     filled = sheet.replace(f"\n{questions.PLACEHOLDER}\n", "\nThe step overshoots: $\\chi^2$ grows.\n", 1)
     assert questions.parse_sheet(filled, questions=found) == {
         "ch1-q1": "The step overshoots: $\\chi^2$ grows.", "ch1-q2": "", "ch1-q3": ""}
-    with pytest.raises(questions.QuestionsError, match=r"answers.md: line \d+: heading 'ch1-q9' names no question"):
+    with pytest.raises(questions.QuestionsError, match=r"answers.md: line \d+: heading '## ch1-q9' names no question"):
         questions.parse_sheet(filled + "\n## ch1-q9\n\nmore\n", questions=found)
     with pytest.raises(questions.QuestionsError, match="ch1-q2 answered twice"):
         questions.parse_sheet(filled + "\n## ch1-q2\n\nagain\n", questions=found)
+
+
+def test_collect_gathers_the_sheets_one_document_per_question_and_names_the_missing(tmp_path, capsys):
+    found = questions.of_assignment(CH1)
+    blank = questions.sheet(CH1, found)
+    for name, text in (("ada", blank.replace(f"\n{questions.PLACEHOLDER}\n", "\nAda: $\\chi^2$ explodes.\n", 1)),
+                       ("bob", None), ("cy", blank.replace("## ch1-q2", "## question 2"))):
+        (tmp_path / "uploads" / name / "sub").mkdir(parents=True)
+        (tmp_path / "uploads" / name / "damping.py").write_text("x = 1\n")
+        if text is not None:
+            (tmp_path / "uploads" / name / "sub" / "Answers.md").write_text(text)
+    assert written.main(["collect", "--assignment", "ch1", str(tmp_path / "uploads"), "--out",
+                         str(tmp_path / "docs")]) == 0
+    out, err = capsys.readouterr()
+    assert "the sheets of 1 of 3 submissions" in out
+    assert "bob: no answers.md" in err and "cy: " in err and "heading '## question 2' names no question" in err
+    doc = (tmp_path / "docs" / "ch1-q1.md").read_text()
+    assert doc.startswith("# ch1-q1: 4 points") and "- `trust-region` (2): a larger lambda" in doc
+    assert "## ada\n\nAda: $\\chi^2$ explodes.\n" in doc and "## bob\n\n*(no answer)*" in doc
+    assert sorted(p.name for p in (tmp_path / "docs").iterdir()) == ["ch1-q1.md", "ch1-q2.md", "ch1-q3.md"]
 
 
 def test_the_export_command_writes_the_sheet_into_a_tree(tmp_path, capsys):
@@ -206,6 +226,7 @@ def test_merged_marks_count_in_the_total_after_the_penalty_and_the_overrides_and
     outputs = {t["name"]: t["output"] for t in saved["tests"]}
     assert outputs["written: ch1-q1"] == "Written answer ch1-q1: 2 of 4 points.\nComment: half of it"
     assert "not marked yet" in outputs["written: ch1-q2"]
+    assert [t["extra_data"]["marked"] for t in saved["tests"] if marks.is_written(t)] == [True, False, False]
     assert written.merge(CH1, folder)["changed"] == 0  # again, from DIR/written.csv: the same records
     canvas = tmp_path / "canvas.csv"
     assert export.main([str(folder), "--canvas", str(canvas)]) == 0
@@ -270,7 +291,8 @@ def test_a_class_with_written_marks_end_to_end(tmp_path):
         writer.writerows(rows)
     done = run("autograder.classroom.written", "merge", "--assignment", "ch1", "--class", out,
                "--marks", tmp_path / "marks.csv")
-    assert "merged 6 marks into 2 records" in done.stdout and (out / "report.html").is_file()
+    assert "merged 6 marks into 2 records" in done.stdout
+    assert "Every submission ran to the end." in (out / "report.html").read_text()  # a mark is no problem
     run("autograder", "batch", *batch[2:], "--regrade", "ada")  # graded again: the marks stay
     run("autograder", "export", out, "--canvas", tmp_path / "canvas.csv", "--roster", tmp_path / "roster.csv")
     lines = list(csv.reader((tmp_path / "canvas.csv").open(newline="")))

@@ -15,10 +15,10 @@ A row with neither is not marked yet. ``comment`` goes into the student's feedba
 unknown student or question, points above the maximum, an unknown item, a question marked twice) is
 a :class:`MarksError` naming the file, the line and the column.
 
-In a record (``results/<id>.json``) each written question is one more test, ``written: <id>``, with
-``extra_data.exercise = "written"``: ``grades.csv`` gets a ``written`` column (their sum) and a column
-per question, and the record's total, ``export``'s Canvas and Moodle files and the report count them
-like a check (the late penalty applies to the whole). :func:`keep` carries them over when ``batch``
+In a record (``results/<id>.json``) each written question is one more test, ``written: <id>``, its
+``extra_data`` with ``exercise = "written"``, ``marked`` and the ``items`` earned: ``grades.csv`` gets a
+``written`` column (their sum) and a column per question, and the record's total, ``export``'s Canvas
+and Moodle files and the report count them like a check (the late penalty applies to the whole). :func:`keep` carries them over when ``batch``
 grades a student again; :func:`readjust` recomputes a record's total after new marks.
 """
 
@@ -146,10 +146,10 @@ def tests(record: dict, rubrics: dict, marks) -> list:
     for qid, rubric in rubrics.items():
         mark = mine.get(qid)
         if mark is None or mark.points is None:
-            score, items, status = 0.0, (), "not marked"
+            score, items, marked = 0.0, (), False
             lines = [f"Written answer {qid}: not marked yet (0 of {gradebook.number(rubric.points)} points)."]
         else:
-            score, items, status = float(mark.points), mark.items, "marked"
+            score, items, marked = float(mark.points), mark.items, True
             lines = [f"Written answer {qid}: {gradebook.number(score)} of {gradebook.number(rubric.points)} points."]
             if items:
                 lines += [f"{'+' if item.id in items else '-'} {gradebook.number(item.points)} {item.id}: {item.text}"
@@ -158,7 +158,8 @@ def tests(record: dict, rubrics: dict, marks) -> list:
                 lines.append(f"Comment: {mark.comment}")
         out.append({"name": PREFIX + qid, "score": score, "max_score": float(rubric.points),
                     "output": "\n".join(lines), "visibility": "visible",
-                    "extra_data": {"exercise": EXERCISE, "hidden": False, "status": status, "items": list(items)}})
+                    "extra_data": {"exercise": EXERCISE, "hidden": False, "status": "ok", "marked": marked,
+                                   "items": list(items)}})
     return out
 
 

@@ -26,7 +26,8 @@ QUESTION = re.compile(r"\*\*Question (\d+)\.\*\*\s*")
 CHECK = re.compile(r"""\bcheck\(\s*["']([a-z_0-9]+)["']""")
 #: under each heading of a sheet, where the student writes
 PLACEHOLDER = "*(your answer)*"
-HEADING = re.compile(r"^## ([a-z0-9]+-q\d+)\b.*$", re.M)
+HEADING = re.compile(r"^## +(\S*)(.*)$", re.M)
+QUESTION_ID = re.compile(r"[a-z0-9]+-q\d+")
 
 
 class QuestionsError(ValueError):
@@ -114,7 +115,8 @@ def sheet(assignment, questions, points: dict | None = None) -> str:
     points when ``points`` gives them), the question, and the place to answer."""
     out = [f"# {assignment.name}: written answers", "",
            f"{assignment.title}. Write your answer under each question, in place of `{PLACEHOLDER}`, "
-           "in a few sentences (markdown and $math$ are fine); keep the `## ` headings as they are. "
+           "in a few sentences (markdown and $math$ are fine; ### for headings of your own); keep the `## ` "
+           "headings as they are. "
            "Hand this file in, named `answers.md`, with your code.", ""]
     for q in questions:
         worth = f" ({points[q.id]:g} points)" if points and q.id in points else ""
@@ -125,17 +127,18 @@ def sheet(assignment, questions, points: dict | None = None) -> str:
 
 def parse_sheet(text: str, path="answers.md", questions=()) -> dict:
     """``{question id: answer}`` of a filled answer sheet (the text after ``**Answer:**`` under each
-    heading; '' where the student left the placeholder). A heading naming no question of
-    ``questions`` (when given) or one seen twice is a :class:`QuestionsError` naming the line."""
+    ``## <id>`` heading; '' where the student left the placeholder). A ``## `` heading that names no
+    question (of ``questions``, when given) or one seen twice is a :class:`QuestionsError` naming the line."""
     known = {q.id for q in questions}
     answers: dict = {}
     matches = list(HEADING.finditer(text))
     for k, match in enumerate(matches):
         qid = match.group(1)
         line = text.count("\n", 0, match.start()) + 1
-        if known and qid not in known:
-            raise QuestionsError(f"{path}: line {line}: heading {qid!r} names no question of this assignment "
-                                 f"(expected {', '.join(sorted(known))})")
+        if not QUESTION_ID.fullmatch(qid) or (known and qid not in known):
+            raise QuestionsError(f"{path}: line {line}: heading {match.group(0).strip()!r} names no question of this "
+                                 f"assignment (expected ## followed by one of {', '.join(sorted(known)) or 'chN-qK'}; "
+                                 "use ### for headings of your own)")
         if qid in answers:
             raise QuestionsError(f"{path}: line {line}: question {qid} answered twice")
         body = text[match.end():matches[k + 1].start() if k + 1 < len(matches) else len(text)]

@@ -1,4 +1,4 @@
-"""``python -m autograder.classroom.written export|rubric|marks-template|merge``: written answers, graded.
+"""``python -m autograder.classroom.written export|rubric|collect|marks-template|merge``: written answers, graded.
 
 * ``export --assignment NAME --out PATH``: the answer sheet of the assignment's written questions
   (:mod:`autograder.classroom.questions`), ``answers.md``, for the students to fill and hand in with
@@ -6,6 +6,10 @@
   holds the questions and their points, nothing of the reference answers or the rubric's items.
 * ``rubric --assignment NAME --out FILE``: the assignment's rubric (its file's, or the default) as
   a TOML file to edit into ``solutions/rubrics/NAME.toml`` (:mod:`autograder.classroom.rubric`).
+* ``collect --assignment NAME SUBMISSIONS --out FOLDER``: the students' filled sheets
+  (:mod:`autograder.classroom.answers`; SUBMISSIONS as ``batch`` reads them), one document per
+  question with every student's answer and the rubric's items, to mark a question at a time; a
+  submission without a sheet, or with changed headings, is named on stderr.
 * ``marks-template --assignment NAME --class DIR --out FILE``: a marks CSV with a row per graded
   student and question, to fill (:mod:`autograder.classroom.marks`).
 * ``merge --assignment NAME --class DIR [--marks FILE]``: check the marks (FILE, copied to
@@ -22,7 +26,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from autograder.classroom import gradebook, marks, questions, rubric
+from autograder.classroom import answers, gradebook, intake, marks, questions, rubric
 from course.core import jsonio
 
 
@@ -51,6 +55,16 @@ def export(assignment, out: Path) -> Path:
     points = {qid: r.points for qid, r in rubric.read(assignment.name, found).items()}
     path = Path(out) / "answers.md" if Path(out).is_dir() else Path(out)
     return jsonio.write_text(path, questions.sheet(assignment, found, points))
+
+
+def collect(assignment, submissions: Path, out: Path) -> answers.Gathered:
+    """Write one document per question of ``assignment`` into ``out`` from the sheets in ``submissions``."""
+    asked = questions.of_assignment(assignment)
+    out = Path(out)
+    gathered = answers.gather(intake.read(submissions, unpack_to=out / "export"), asked)
+    for name, text in answers.documents(asked, rubric.read(assignment.name, asked), gathered).items():
+        jsonio.write_text(out / name, text)
+    return gathered
 
 
 def merge(assignment, folder: Path, marks_file: Path | None = None) -> dict:
@@ -83,10 +97,13 @@ def parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     for name, text in (("export", "the answer sheet students fill (answers.md)"),
                        ("rubric", "the assignment's rubric as a TOML file to edit"),
+                       ("collect", "the students' sheets, one document per question, to mark"),
                        ("marks-template", "a marks CSV to fill, a row per student and question"),
                        ("merge", "the marks into the records, grades.csv and the report")):
         command = sub.add_parser(name, help=text, description=text)
         command.add_argument("--assignment", required=True, metavar="NAME", help="the assignment (course.toml)")
+        if name == "collect":
+            command.add_argument("submissions", help="a folder of submission folders, or Gradescope's export zip")
         if name in ("marks-template", "merge"):
             command.add_argument("--class", dest="folder", required=True, metavar="DIR",
                                  help="the --out folder of `python -m autograder batch`")
@@ -95,9 +112,9 @@ def parser() -> argparse.ArgumentParser:
                                  f"copied to DIR/{marks.FILE}")
             command.add_argument("--no-report", action="store_true", help="do not write report.html again")
         else:
-            command.add_argument("--out", required=True, metavar="PATH",
-                                 help="the file to write" + (" (or a folder: PATH/answers.md)" if name == "export"
-                                                             else ""))
+            where = {"export": "the file to write (or a folder: PATH/answers.md)",
+                     "collect": "the folder to write the documents into"}
+            command.add_argument("--out", required=True, metavar="PATH", help=where.get(name, "the file to write"))
     return p
 
 
@@ -114,6 +131,12 @@ def main(argv=None) -> int:
             path = jsonio.write_text(Path(args.out), rubric.text_of(assignment.name, found,
                                                                     rubric.read(assignment.name, found)))
             print(f"wrote {path}: edit it into {rubric.path_of(assignment.name)}")
+        elif args.command == "collect":
+            gathered = collect(assignment, Path(args.submissions), Path(args.out))
+            for line in gathered.problems:
+                print(f"written: {line}", file=sys.stderr)
+            print(f"wrote {args.out}: {len(questions.of_assignment(assignment))} questions, the sheets of "
+                  f"{len(gathered.answers)} of {len(gathered.names)} submissions")
         elif args.command == "marks-template":
             found = questions.of_assignment(assignment)
             records = _records(Path(args.folder), assignment.name)
@@ -127,7 +150,7 @@ def main(argv=None) -> int:
                 report.write_for_this_tree(Path(args.folder))
             print(f"merged {counts['marked']} marks into {counts['records']} records ({counts['changed']} changed); "
                   f"{counts['unmarked']} answers not marked yet; grades in {Path(args.folder) / 'grades.csv'}")
-    except (ValueError, OSError) as exc:  # ConfigError, QuestionsError, RubricError, MarksError
+    except (ValueError, OSError) as exc:  # ConfigError, QuestionsError, RubricError, MarksError, IntakeError
         print(f"written: {exc}", file=sys.stderr)
         return 2
     return 0
