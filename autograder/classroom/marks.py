@@ -18,8 +18,9 @@ a :class:`MarksError` naming the file, the line and the column.
 In a record (``results/<id>.json``) each written question is one more test, ``written: <id>``, its
 ``extra_data`` with ``exercise = "written"``, ``marked`` and the ``items`` earned: ``grades.csv`` gets a
 ``written`` column (their sum) and a column per question, and the record's total, ``export``'s Canvas
-and Moodle files and the report count them like a check (the late penalty applies to the whole). :func:`keep` carries them over when ``batch``
-grades a student again; :func:`readjust` recomputes a record's total after new marks.
+and Moodle files and the report count them like a check (the late penalty applies to the whole).
+:func:`keep` carries them over when ``batch`` grades a student again; :func:`readjust` recomputes a
+record's total after new marks.
 """
 
 import csv
