@@ -33,8 +33,10 @@ def test_the_guide_shows_commands_and_only_the_course_s():
 
 def make_class(work: Path) -> None:
     from autograder import course_config
+    from autograder.classroom import questions
 
     ch1 = course_config.load().assignment("ch1")
+    sheet = questions.sheet(ch1, questions.of_assignment(ch1))
     for student in ("ada", "bob"):
         (work / "semester" / "uploads" / student).mkdir(parents=True)
         for name in ("curve_model", "gauss_newton", "damping"):
@@ -42,6 +44,7 @@ def make_class(work: Path) -> None:
             if student == "bob" and name == "curve_model":
                 text = text.replace("r = y_hat - y", "r = y - y_hat")
             (work / "semester" / "uploads" / student / f"{name}.py").write_text(text)
+        (work / "semester" / "uploads" / student / "answers.md").write_text(sheet.replace("*(your answer)*", student))
     late = (ch1.due + timedelta(hours=5)).timestamp()
     for path in (work / "semester" / "uploads" / "bob").iterdir():
         os.utime(path, (late, late))
@@ -53,6 +56,9 @@ def make_class(work: Path) -> None:
         "\"Bob, Bob\",502,9002,bob,S1,,\n\"Cy, Cy\",503,9003,cy,S2,,\n")
     (work / "semester" / "overrides.csv").write_text(
         "id,check,points,reason\nbob,curve_model.residuals_and_jacobian: r values,2,the sign slip was the only one\n")
+    (work / "semester" / "ch1-marks.csv").write_text(  # the written answers' marks: Ada's in full
+        "id,name,question,points,items,comment\nada,Ada,ch1-q1,,linearised;trust-region,\nada,Ada,ch1-q2,4,,\n"
+        "ada,Ada,ch1-q3,,rho-values;cap,\nbob,Bob,ch1-q1,1,,\"the step, not the reason\"\n")
 
 
 @pytest.mark.slow
@@ -72,6 +78,9 @@ def test_every_command_of_the_guide_runs(tmp_path):
     assert "sign slip" in table["bob"]["overrides"]  # kept by the graded folder through the plain run after
     assert (semester / "ch1-grades" / "overrides.csv").read_text().count("sign slip") == 1
     assert table["cy"]["status"] == "no submission" and float(table["cy"]["total"]) == 0
+    assert (table["ada"]["written"], table["bob"]["written"]) == ("12", "1")
+    assert "## ch1-q1 (4 points)" in (semester / "ch1-tree" / "answers.md").read_text()
+    assert "## bob\n\nbob\n" in (semester / "ch1-answers" / "ch1-q3.md").read_text()
     with open(semester / "canvas.csv", newline="") as file:
         canvas = list(csv.reader(file))
     assert canvas[0] == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section", "Homework 1 (4521)"]

@@ -8,5 +8,8 @@ that reproduce the reference), exported to a learning platform (``export``: Canv
 and returned to each student (``student_feedback``: ``feedback/<id>/``).
 Around the grading: the instructor's ``roster`` (who, when, extensions) and ``overrides`` (a
 check's points and why), applied to the records with the late penalty (``gradebook.adjust``).
+The written answers (``written``: the command line): the ``questions`` of the lessons and the answer
+sheet students hand in, the filled sheets gathered per question (``answers``), the ``rubric`` of each
+question and the instructor's ``marks``, merged into the records as one test per question.
 Submissions are only read as text here, never imported.
 """

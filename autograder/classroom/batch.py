@@ -35,7 +35,8 @@ extension. The instructor's overrides, kept in ``DIR/overrides.csv`` (:mod:`auto
 ``--overrides FILE`` adds FILE's lines to it, replacing those of the same student and check), and the
 penalty are applied to every record on every run, from the judge's scores kept in it: an override
 survives a regrade and a plain run, and a new due date or policy needs no regrade. An override naming
-no check of the assignment stops the run (exit status 2) with the close names.
+no check of the assignment stops the run (exit status 2) with the close names. The marks of the written
+answers (``python -m autograder.classroom.written merge``) stay in a record graded again.
 ``--assignment NAME`` grades that assignment of the course configuration (``autograder/course.toml``):
 its checks with its points, the earlier exercises it hands out solved in place of the student's, its
 due date and late policy (``--due`` and the late options override them); it labels the records and
@@ -59,7 +60,7 @@ from datetime import datetime, timedelta
 from pathlib import Path
 
 from autograder import report, sandbox, submission
-from autograder.classroom import gradebook, intake, overrides, roster, student_feedback
+from autograder.classroom import gradebook, intake, marks, overrides, roster, student_feedback
 from autograder.late import LatePolicy, lateness
 from course.core import jsonio
 from course.core.impl import REPO_ROOT
@@ -342,6 +343,7 @@ def main(argv=None) -> int:
 
     def save(data: dict) -> dict:
         sub = by_id[data["extra_data"]["id"]]
+        data = marks.keep(data, results_dir / f"{sub.id}.json")  # the written answers' marks stay
         data = adjusted(gradebook.with_roster(data, students_of(known, sub)), sub, due, policy, found_overrides)
         gradebook.save(results_dir, data)
         _retable(results_dir / f"{sub.id}.txt", data)

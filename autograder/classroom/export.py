@@ -11,7 +11,9 @@ have is named on stderr.
 
 Every student of every DIR is one row, and so is every roster student (of ``--roster``, or the
 roster rows ``batch --roster`` kept in the records); a group submission gives each submitter a row
-with the group's score. The score is the record's total after the overrides and the late penalty;
+with the group's score. The score is the record's total after the overrides and the late penalty,
+with the marks of the written answers (:mod:`autograder.classroom.written`; the maximum has their
+points too);
 a roster student without a record in a DIR scores 0 there (``batch --roster`` writes them a ``no
 submission`` record); a student in no roster without a record in a DIR has an empty cell (the
 platform leaves that grade alone).

@@ -18,7 +18,9 @@ or policy changes the penalty without grading anyone again. ``extra_data`` then 
 
 ``grades.csv``: one row per record (:func:`row`); columns id, name, sid, email, status, total (after overrides
 and penalty), max, before_penalty, penalty, submitted, days_late, assignment, overrides, one per
-exercise, one per check (in the registry's order, public then hidden). A text cell a spreadsheet
+exercise, one per check (in the registry's order, public then hidden). The marks of the written
+answers (:mod:`autograder.classroom.marks`) are tests of exercise ``written``: a column with their
+sum, one per question, and in the total. A text cell a spreadsheet
 would run as a formula is written as text (:func:`cell`).
 """
 
