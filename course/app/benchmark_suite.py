@@ -22,9 +22,11 @@ The rows, by item (``--only`` selects items: a name, a part of it before a colon
   ``ours-autodiff``; JAX) / analytic (``ours``) (:func:`course.app.benchmark_autodiff.measure`).
 
 Each repeat runs ours and the peer one after the other, so a repeat's ratio divides two times taken
-under the same load. A row's ``ratio`` is the median of its repeats' ratios and ``min``/``max`` their
-spread; ``ours_seconds`` and ``peer_seconds`` are the medians of each side; ``met`` says whether the
-ratio is at or under the row's ``goal`` (``None`` without a goal). A peer, a dataset or a library
+under the same load; :data:`WARMUP` more repeats run first and are dropped (the first run of a process
+loads the compiled kernels, reads caches, and is several times slower). A row's ``ratio`` is the median
+of its repeats' ratios and ``min``/``max`` their spread; ``ours_seconds`` and ``peer_seconds`` are the
+medians of each side; ``met`` says whether the ratio is at or under the row's ``goal`` (``None`` without
+a goal). A peer, a dataset or a library
 missing here, or a TODO of the implementation, is a row with ``status`` "not run" and the reason.
 
 Moved (:func:`moved`): with ``s = ((max_old - min_old) + (max_new - min_new)) / 2``, half the sum of the
@@ -52,8 +54,11 @@ FORMAT = "course-benchmark-suite/1"
 BAL_ITERATIONS = 20
 #: at most this many repeats of a 3D item (g2o's time to solution on torus3D takes minutes)
 REPEATS_3D = 3
-#: our solvers in the 3D rows (``course.app.benchmark_3d.our_solvers``; the second needs cvxopt)
-OURS_3D = ("ours", "ours+CHOLMOD")
+#: repeats run before the measured ones, and dropped
+WARMUP = 1
+#: our solvers in the 3D rows (``course.app.benchmark_3d.our_solvers``; the second needs cvxopt) and their solves
+SOLVES_3D = {"ours": "the implementation's sparse Cholesky", "ours+CHOLMOD": "CHOLMOD's supernodal Cholesky"}
+OURS_3D = tuple(SOLVES_3D)
 #: the goals the project holds these rows to (ratio at most)
 GOAL_AHEAD, GOAL_SMALL_GRAPHS = 1.0, 1.5
 
@@ -102,17 +107,21 @@ Measure = Callable[[int, str], dict]
 
 @dataclass
 class Item:
-    """A unit of work and its rows: ``divides[label]`` says what each row divides; ``goals[label]`` its goal."""
+    """A unit of work and its rows: ``divides[label]`` says what each row divides; ``goals[label]`` its goal;
+    ``max_repeats`` caps the repeats."""
 
     name: str
     divides: dict
     measure: Measure
     goals: dict = field(default_factory=dict)
+    max_repeats: int | None = None
 
-    def rows(self, repeats: int, impl: str) -> list:
-        """Its rows; a peer, dataset or library missing, or a TODO, is a row "not run" saying so."""
+    def rows(self, repeats: int, impl: str, warmup: int = WARMUP) -> list:
+        """Its rows, of ``repeats`` (at most ``max_repeats``) after ``warmup`` dropped; a peer, dataset or
+        library missing, or a TODO, is a row "not run" saying so."""
+        repeats = min(repeats, self.max_repeats or repeats)
         try:
-            measured_here = self.measure(repeats, impl)
+            measured_here = self.measure(repeats + warmup, impl)
         except (PeerMissing, DatasetError, NotImplementedError) as exc:
             reason = f"TODO: {exc}" if isinstance(exc, NotImplementedError) and "TODO" not in str(exc) else str(exc)
             measured_here = dict.fromkeys(self.divides, reason)
@@ -123,7 +132,8 @@ class Item:
             if isinstance(got, str):
                 out.append(Row(name, divides, goal=goal, status="not run", reason=got))
             else:
-                out.append(measured(name, divides, *got, goal=goal))
+                ours, theirs = got
+                out.append(measured(name, divides, ours[warmup:], theirs[warmup:], goal=goal))
         return out
 
 
@@ -223,15 +233,16 @@ def _iteration_3d(name: str) -> Item:
 
     def measure(repeats, impl):
         samples: dict = {}
-        for _ in range(min(repeats, REPEATS_3D)):
+        for _ in range(repeats):
             for backend, seconds in benchmark_3d.per_iteration(name, 1, impl=impl).items():
                 samples.setdefault(backend, []).append(seconds)
         return {f"{ours}/{peer}": (samples[ours], samples[peer]) if ours in samples and peer in samples
                 else _missing_3d(ours, peer) for ours, peer in labels}
 
     return Item(f"3d:iteration:{name}", {
-        f"{ours}/{peer}": f"Gauss-Newton seconds per iteration on {name} from the file's poses: {ours} / "
-                          f"{'g2o (g2opy)' if peer == 'g2o' else 'GTSAM'}" for ours, peer in labels}, measure)
+        f"{ours}/{peer}": f"Gauss-Newton seconds per iteration on {name} from the file's poses: {ours} "
+                          f"({SOLVES_3D[ours]}) / {'g2o (g2opy)' if peer == 'g2o' else 'GTSAM'}"
+        for ours, peer in labels}, measure, max_repeats=REPEATS_3D)
 
 
 def _solution_3d(name: str) -> Item:
@@ -240,7 +251,7 @@ def _solution_3d(name: str) -> Item:
     def measure(repeats, impl):
         ours: dict = {}
         theirs = []
-        for _ in range(min(repeats, REPEATS_3D)):
+        for _ in range(repeats):
             mine, g2o, _ = benchmark_3d.time_to_solution(name, 1, impl=impl)
             for label, (seconds, _run) in mine.items():
                 ours.setdefault(label, []).append(seconds)
@@ -249,8 +260,9 @@ def _solution_3d(name: str) -> Item:
                 for label in OURS_3D}
 
     return Item(f"3d:solution:{name}", {
-        f"{label}/g2o": f"seconds to solution on {name}: {label}'s chordal start + Gauss-Newton (the start "
-                        "included) / g2o's Gauss-Newton from the file's poses" for label in OURS_3D}, measure)
+        f"{label}/g2o": f"seconds to solution on {name}: our chordal start + Gauss-Newton ({SOLVES_3D[label]}; "
+                        "the start included) / g2o's Gauss-Newton from the file's poses" for label in OURS_3D},
+        measure, max_repeats=REPEATS_3D)
 
 
 def _autodiff(name: str) -> Item:
@@ -309,7 +321,7 @@ def format_row(row: Row) -> str:
     """One line: the row's name, its ratio and spread, the two medians and its goal."""
     if row.status != "measured":
         return f"{row.name:44} not run: {row.reason}"
-    goal = "" if row.goal is None else f"  goal {row.goal:g}: {'met' if row.met else 'NOT MET'}"
+    goal = "" if row.goal is None else f"  goal {row.goal:.1f}: {'met' if row.met else 'NOT MET'}"
     return (f"{row.name:44} {row.ratio:6.3f} ({row.low:.3f} to {row.high:.3f}, {len(row.ratios)} repeats)  "
             f"ours {_ms(row.ours_seconds)}, peer {_ms(row.peer_seconds)}{goal}")
 
@@ -317,7 +329,7 @@ def format_row(row: Row) -> str:
 def run(repeats: int = 5, impl: str = "solutions", only=None, out=print, chosen=None, command=None) -> dict:
     """Measure the items of ``chosen`` (default :func:`items`) that ``only`` selects, printing each row
     as it comes; returns the JSON: ``format``, ``machine`` (:func:`course.app.machine.describe`, taken
-    before the first run), ``impl``, ``repeats``, ``seconds`` (the whole run) and ``rows``."""
+    before the first run), ``impl``, ``repeats``, ``warmup``, ``seconds`` (the whole run) and ``rows``."""
     picked = select(chosen if chosen is not None else items(), only)
     description = machine.describe(command)
     out(f"{description['cpu']}, {description['affinity'] or description['cores']} cores, BLAS "
@@ -336,7 +348,7 @@ def run(repeats: int = 5, impl: str = "solutions", only=None, out=print, chosen=
     goals = [row for row in rows if row.met is not None]
     out(f"goals met: {sum(bool(row.met) for row in goals)} of {len(goals)}; "
         f"not run: {sum(row.status != 'measured' for row in rows)} of {len(rows)} rows")
-    return {"format": FORMAT, "machine": description, "impl": impl, "repeats": repeats,
+    return {"format": FORMAT, "machine": description, "impl": impl, "repeats": repeats, "warmup": WARMUP,
             "seconds": round(time.perf_counter() - start, 3), "rows": [row.as_json() for row in rows]}
 
 
@@ -431,7 +443,7 @@ def main(repeats: int = 5, impl: str = "solutions", only=None, json_path=None, c
     with ``compare_with[0]`` (``ValueError`` on a file that is not a suite's, before anything runs)."""
     files = [load(path) for path in compare_with]
     if len(files) == 2:
-        compare(*files, out=out)
+        compare(files[0], files[1], out=out)
         return 0
     result = run(repeats, impl, only, out, chosen, command)
     if json_path:

@@ -6,6 +6,7 @@ check or a solver/implementation error, 2 a usage error (unknown dataset, method
 """
 
 import argparse
+import shlex
 import sys
 from pathlib import Path
 
@@ -182,6 +183,7 @@ def _release_command():
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.command = shlex.join(["python", "-m", "course", *(sys.argv[1:] if argv is None else argv)])
     from course.core.errors import CourseError
 
     try:
@@ -535,7 +537,7 @@ def _benchmark_suite(args) -> int:
     if len(args.compare) == 1 and not args.suite:
         args.parser.error("--compare OLD.json compares with a --suite run: add --suite, or give a second file")
     return benchmark_suite.main(repeats=args.repeats, impl=args.impl or default_impl(), only=_names(args.only),
-                                json_path=args.json, compare_with=args.compare)
+                                json_path=args.json, compare_with=args.compare, command=args.command)
 
 
 def cmd_vio(args) -> int:

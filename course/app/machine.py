@@ -22,6 +22,7 @@ between two descriptions.
 
 import os
 import platform
+import shlex
 import subprocess
 import sys
 from datetime import datetime, timezone
@@ -30,6 +31,8 @@ from pathlib import Path
 
 from course.core.impl import REPO_ROOT
 
+#: where Linux describes the CPU
+CPUINFO = "/proc/cpuinfo"
 #: the distributions whose versions are recorded: the numerical stack, the peers and our compiled helpers
 PACKAGES = ("numpy", "scipy", "gtsam", "g2opy", "pycolmap", "pyceres", "jax", "jaxlib", "numba", "qdldl", "cvxopt",
             "threadpoolctl")
@@ -43,7 +46,7 @@ def cpu_model() -> str:
     """The CPU's model name: ``/proc/cpuinfo``'s first ``model name`` (Linux), else
     ``platform.processor()``, else ``platform.machine()``."""
     try:
-        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as file:
+        with open(CPUINFO, encoding="utf-8", errors="replace") as file:
             for line in file:
                 key, _, value = line.partition(":")
                 if key.strip() == "model name" and value.strip():
@@ -56,7 +59,7 @@ def cpu_model() -> str:
 def simd() -> list | None:
     """The :data:`SIMD` sets the CPU has (``/proc/cpuinfo``'s first ``flags``), ``None`` without that file."""
     try:
-        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as file:
+        with open(CPUINFO, encoding="utf-8", errors="replace") as file:
             for line in file:
                 key, _, value = line.partition(":")
                 if key.strip() in ("flags", "Features"):
@@ -88,7 +91,7 @@ def blas() -> list:
 
 def versions(packages=PACKAGES) -> dict:
     """``{distribution: version or None}``."""
-    out = {}
+    out: dict[str, str | None] = {}
     for name in packages:
         try:
             out[name] = metadata.version(name)
@@ -114,19 +117,23 @@ def commit() -> tuple:
     return head, None if status is None else bool(status)
 
 
+def load_average() -> list | None:
+    """The 1, 5 and 15 minute load averages (``None`` where the system does not say)."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except (AttributeError, OSError):
+        return None
+
+
 def describe(command: str | None = None) -> dict:
     """This machine and this run (see the module doc); ``command`` defaults to ``sys.argv``."""
     head, dirty = commit()
-    try:
-        load = [round(x, 2) for x in os.getloadavg()]
-    except (AttributeError, OSError):
-        load = None
     return {
         "cpu": cpu_model(),
         "simd": simd(),
         "cores": os.cpu_count(),
         "affinity": affinity(),
-        "load_average": load,
+        "load_average": load_average(),
         "blas": blas(),
         "python": f"{platform.python_implementation()} {platform.python_version()}",
         "platform": platform.platform(),
@@ -134,7 +141,7 @@ def describe(command: str | None = None) -> dict:
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "commit": head,
         "dirty": dirty,
-        "command": command if command is not None else " ".join(["python -m course", *sys.argv[1:]]),
+        "command": command if command is not None else shlex.join(["python", "-m", "course", *sys.argv[1:]]),
     }
 
 
