@@ -203,6 +203,15 @@ def test_a_peer_missing_in_part_of_an_item_leaves_the_rest_measured(monkeypatch,
     assert rows["3d:iteration:tinyGrid3D ours/gtsam"]["status"] == "not run"
 
 
+def test_a_missing_dataset_is_a_row_naming_what_is_missing(monkeypatch, tmp_path):
+    monkeypatch.setenv("COURSE_DATA", str(tmp_path / "absent"))
+    result = benchmark_suite.run(repeats=1, out=lambda line: None, command="test",
+                                 chosen=benchmark_suite.items(**{**SMALL, "solution_2d": ("intel",)}), only=["intel"])
+    (row,) = result["rows"]
+    assert row["status"] == "not run"
+    assert row["reason"] == f"dataset 'intel': data folder {tmp_path / 'absent'} not found"  # not the whole help
+
+
 @needs("g2opy")
 def test_a_todo_of_the_implementation_is_a_row_naming_it():
     result = benchmark_suite.run(repeats=1, impl="exercises", only=["2d:solution"], out=lambda line: None,

@@ -123,7 +123,9 @@ class Item:
         try:
             measured_here = self.measure(repeats + warmup, impl)
         except (PeerMissing, DatasetError, NotImplementedError) as exc:
-            reason = f"TODO: {exc}" if isinstance(exc, NotImplementedError) and "TODO" not in str(exc) else str(exc)
+            reason = getattr(exc, "short", None) or str(exc)  # a missing data folder: what is missing, not the help
+            if isinstance(exc, NotImplementedError) and "TODO" not in reason:
+                reason = f"TODO: {reason}"
             measured_here = dict.fromkeys(self.divides, reason)
         out = []
         for label, divides in self.divides.items():
