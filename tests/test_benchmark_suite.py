@@ -108,6 +108,22 @@ def test_a_row_is_the_median_of_its_repeats_ratios_with_their_spread():
     assert benchmark_suite.measured("z", "", [1.0], [2.0]).met is None
 
 
+def test_a_failed_solve_is_a_row_and_the_rest_runs():
+    from course.core.errors import SingularSystemError
+
+    def singular(repeats, impl):
+        raise SingularSystemError("the system is singular at iteration 3")
+
+    def fine(repeats, impl):
+        return {"ours/peer": ([1.0] * repeats, [2.0] * repeats)}
+
+    chosen = [benchmark_suite.Item(name, {"ours/peer": ""}, measure)
+              for name, measure in (("a", singular), ("b", fine))]
+    rows = benchmark_suite.run(repeats=2, out=lambda line: None, chosen=chosen, command="test")["rows"]
+    assert rows[0]["reason"] == "failed: SingularSystemError: the system is singular at iteration 3"
+    assert rows[1]["ratio"] == 0.5 and rows[1]["repeats"] == 2
+
+
 def test_the_warmup_repeats_are_dropped():
     calls = []
 

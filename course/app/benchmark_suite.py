@@ -44,7 +44,7 @@ from pathlib import Path
 
 from course.app import machine
 from course.core import peers
-from course.core.errors import DatasetError
+from course.core.errors import CourseError, DatasetError
 from course.core.jsonio import write_json
 from course.core.peers import PeerMissing
 
@@ -118,14 +118,16 @@ class Item:
 
     def rows(self, repeats: int, impl: str, warmup: int = WARMUP) -> list:
         """Its rows, of ``repeats`` (at most ``max_repeats``) after ``warmup`` dropped; a peer, dataset or
-        library missing, or a TODO, is a row "not run" saying so."""
+        library missing, a TODO, or a solve that failed (a ``CourseError``) is a row "not run" saying so."""
         repeats = min(repeats, self.max_repeats or repeats)
         try:
             measured_here = self.measure(repeats + warmup, impl)
-        except (PeerMissing, DatasetError, NotImplementedError) as exc:
+        except (PeerMissing, DatasetError, NotImplementedError, CourseError) as exc:
             reason = getattr(exc, "short", None) or str(exc)  # a missing data folder: what is missing, not the help
             if isinstance(exc, NotImplementedError) and "TODO" not in reason:
                 reason = f"TODO: {reason}"
+            elif not isinstance(exc, (PeerMissing, DatasetError, NotImplementedError)):
+                reason = f"failed: {type(exc).__name__}: {reason}"  # the implementation's solve, e.g. a singular system
             measured_here = dict.fromkeys(self.divides, reason)
         out = []
         for label, divides in self.divides.items():
