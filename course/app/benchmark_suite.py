@@ -122,11 +122,11 @@ class Item:
         repeats = min(repeats, self.max_repeats or repeats)
         try:
             measured_here = self.measure(repeats + warmup, impl)
-        except (PeerMissing, DatasetError, NotImplementedError, CourseError) as exc:
+        except (PeerMissing, NotImplementedError, CourseError) as exc:
             reason = getattr(exc, "short", None) or str(exc)  # a missing data folder: what is missing, not the help
             if isinstance(exc, NotImplementedError) and "TODO" not in reason:
                 reason = f"TODO: {reason}"
-            elif not isinstance(exc, (PeerMissing, DatasetError, NotImplementedError)):
+            elif isinstance(exc, CourseError) and not isinstance(exc, DatasetError):
                 reason = f"failed: {type(exc).__name__}: {reason}"  # the implementation's solve, e.g. a singular system
             measured_here = dict.fromkeys(self.divides, reason)
         out = []
