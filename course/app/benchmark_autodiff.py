@@ -172,7 +172,8 @@ def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int =
     """``{backend: (seconds per linearisation, seconds per iteration, final chi2, iterations)}``, medians
     of ``repeats`` interleaved rounds; ``jax``, ``gtsam-custom`` and the references only where their
     library is installed; under ``"jax compile"``, JAX's compile seconds (where it ran); under
-    ``"not run"``, ``{backend: why}`` for a reference that stopped at a TODO of ``impl``."""
+    ``"not run"``, ``{backend: why}`` for a reference that stopped at a TODO of ``impl``; under
+    ``"linearisations"``, ``{backend: [seconds of each round's linearisation]}``."""
     chosen = problems(name, impl)
     custom = _GtsamCustom(chosen[OURS_AUTODIFF].graph, impl) if peers.installed("gtsam") else None
     custom_solves = name not in GTSAM_CUSTOM_LINEARISATION_ONLY
@@ -215,6 +216,7 @@ def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int =
     if JAX in chosen:
         rows["jax compile"] = chosen[JAX].jacobians.compile_seconds
     rows["not run"] = not_run
+    rows["linearisations"] = {b: lin[b] for b in names}
     return rows
 
 
@@ -233,6 +235,7 @@ def main(repeats: int = 5, impl="solutions", graphs=GRAPHS, out=print) -> None:
             continue
         compile_seconds = rows.pop("jax compile", None)
         not_run = rows.pop("not run", {})
+        rows.pop("linearisations", None)
         lin0, it0 = rows[OURS][0], rows[OURS][1]
         for backend, (lin, it, chi2, iterations) in rows.items():
             out(f"{name:12} {backend:14} {1e3 * lin:12.2f} {lin / lin0:6.2f} {1e3 * it:9.2f} {it / it0:6.2f} "

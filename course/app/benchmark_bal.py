@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import statistics
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 
 from course.backends import registry
@@ -57,13 +57,15 @@ PEER_METHODS = (("ceres", "levenberg-marquardt"), ("gtsam", "levenberg-marquardt
 
 @dataclass
 class Timing:
-    """One back end's median seconds per iteration and its last run (``None`` when not run)."""
+    """One back end's median seconds per iteration and its last run (``None`` when not run);
+    ``samples``: each repeat's seconds per iteration, in the order the rounds ran."""
 
     backend: str
     method: str
     seconds_per_iteration: float | None
     result: object = None
     skipped: str = ""
+    samples: list = field(default_factory=list)
 
 
 def _ours(problem: BALProblem, impl, iterations: int, method: str = OUR_METHOD):
@@ -71,12 +73,14 @@ def _ours(problem: BALProblem, impl, iterations: int, method: str = OUR_METHOD):
                     options=SolverOptions(max_iterations=iterations))
 
 
-def per_iteration(name="ladybug-49", repeats=3, iterations=10, impl="solutions", scipy_evaluations=2) -> list:
-    """:class:`Timing` of ours and of each peer on ``name``, medians of ``repeats`` runs, interleaved."""
+def per_iteration(name="ladybug-49", repeats=3, iterations=10, impl="solutions", scipy_evaluations=2,
+                  peers=PEER_METHODS) -> list:
+    """:class:`Timing` of ours and of each of ``peers`` (``(backend, method)`` pairs) on ``name``,
+    medians of ``repeats`` runs, interleaved."""
     problem = load_bal(name)
     runners: dict = {("ours", OUR_METHOD): partial(_ours, problem, impl, iterations)}
     timings = []
-    for backend, method in PEER_METHODS:
+    for backend, method in peers:
         try:
             solve = registry.peer_solver("bal", backend)
         except PeerMissing as exc:
@@ -91,7 +95,8 @@ def per_iteration(name="ladybug-49", repeats=3, iterations=10, impl="solutions",
             result = run()
             samples[key].append(result.seconds / max(result.iterations, 1))
             last[key] = result
-    measured = [Timing(b, m, statistics.median(samples[(b, m)]), last[(b, m)]) for b, m in runners]
+    measured = [Timing(b, m, statistics.median(samples[(b, m)]), last[(b, m)], samples=samples[(b, m)])
+                for b, m in runners]
     return measured + timings
 
 

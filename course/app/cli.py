@@ -6,6 +6,7 @@ check or a solver/implementation error, 2 a usage error (unknown dataset, method
 """
 
 import argparse
+import shlex
 import sys
 from pathlib import Path
 
@@ -117,7 +118,19 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--autodiff", action="store_true",
                        help="chapter 7 only: automatic against analytic Jacobians on intel, sphere2500 and ladybug-49 "
                             "(course.app.benchmark_autodiff)")
-    bench.set_defaults(func=cmd_benchmark)
+    bench.add_argument("--suite", action="store_true",
+                       help="the tracked ratios (bundle adjustment, the VIO window, w10000, the 2D, 3D and autodiff "
+                            "rows), each with its spread over the repeats and its goal, beside a description of "
+                            "the machine (course.app.benchmark_suite)")
+    bench.add_argument("--only", default=None, metavar="ROW[,ROW]",
+                       help="--suite: these rows only: an item (2d:solution:intel), a part of it (2d, 2d:solution) "
+                            "or a dataset (intel); a name that selects nothing lists the items")
+    bench.add_argument("--json", default=None, metavar="FILE", help="--suite: write the rows and the machine to FILE")
+    bench.add_argument("--compare", nargs="+", default=(), metavar=("OLD.json", "NEW.json"),
+                       help="with --suite: this run against OLD.json; with two files (no --suite): NEW.json against "
+                            "OLD.json, nothing run. Prints the machines' differences, then each row's old and new "
+                            "ratio, flagging one that moved beyond the noise of its repeats")
+    bench.set_defaults(func=cmd_benchmark, parser=bench)
 
     ape = sub.add_parser("ape", help="chapter 5: absolute pose error of a trajectory against ground truth "
                                      "(TUM files, EuRoC CSVs), after SE(3)/Sim(3) alignment (course.problems.vio.ape)")
@@ -170,6 +183,7 @@ def _release_command():
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.command = shlex.join(["python", "-m", "course", *(sys.argv[1:] if argv is None else argv)])
     from course.core.errors import CourseError
 
     try:
@@ -492,6 +506,11 @@ def cmd_datasets(args) -> int:
 
 
 def cmd_benchmark(args) -> int:
+    if args.suite or args.compare:
+        return _benchmark_suite(args)
+    for flag in ("only", "json"):
+        if getattr(args, flag):
+            args.parser.error(f"--{flag} needs --suite")
     if args.autodiff:
         from course.app import benchmark_autodiff
 
@@ -501,6 +520,24 @@ def cmd_benchmark(args) -> int:
 
     benchmark.main(repeats=args.repeats, impl=args.impl or default_impl())
     return 0
+
+
+def _benchmark_suite(args) -> int:
+    """``benchmark --suite [--only ...] [--json FILE] [--compare OLD.json]`` or ``benchmark --compare OLD NEW``."""
+    from course.app import benchmark_suite
+
+    if len(args.compare) > 2:
+        args.parser.error("--compare takes OLD.json, or OLD.json NEW.json")
+    if args.repeats < 1:
+        args.parser.error("--repeats must be at least 1")
+    if args.autodiff:
+        args.parser.error("--suite has the autodiff rows already; --autodiff is the full chapter 7 table")
+    if len(args.compare) == 2 and (args.suite or args.only or args.json):
+        args.parser.error("--compare OLD.json NEW.json runs nothing: give OLD.json alone to compare with a --suite run")
+    if len(args.compare) == 1 and not args.suite:
+        args.parser.error("--compare OLD.json compares with a --suite run: add --suite, or give a second file")
+    return benchmark_suite.main(repeats=args.repeats, impl=args.impl or default_impl(), only=_names(args.only),
+                                json_path=args.json, compare_with=args.compare, command=args.command)
 
 
 def cmd_vio(args) -> int:
