@@ -18,7 +18,7 @@ from autograder.course_config import load, parse
 from autograder.grade import grade
 from course.core.impl import REPO_ROOT
 from course.release import assignment as handout
-from course.release.assignment import tomllib  # tomli on Python 3.10
+from course.release.carried_config import tomllib  # tomli on Python 3.10
 from course.release.stubs import render
 
 COURSE = load()
