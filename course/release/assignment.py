@@ -165,6 +165,14 @@ def write_student_tree(target, course, assignment, stub_files: dict, root: Path 
         path.write_text(text)
     readme = target / "README.md"
     text = readme.read_text()
+    hints = target / "exercises" / HINTS_FILE
+    hinted = json.loads(hints.read_text()) if hints.is_file() else {}
+    example = next((m for m in assignment.modules if m in hinted), "")
+    if example:  # the README's hint commands name an exercise and a function of this tree
+        text = text.replace("hint pose_graph_edge 1", f"hint {example} 1")
+        function = next((owner for owner in hinted[example] if owner), "")
+        if function:
+            text = text.replace("hint dogleg_step 2", f"hint {function.split('.')[-1]} 2")
     head, _, rest = text.partition("\n\n")
     readme.write_text(f"{head}\n\n{readme_section(assignment)}\n{rest}")
 
