@@ -168,3 +168,18 @@ def test_the_checker_prints_dates_late_policy_and_extensions(tmp_path):
     assert f"extension: {EMAIL} until 2027-02-08T23:59:00+01:00" in blocks["ch1"]
     assert "release after 2027-02-15T23:59:00+01:00 (when ch1 closes)" in blocks["ch2"]
     assert "cutoff 3 days; 0 extensions" in blocks["ch6"]
+
+
+def test_the_whole_course_s_student_tree_names_no_student(tmp_path):
+    """``release --student DIR`` without an assignment copies the repository: its configuration is
+    rewritten without extensions (here from a small repository holding the configuration alone)."""
+    from course.release.stubs import write_student_tree
+
+    root = tmp_path / "repo"
+    (root / "autograder").mkdir(parents=True)
+    (root / "autograder" / "course.toml").write_text(with_extensions(tmp_path).read_text())
+    tree = tmp_path / "tree"
+    write_student_tree(tree, {"__init__.py": ""}, root)
+    assert personal_data_in(tree) == []
+    again = parse(tomllib.loads((tree / "autograder" / "course.toml").read_text()))
+    assert list(again.assignments) == list(load(root / "autograder" / "course.toml").assignments)
