@@ -183,3 +183,15 @@ def test_the_whole_course_s_student_tree_names_no_student(tmp_path):
     assert personal_data_in(tree) == []
     again = parse(tomllib.loads((tree / "autograder" / "course.toml").read_text()))
     assert list(again.assignments) == list(load(root / "autograder" / "course.toml").assignments)
+
+
+def test_a_commented_out_extension_does_not_reach_a_student_tree(tmp_path):
+    from course.release.stubs import write_student_tree
+
+    root = tmp_path / "repo"
+    (root / "autograder").mkdir(parents=True)
+    text = (REPO_ROOT / "autograder" / "course.toml").read_text()
+    (root / "autograder" / "course.toml").write_text(f'# late = {{ extensions = {{ "{EMAIL}" = 2027-02-08 }} }}\n'
+                                                     + text)
+    write_student_tree(tmp_path / "tree", {"__init__.py": ""}, root)
+    assert personal_data_in(tmp_path / "tree") == []

@@ -205,13 +205,11 @@ def _student_ignore(root: Path):
 
 
 def _without_personal_data(config: Path) -> None:
-    """Rewrite the tree's course configuration without extensions or rosters, when it has any."""
-    from course.release.carried_config import config_text, has_personal, tomllib
+    """Rewrite the tree's course configuration without extensions or rosters (and without its
+    comments, where an instructor may have left one commented out)."""
+    from course.release.carried_config import config_text
 
     if config.is_file():
-        with open(config, "rb") as handle:
-            if not has_personal(tomllib.load(handle)):
-                return
         config.write_text(config_text(config))
 
 
