@@ -45,8 +45,9 @@ def parser():
     p.add_argument("--config", metavar="FILE", default=None,
                    help="the course configuration (default autograder/course.toml)")
     p.add_argument("--metadata", metavar="FILE", default=None,
-                   help="Gradescope's submission_metadata.json: its created_at, against the assignment's due date, "
-                        "applies the assignment's late policy (needs an assignment)")
+                   help="Gradescope's submission_metadata.json: its created_at, against the student's due date (the "
+                        "latest of the assignment's, an extension in the configuration and one granted on "
+                        "Gradescope), applies the assignment's late policy (needs an assignment)")
     return p
 
 
@@ -76,7 +77,7 @@ def lateness_of(args, p, assignment):
     except (OSError, ValueError) as exc:  # a grade without the policy rather than no grade
         print(f"autograder: --metadata {args.metadata}: {exc}; graded without the late policy", file=sys.stderr)
         return None
-    return assignment.lateness(submitted.created_at, submitted.students, due=submitted.due)
+    return assignment.lateness(submitted.created_at, submitted.students, due=submitted.due, granted=submitted.granted)
 
 
 def main(argv=None) -> int:

@@ -22,6 +22,7 @@ source). A released tree carries a copy holding its one assignment, and the file
     optional = []                    # extra credit: graded, their points not in the maximum
     solved = []                      # earlier exercise files handed out solved (reference code)
     due = 2027-02-05T23:59:00+01:00  # ISO 8601 with an offset (a TOML date-time or a string)
+    release_after = 2027-01-20T00:00:00+01:00  # not handed out before (default: see below)
     total = 100                      # scale the maximum (public + counted hidden) to this
     hidden_visibility = "after_published"   # visible | after_due_date | after_published | hidden
     hidden_counts = true             # false: the hidden checks are shown and score nothing
@@ -32,6 +33,17 @@ source). A released tree carries a copy holding its one assignment, and the file
     "end_to_end: lm-type3" = 4       # one check, by its exact name
     [assignments.ch1.late.extensions]
     "student@example.edu" = 2027-02-08T23:59:00+01:00   # by Gradescope user id, sid or e-mail
+
+Extensions are the instructor's: a student tree's copy of this file has none
+(:mod:`course.release.carried_config`); the Gradescope zip keeps its assignment's and also takes
+the extensions granted on Gradescope (a user's own due date in ``submission_metadata.json``),
+whichever is later. An extension before its assignment's due date is an error.
+
+Release dates: an assignment that hands out ``solved`` files gives the reference code of earlier
+assignments away, so its student tree is not released before ``release_after`` (``python -m
+course release`` refuses without ``--force``). Its default is when the previous assignment closes
+(:attr:`Assignment.closes`: its latest due date, extensions included, plus its cutoff), or when
+an assignment whose files it hands out closes, whichever is later.
 
 An assignment's ``exercises`` are check modules (``autograder/checks/NAME.py``, :data:`ORDER
 <autograder.checks.ORDER>`): an exercise file (``damping``) or a check module that runs several
@@ -58,7 +70,9 @@ assignment's points; ``assignment.hidden_counts``, ``hidden_visibility``, ``is_e
 ``assignment.late`` (an :class:`autograder.late.LatePolicy`), ``assignment.due``;
 ``assignment.lateness(submitted, student=())`` (:class:`autograder.late.Lateness`);
 :func:`gradescope_metadata` reads Gradescope's ``submission_metadata.json``.
-``python -m autograder.course_config [FILE]`` validates a file and prints each assignment.
+``python -m autograder.course_config [FILE]`` validates a file and prints each assignment: its
+exercises and points, its dates (release after, due, closes), late policy and extensions (by name:
+the checker is the instructor's).
 """
 
 import difflib
@@ -84,8 +98,8 @@ VISIBILITIES = ("visible", "after_due_date", "after_published", "hidden")
 COURSE_KEYS = {"course", "defaults", "assignments"}
 COURSE_TABLE_KEYS = {"title"}
 DEFAULT_KEYS = {"hidden_visibility", "hidden_counts", "late"}
-ASSIGNMENT_KEYS = {"title", "exercises", "optional", "solved", "due", "total", "points", "hidden_visibility",
-                   "hidden_counts", "late"}
+ASSIGNMENT_KEYS = {"title", "exercises", "optional", "solved", "due", "release_after", "total", "points",
+                   "hidden_visibility", "hidden_counts", "late"}
 LATE_KEYS = {"per_day", "per_hour", "cutoff_days", "cutoff_hours", "extensions"}
 
 
@@ -118,6 +132,19 @@ class Assignment:
     #: ``{check name: points}`` of every check of the assignment
     points: Any = field(default_factory=dict)
     source: str = ""  # the file it was read from
+    #: not handed out before this (given, or the default of the module docstring; None: no date)
+    release_after: datetime | None = None
+    #: where ``release_after`` comes from ("set", or the assignment whose close it is)
+    release_basis: str = ""
+
+    @property
+    def closes(self) -> datetime | None:
+        """When the last submission the policy still scores is in: the latest due date (extensions
+        included) plus the cutoff (none: the latest due date). None without a due date."""
+        if self.due is None:
+            return None
+        latest = max([self.due, *self.late.extensions.values()])
+        return latest + (self.late.cutoff or timedelta(0))
 
     def checks(self) -> list:
         """The assignment's checks in report order, each with the assignment's points."""
@@ -155,12 +182,14 @@ class Assignment:
         sets = {"public": 1, "hidden": 1 if self.hidden_counts else 0, "all": 2 if self.hidden_counts else 1}
         return point_grid.total(required * sets[which])
 
-    def lateness(self, submitted: datetime, student: tuple = (), due: datetime | None = None) -> Lateness:
-        """How late ``submitted`` is and what it costs (``due``: when the assignment has none)."""
+    def lateness(self, submitted: datetime, student: tuple = (), due: datetime | None = None,
+                 granted: datetime | None = None) -> Lateness:
+        """How late ``submitted`` is and what it costs (``due``: when the assignment has none;
+        ``granted``: the student's own due date on the platform, :attr:`Submitted.granted`)."""
         deadline = self.due or due
         if deadline is None:
             return Lateness(timedelta(0), 1.0, "no due date")
-        return lateness(submitted, deadline, self.late, student)
+        return lateness(submitted, deadline, self.late, student, granted)
 
 
 @dataclass(frozen=True)
@@ -264,12 +293,18 @@ def parse(data: dict, path="<course.toml>") -> Course:
         late_key = f"{key}.late" if "late" in raw else "defaults.late"
         late = _late(raw.get("late", defaults.get("late", {})), late_key, path)
         due = _moment(raw["due"], f"{key}.due", path) if "due" in raw else None
+        for who, when in late.extensions.items():
+            if due is not None and when < due:
+                raise ConfigError(path, f"{late_key}.extensions.{who}", f"the extension {when.isoformat()} is before "
+                                  f"the due date of {key} ({due.isoformat()}): an extension gives more time")
+        release = _moment(raw["release_after"], f"{key}.release_after", path) if "release_after" in raw else None
         points = _points(raw, key, path, exercises, registry, optional, counts)
         title = raw.get("title", name)
         if not isinstance(title, str):
             raise ConfigError(path, f"{key}.title", f"expected a string, got {title!r}")
         out[name] = Assignment(name, title, tuple(e for e in registry if e in exercises), tuple(optional),
-                               tuple(solved), due, late, visibility, counts, MappingProxyType(points), str(path))
+                               tuple(solved), due, late, visibility, counts, MappingProxyType(points), str(path),
+                               release, "set" if release is not None else "")
     for name, assignment in out.items():
         later = list(out)[list(out).index(name) + 1:]
         for module in assignment.solved:
@@ -277,10 +312,26 @@ def parse(data: dict, path="<course.toml>") -> Course:
             if owner:
                 raise ConfigError(path, f"assignments.{name}.solved", f"{module!r} is graded in assignments.{owner}, "
                                   "which comes later: handing it out solved now gives its answer away")
+    _release_dates(out)
     title = course.get("title", "")
     if not isinstance(title, str):
         raise ConfigError(path, "course.title", f"expected a string, got {title!r}")
     return Course(title, MappingProxyType(out), str(path))
+
+
+def _release_dates(out: dict) -> None:
+    """Give each assignment without ``release_after`` its default (the module docstring)."""
+    names = list(out)
+    for index, name in enumerate(names):
+        assignment = out[name]
+        if assignment.release_after is not None:
+            continue
+        owners = [names[index - 1]] if index else []
+        owners += [n for n in names[:index] if set(out[n].modules) & set(assignment.solved) and n not in owners]
+        closes = [(out[n].closes, n) for n in owners if out[n].closes is not None]
+        if closes:
+            moment, owner = max(closes)
+            out[name] = replace(assignment, release_after=moment, release_basis=f"when {owner} closes")
 
 
 def _table(value, key, path) -> dict:
@@ -423,19 +474,30 @@ class Submitted:
     created_at: datetime
     due: datetime | None
     students: tuple  # ids, sids and e-mails of the submitters (for extensions)
+    #: a submitter's own due date on Gradescope (an extension granted there), the latest of the group's
+    #: when later than the assignment's; None when none is
+    granted: datetime | None = None
 
 
 def gradescope_metadata(path) -> Submitted:
-    """``created_at``, ``assignment.due_date`` and the users' ids, sids and e-mails of Gradescope's
-    ``submission_metadata.json``."""
+    """``created_at``, ``assignment.due_date``, the users' ids, sids and e-mails and their own due
+    dates (``users[].assignment.due_date``, which Gradescope sets to a user's extension) of
+    Gradescope's ``submission_metadata.json``. A user's ``late_due_date`` is when Gradescope stops
+    taking submissions; the late policy counts from the due date, so it is not read."""
     data = json.loads(Path(path).read_text())
     created = _moment(data.get("created_at"), "created_at", path)
     due_text = (data.get("assignment") or {}).get("due_date")
     due = _moment(due_text, "assignment.due_date", path) if due_text else None
     keys: list = []
-    for user in data.get("users") or []:
+    granted = None
+    for index, user in enumerate(data.get("users") or []):
         keys += [str(user[k]) for k in ("id", "sid", "email") if user.get(k) not in (None, "")]
-    return Submitted(created, due, tuple(keys))
+        own = (user.get("assignment") or {}).get("due_date")
+        if own:
+            moment = _moment(own, f"users[{index}].assignment.due_date", path)
+            if (due is None or moment > due) and (granted is None or moment > granted):
+                granted = moment
+    return Submitted(created, due, tuple(keys), granted)
 
 
 def main(argv=None) -> int:
@@ -450,8 +512,37 @@ def main(argv=None) -> int:
         extra = f", optional {', '.join(a.optional)}" if a.optional else ""
         solved = f", solved {', '.join(a.solved)}" if a.solved else ""
         print(f"  {a.name}: {', '.join(a.exercises)}{extra}{solved}; max {a.maximum():g} "
-              f"(public {a.maximum('public'):g}); due {a.due.isoformat() if a.due else '-'}")
+              f"(public {a.maximum('public'):g})")
+        print(f"      {dates_line(a)}")
+        print(f"      late: {policy_line(a.late)}")
+        for who, when in sorted(a.late.extensions.items(), key=lambda item: item[1]):
+            print(f"        extension: {who} until {when.isoformat()}")
     return 0
+
+
+def _when(moment) -> str:
+    return moment.isoformat() if moment is not None else "-"
+
+
+def dates_line(a: Assignment) -> str:
+    """``release_after ..., due ..., closes ...`` of assignment ``a``, as the checker prints it."""
+    basis = f" ({a.release_basis})" if a.release_basis else ""
+    return f"release after {_when(a.release_after)}{basis}; due {_when(a.due)}; closes {_when(a.closes)}"
+
+
+def policy_line(late: LatePolicy) -> str:
+    """The late policy in words, with the number of extensions."""
+    if late.per_day or late.per_hour:
+        text = f"{100 * (late.per_day or late.per_hour):g}% per started {'day' if late.per_day else 'hour'}"
+    else:
+        text = "no penalty"
+    if late.cutoff is not None:
+        hours = late.cutoff.total_seconds() / 3600
+        text += f", cutoff {hours / 24:g} days" if hours % 24 == 0 else f", cutoff {hours:g} hours"
+    else:
+        text += ", no cutoff"
+    count = len(late.extensions)
+    return text + f"; {count} extension{'s' if count != 1 else ''}"
 
 
 if __name__ == "__main__":

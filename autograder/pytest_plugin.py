@@ -150,6 +150,8 @@ class ImplementationFolder(pytest.Directory):
                 group = CheckGroup.from_parent(self, name=name)
             group.entries = [(points.get(check.name, check), hidden) for check in module.CHECKS
                              for hidden in hidden_sets]
+            # extra credit is the assignment's word (its ``optional``), not the check's name
+            group.extra = frozenset(c.name for c in module.CHECKS if graded is not None and graded.is_extra(c))
             group.prefix, group.folder = name, self.path.resolve()
             yield group
 
@@ -160,6 +162,7 @@ class ChecksOf:
     entries: list
     prefix: str
     folder: Path
+    extra: frozenset = frozenset()  # the checks of an optional exercise (extra credit)
 
     def collect(self):
         for check, hidden in self.entries:
@@ -172,6 +175,8 @@ class ChecksOf:
                 from autograder.grade import HIDDEN_SUFFIX
 
                 title += HIDDEN_SUFFIX
+            if check.name in self.extra:
+                title += " (extra credit)"
             name = f"{title} {points_text(check.points)}"
             # the id from its text, as pytest reads ids back (``--lf``'s cache): a "[" there opens
             # parameters, and the names hold brackets ("[2 pts]", "lambda clamped to [1e-7, 1e7]")

@@ -51,10 +51,12 @@ def total(results) -> str:
 
 
 def late_line(lateness, before: float) -> str:
-    """The line saying how late a submission was and what it cost."""
+    """The line saying how late a submission was, against which due date (the assignment's or an
+    extension, and whose), and what it cost."""
+    due = f" (due {lateness.due.isoformat()}, {lateness.basis})" if getattr(lateness, "due", None) else ""
     if lateness.fraction >= 1.0:
-        return f"Submitted: {lateness.note}"
-    return (f"Late: {lateness.note}: {points(before)} -> {points(point_grid.scaled(before, lateness.fraction))} points")
+        return f"Submitted: {lateness.note}{due}"
+    return (f"Late: {lateness.note}{due}: {points(before)} -> {points(point_grid.scaled(before, lateness.fraction))} points")
 
 
 def summary(results, lateness=None) -> str:

@@ -18,7 +18,7 @@ from autograder.course_config import load, parse
 from autograder.grade import grade
 from course.core.impl import REPO_ROOT
 from course.release import assignment as handout
-from course.release.assignment import tomllib  # tomli on Python 3.10
+from course.release.carried_config import tomllib  # tomli on Python 3.10
 from course.release.stubs import render
 
 COURSE = load()
@@ -176,10 +176,15 @@ def _results(started):
     return json.loads((root / "results" / "results.json").read_text())
 
 
-def _metadata(late: timedelta) -> dict:
+def _metadata(late: timedelta, extended: timedelta | None = None) -> dict:
+    """Gradescope's metadata of a submission ``late`` after ch1's due date; ``extended``: the user's own
+    due date that far after it (an extension granted on Gradescope)."""
     due = COURSE.assignment("ch1").due
+    user: dict = {"email": "student@example.edu", "id": 1234, "name": "A Student"}
+    if extended is not None:
+        user["assignment"] = {"due_date": (due + extended).isoformat(), "late_due_date": None}
     return {"created_at": (due + late).isoformat(), "assignment": {"due_date": due.isoformat(), "title": "ch1"},
-            "users": [{"email": "student@example.edu", "id": 1234, "name": "A Student"}]}
+            "users": [user]}
 
 
 @pytest.mark.slow
@@ -190,6 +195,7 @@ def test_the_ch1_zip_grades_ch1_with_its_points_visibilities_and_late_policy(ch1
     runs = {"on time": _start(ch1_zip, "on-time", reference, _metadata(-timedelta(hours=1))),
             "stubs": _start(ch1_zip, "stubs", stubs, _metadata(-timedelta(hours=1)))}
     runs["late"] = _start(ch1_zip, "late", reference, _metadata(timedelta(days=2)))
+    runs["extended"] = _start(ch1_zip, "extended", reference, _metadata(timedelta(days=2), timedelta(days=3)))
     results = {name: _results(started) for name, started in runs.items()}
     maximum = ch1.maximum()
     for name, data in results.items():
@@ -202,4 +208,9 @@ def test_the_ch1_zip_grades_ch1_with_its_points_visibilities_and_late_policy(ch1
     assert results["stubs"]["score"] == 0
     late = results["late"]
     assert late["score"] == pytest.approx(0.8 * maximum), late["output"]
-    assert re.search(r"^Late: 2\.00 days late: 2 started days at 10%, 80% of the score kept", late["output"], re.M)
+    assert re.search(r"^Late: 2\.00 days late: 2 started days at 10%, 80% of the score kept \(due "
+                     rf"{re.escape(ch1.due.isoformat())}, the assignment's due date\)", late["output"], re.M)
+    extended = results["extended"]  # Gradescope's extension: on time, and the feedback says so
+    assert extended["score"] == pytest.approx(maximum), extended["output"]
+    assert f"Submitted: on time (due {(ch1.due + timedelta(days=3)).isoformat()}, an extension on Gradescope)" in \
+        extended["output"]

@@ -36,6 +36,6 @@ def assembler_mistakes(call, ref):
 
 
 MISTAKES = {
-    f"{FAST_EDGES}: e, A, B of all edges (optional)": edge_mistakes,
-    f"{FAST_ASSEMBLER}: H (upper, CSC), b, chi2 (optional)": assembler_mistakes,
+    f"{FAST_EDGES}: e, A, B of all edges": edge_mistakes,
+    f"{FAST_ASSEMBLER}: H (upper, CSC), b, chi2": assembler_mistakes,
 }

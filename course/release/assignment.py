@@ -6,9 +6,10 @@ student tree of assignment NAME holds, beside the framework:
 * ``exercises/``: the stubs of NAME's exercise files; the files NAME hands out ``solved``, as the
   reference code (a solution as it is released after its due date: the code between the solution
   markers kept, the marker lines dropped); the stubs of earlier assignments' other files (students
-  may still write them). No file of a later assignment.
+  may still write them); ``hints.json``, the hints of those stubs. No file of a later assignment.
 * ``autograder/``: the public data (``expected/``) of NAME's check modules only; no check module or
-  task of a later assignment; ``course.toml`` holding NAME alone; ``ASSIGNMENT`` naming it, so that
+  task of a later assignment; ``course.toml`` holding NAME alone and no personal data (no extensions:
+  :mod:`course.release.carried_config`); ``ASSIGNMENT`` naming it, so that
   ``python -m autograder``, ``make check`` and ``pytest`` grade NAME with its points; ``given/``, the
   solved files the grader composes with the student's (:func:`autograder.grade.compose`).
 * ``notebooks/``: the notebooks of NAME's and earlier chapters (``chN_...`` for assignment ``chN``).
@@ -16,24 +17,21 @@ student tree of assignment NAME holds, beside the framework:
 
 The Gradescope zip of NAME is the whole grader (the reference too, for the hidden checks) with
 ``exercises/`` holding NAME's stubs alone (what a student uploads; nothing else is asked for), and
-the same ``ASSIGNMENT``, ``course.toml`` and ``given/``: ``run_autograder`` grades NAME only, with
-its points, visibilities and late policy (from Gradescope's ``submission_metadata.json``).
+the same ``ASSIGNMENT``, ``course.toml`` (with NAME's extensions: the zip is the instructor's, never
+shown to students) and ``given/``: ``run_autograder`` grades NAME only, with its points, visibilities
+and late policy (from Gradescope's ``submission_metadata.json``, whose per-user due dates are
+Gradescope's extensions).
 """
 
 import json
 import re
 import shutil
-import sys
-from datetime import date, datetime
 from pathlib import Path
 
+from course.core.hints import HINTS_FILE
 from course.core.impl import REPO_ROOT
+from course.release.carried_config import config_text
 from course.release.stubs import BEGIN, END
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 
 def released(source: str) -> str:
@@ -65,6 +63,10 @@ def exercise_files(course, assignment, stubs: dict, root: Path = REPO_ROOT) -> d
             files[rel] = text
     for module in assignment.solved:
         files[f"{module}.py"] = released(Path(root, "solutions", f"{module}.py").read_text())
+    if HINTS_FILE in stubs:  # ``python -m autograder hint`` reads it: the hints of the stubs handed out
+        hints = {module: owners for module, owners in json.loads(stubs[HINTS_FILE]).items()
+                 if f"{module}.py" in files and module not in assignment.solved}
+        files[HINTS_FILE] = json.dumps(hints, indent=1, sort_keys=True) + "\n"
     return dict(sorted(files.items()))
 
 
@@ -110,45 +112,11 @@ def dropped(course, assignment, root: Path = REPO_ROOT) -> list:
 # ---------------------------------------------------------------- the configuration it carries
 
 
-def _key(key: str) -> str:
-    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else json.dumps(key)
-
-
-def _value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, float)):
-        return repr(value)
-    if isinstance(value, (datetime, date)):
-        return value.isoformat()
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, list):
-        return "[" + ", ".join(_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{_key(k)} = {_value(v)}" for k, v in value.items()) + " }"
-    raise TypeError(f"cannot write {value!r} as TOML")
-
-
-def config_text(source: Path, name: str) -> str:
-    """The course configuration of ``source`` with assignment ``name`` alone, as TOML."""
-    with open(source, "rb") as handle:
-        data = tomllib.load(handle)
-    out = ["# The course configuration of this assignment (autograder/course_config.py says what each key means).", ""]
-    for table in ("course", "defaults"):
-        if data.get(table):
-            out.append(f"[{table}]")
-            out += [f"{_key(k)} = {_value(v)}" for k, v in data[table].items()]
-            out.append("")
-    out.append(f"[assignments.{_key(name)}]")
-    out += [f"{_key(k)} = {_value(v)}" for k, v in data["assignments"][name].items()]
-    return "\n".join(out) + "\n"
-
-
-def assignment_files(course, assignment, root: Path = REPO_ROOT) -> dict:
-    """``{path relative to the tree: text}`` that make a tree grade ``assignment``."""
+def assignment_files(course, assignment, root: Path = REPO_ROOT, personal: bool = False) -> dict:
+    """``{path relative to the tree: text}`` that make a tree grade ``assignment``; its configuration
+    keeps the extensions only when ``personal`` (the Gradescope zip's, never a student tree's)."""
     files = {"autograder/ASSIGNMENT": assignment.name + "\n",
-             "autograder/course.toml": config_text(Path(assignment.source), assignment.name)}
+             "autograder/course.toml": config_text(Path(assignment.source), assignment.name, personal)}
     files.update({f"autograder/given/{rel}": text for rel, text in given_files(assignment, root).items()})
     return files
 
@@ -197,6 +165,14 @@ def write_student_tree(target, course, assignment, stub_files: dict, root: Path 
         path.write_text(text)
     readme = target / "README.md"
     text = readme.read_text()
+    hints = target / "exercises" / HINTS_FILE
+    hinted = json.loads(hints.read_text()) if hints.is_file() else {}
+    example = next((m for m in assignment.modules if m in hinted), "")
+    if example:  # the README's hint commands name an exercise and a function of this tree
+        text = text.replace("hint pose_graph_edge 1", f"hint {example} 1")
+        function = next((owner for owner in hinted[example] if owner), "")
+        if function:
+            text = text.replace("hint dogleg_step 2", f"hint {function.split('.')[-1]} 2")
     head, _, rest = text.partition("\n\n")
     readme.write_text(f"{head}\n\n{readme_section(assignment)}\n{rest}")
 
@@ -206,5 +182,5 @@ def bundle_overlay(course, assignment, stub_files: dict, root: Path = REPO_ROOT)
     files (the zip keeps the rest of the grader, the reference included)."""
     files = {f"exercises/{rel}": text for rel, text in stub_files.items()
              if rel == "__init__.py" or rel[:-3] in assignment.modules}
-    files.update(assignment_files(course, assignment, root))
+    files.update(assignment_files(course, assignment, root, personal=True))
     return files

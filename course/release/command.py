@@ -30,6 +30,9 @@ def add_parser(sub) -> None:
                               "visibilities and late policy); without it, the whole course")
     release.add_argument("--config", metavar="FILE", default=None,
                          help="the course configuration (default: autograder/course.toml of the repository)")
+    release.add_argument("--force", action="store_true",
+                         help="with --assignment NAME --student DIR: write the tree even before NAME's "
+                              "release_after when it hands out solved (reference) code")
     release.set_defaults(func=run)
 
 
@@ -53,6 +56,15 @@ def run(args) -> int:
         except ConfigError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
+        if args.student and not args.check:
+            from course.release.release_date import early_release
+
+            early = early_release(course, assignment)
+            if early and not args.force:
+                print(f"error: {early}; give --force to release it anyway", file=sys.stderr)
+                return 2
+            if early:
+                print(f"warning: {early} (--force)", file=sys.stderr)
     data_stale = []
     if root.resolve() == REPO_ROOT.resolve():  # the public checks' data, before a student tree copies it
         from autograder.oracle import release_expected

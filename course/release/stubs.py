@@ -204,12 +204,22 @@ def _student_ignore(root: Path):
     return ignore
 
 
+def _without_personal_data(config: Path) -> None:
+    """Rewrite the tree's course configuration without extensions or rosters (and without its
+    comments, where an instructor may have left one commented out)."""
+    from course.release.carried_config import config_text
+
+    if config.is_file():
+        config.write_text(config_text(config))
+
+
 def write_student_tree(target: Path, exercise_files: dict, root: Path) -> None:
     """A copy of the repository for students (see the module docstring).
 
     No ``solutions/`` (no reference answers, no reference code), no ``tests/`` or
     ``.ci/`` (they test the reference), no ``autograder/mistakes/`` and no file marked
-    ``# RELEASE: omit`` (e.g. ``autograder/oracle.py``, the reference side of grading).
+    ``# RELEASE: omit`` (e.g. ``autograder/oracle.py``, the reference side of grading); the
+    course configuration without personal data (:mod:`course.release.carried_config`).
     ``exercises/`` is ``exercise_files``; ``README.md`` and ``Makefile`` are the student's.
     Students grade the public checks themselves (``python -m autograder``, from the data
     in ``autograder/expected/``); the hidden checks run on the course's side."""
@@ -221,6 +231,7 @@ def write_student_tree(target: Path, exercise_files: dict, root: Path) -> None:
         raise ReleaseError(f"{target} is inside the repository {root}; choose a directory outside it")
     shutil.copytree(root, target, ignore=_student_ignore(root))
     write(target / "exercises", exercise_files)
+    _without_personal_data(target / "autograder" / "course.toml")
     for template in sorted(STUDENT_TEMPLATES.iterdir()):
         if template.is_file() and template.name != "__init__.py":
             shutil.copyfile(template, target / template.name)

@@ -372,20 +372,20 @@ BUGS_CHAPTERS_2_3 = {
     "fast_edges_squeezed_poses": V(
         "pose_graph_fast.py", [], "xi, xj = poses[edges_i], poses[edges_j]",
         "xi, xj = np.squeeze(poses[edges_i]), np.squeeze(poses[edges_j])",
-        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges (optional)"},
+        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges"},
         "on the single edge of a 2-pose graph (M = 1)"),
     "fast_edges_wrap_by_arctan2": V(
         "pose_graph_fast.py", [],
         "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
         "e[:, 2] = np.arctan2(np.sin(xj[:, 2] - xi[:, 2] - measurements[:, 2]), "
         "np.cos(xj[:, 2] - xi[:, 2] - measurements[:, 2]))",
-        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges (optional)"},
+        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges"},
         "so pi wraps to -pi"),
     "fast_edges_angle_not_wrapped": V(
         "pose_graph_fast.py", [],
         "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
         "e[:, 2] = xj[:, 2] - xi[:, 2] - measurements[:, 2]",
-        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges (optional)", DL_E2E + "pose graph"},
+        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges", DL_E2E + "pose graph"},
         "exactly the one whose theta_j - theta_i - theta_ij leaves [-pi, pi)"),
 }
 
