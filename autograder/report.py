@@ -56,7 +56,8 @@ def late_line(lateness, before: float) -> str:
     due = f" (due {lateness.due.isoformat()}, {lateness.basis})" if getattr(lateness, "due", None) else ""
     if lateness.fraction >= 1.0:
         return f"Submitted: {lateness.note}{due}"
-    return (f"Late: {lateness.note}{due}: {points(before)} -> {points(point_grid.scaled(before, lateness.fraction))} points")
+    after = point_grid.scaled(before, lateness.fraction)
+    return f"Late: {lateness.note}{due}: {points(before)} -> {points(after)} points"
 
 
 def summary(results, lateness=None) -> str:
