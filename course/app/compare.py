@@ -281,7 +281,7 @@ def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_i
         return minimize(CurveProblem(data, impl=impl), method, impl=impl, options=options, callback=callback)
 
     def peer(backend, method):
-        return _run_peer("curve", backend, data, method, max_iterations=max_iterations)
+        return _run_peer("curve", backend, data, method, max_iterations=max_iterations, impl=impl)  # the model's
 
     return _run_pairs(curve_plan(methods, backends), ours, peer, repeat, unimplemented, progress)
 
