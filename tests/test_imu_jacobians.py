@@ -11,7 +11,6 @@ from course.geometry.so3 import right_jacobian, right_jacobian_many, so3_exp, so
 from course.problems.vio import imu_jacobians as ij
 from course.problems.vio.problem import frame_retract
 from course.problems.vio.sim import load_vio_sim
-
 from solutions.imu_preintegration import imu_factor_residual
 
 #: the Jacobian against central differences, relative to its largest entry

@@ -20,10 +20,10 @@ from course.core.errors import ShapeError, check_array
 from course.factorgraph import noise
 from course.factorgraph.graph import FactorGraph
 from course.factorgraph.numeric import central_differences
+from course.factorgraph.schur_elimination import SchurElimination
 from course.solver import robust
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
-from course.factorgraph.schur_elimination import SchurElimination
 from course.solver.superlu import checked_step, sparse_solver
 
 JACOBIANS = ("autodiff", "numeric")

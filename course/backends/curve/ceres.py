@@ -44,8 +44,7 @@ class CurveCost(pyceres.CostFunction):
     ``Evaluate(parameters, residuals, jacobians)``: ``parameters[0]`` is the (3,) block;
     ``residuals`` (m,) and ``jacobians[0]`` (3 m,), the row-major (m, 3) Jacobian, are
     written in place; ``jacobians`` or ``jacobians[0]`` may be None. Returns False
-    (Ceres then rejects the step) when the model is not finite there; an error of the model is kept
-    in ``error`` (Ceres is told the evaluation failed) and raised by :func:`solve` after the solve.
+    (Ceres then rejects the step) when the model is not finite there.
     """
 
     def __init__(self, x, y, weights, model):
@@ -54,19 +53,14 @@ class CurveCost(pyceres.CostFunction):
         self.y = np.ascontiguousarray(np.atleast_1d(y), dtype=float)
         self.sqrt_w = np.sqrt(np.atleast_1d(np.asarray(weights, dtype=float)))
         self.model = model
-        self.error: BaseException | None = None
         self.set_num_residuals(len(self.x))
         self.set_parameter_block_sizes([3])
 
     def Evaluate(self, parameters, residuals, jacobians):  # noqa: N802 (the pyceres name)
-        try:
-            with np.errstate(over="ignore", invalid="ignore"):
-                r, J = self.model(np.array(parameters[0], dtype=float), self.x.copy(), self.y.copy())
-                f = self.sqrt_w * np.asarray(r, dtype=float)
-                J = self.sqrt_w[:, None] * np.asarray(J, dtype=float)
-        except Exception as exc:  # the implementation's code: raised after the solve, not inside Ceres
-            self.error = self.error or exc
-            return False
+        with np.errstate(over="ignore", invalid="ignore"):  # an error of the model leaves pyceres.solve
+            r, J = self.model(np.array(parameters[0], dtype=float), self.x.copy(), self.y.copy())
+            f = self.sqrt_w * np.asarray(r, dtype=float)
+            J = self.sqrt_w[:, None] * np.asarray(J, dtype=float)
         if not np.all(np.isfinite(f)):
             return False
         residuals[:] = f
@@ -175,9 +169,6 @@ def solve(data, method="levenberg-marquardt", max_iterations=100, per_point=Fals
     pyceres.solve(solver_options, problem, summary)
     seconds = time.perf_counter() - t0
     params = block.copy()
-    for cost in costs:
-        if cost.error is not None:
-            raise cost.error
     del costs  # alive until here
     return RunResult(
         backend="ceres",
