@@ -280,8 +280,15 @@ def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_i
     def ours(method, callback):
         return minimize(CurveProblem(data, impl=impl), method, impl=impl, options=options, callback=callback)
 
-    def peer(backend, method):
-        return _run_peer("curve", backend, data, method, max_iterations=max_iterations, impl=impl)  # the model's
+    def peer(backend, method):  # the peers run the implementation's curve_model: its errors are rows too
+        try:
+            return _run_peer("curve", backend, data, method, max_iterations=max_iterations, impl=impl)
+        except (PeerMissing, NotImplementedError):
+            raise
+        except Exception as exc:
+            if unimplemented == "raise":
+                raise
+            return RunResult.skipped(backend, method, failure_reason(exc))
 
     return _run_pairs(curve_plan(methods, backends), ours, peer, repeat, unimplemented, progress)
 

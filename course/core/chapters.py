@@ -2,12 +2,12 @@
 
 A chapter's ``paths`` (relative to the repository; a name ending in ``*`` is a prefix) are the
 framework it brings beside the earlier chapters': its problem family (``course/problems/FAMILY``),
-its peers (``course/backends/FAMILY``), its notebook and notebook helpers, its commands. A student
-tree of one assignment (``python -m course release --assignment NAME --student DIR``) holds the
-paths of the chapters up to the latest one whose exercises that assignment or an earlier one hands
-out, and no later chapter's: the tree of week 2 has no chapter-7 engine whose automatic Jacobians
-would give week 2's answer. The framework tells from the tree itself whether a chapter is there
-(:func:`handed_out`), and a command that needs one that is not says so (:class:`NotHandedOut`).
+its peers (``course/backends/FAMILY``), its notebook and notebook helpers, its commands. The tree
+of one assignment holds the paths of the chapters up to the latest one whose exercises that
+assignment or an earlier one hands out, and no later chapter's: the tree of week 2 has no
+chapter-7 engine whose automatic Jacobians would give week 2's answer. The framework tells from
+the tree itself whether a chapter is there (:func:`handed_out`), and a command that needs one
+that is not says so (:class:`NotHandedOut`).
 
 ``exercises`` name the check modules of ``autograder/checks`` (``tests/test_chapters.py`` holds every
 one in exactly one chapter); ``families`` the problem kinds of ``course.backends.registry`` and of
