@@ -79,6 +79,7 @@ def test_the_ch2_tree_ships_chapters_1_and_2_alone(ch2_tree):
         assert (ch2_tree / rel).exists(), rel
     assert chapters.handed_out("ch2", ch2_tree) and not chapters.handed_out("ch4", ch2_tree)
     assert not chapters.handed_out("ch7", ch2_tree) and chapters.handed_out("ch7")
+    assert "This tree holds the course up to chapter 2 (2D pose graphs)" in (ch2_tree / "README.md").read_text()
 
 
 def _run(python, tree, *args, timeout=600, **env):

@@ -160,7 +160,7 @@ def assignment_files(course, assignment, root: Path = REPO_ROOT) -> dict:
 # ---------------------------------------------------------------- the student tree
 
 
-def readme_section(assignment) -> str:
+def readme_section(assignment, course=None) -> str:
     late = assignment.late
     if late.per_day or late.per_hour:
         rate = f"{100 * (late.per_day or late.per_hour):g}% per started {'day' if late.per_day else 'hour'} late"
@@ -180,6 +180,11 @@ def readme_section(assignment) -> str:
     lines += [f"Due {due}; {rate}.",
               f"`make check` and `pytest` grade this assignment only: {assignment.maximum('public'):g} points on the "
               "public checks; the hidden checks run when you submit.", ""]
+    if course is not None:
+        held = chapters.up_to(handed_out_exercises(course, assignment))
+        if held and held[-1] is not chapters.CHAPTERS[-1]:
+            lines[-1:] = [f"This tree holds the course up to chapter {held[-1].name[2:]} ({held[-1].title}); the "
+                          "later chapters come with their assignments (their commands say so here).", ""]
     return "\n".join(lines) + "\n"
 
 
@@ -202,7 +207,7 @@ def write_student_tree(target, course, assignment, stub_files: dict, root: Path 
     readme = target / "README.md"
     text = readme.read_text()
     head, _, rest = text.partition("\n\n")
-    readme.write_text(f"{head}\n\n{readme_section(assignment)}\n{rest}")
+    readme.write_text(f"{head}\n\n{readme_section(assignment, course)}\n{rest}")
 
 
 def bundle_overlay(course, assignment, stub_files: dict, root: Path = REPO_ROOT) -> dict:
