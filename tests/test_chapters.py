@@ -125,6 +125,17 @@ def test_every_module_of_the_ch2_tree_imports_and_later_chapters_are_named(ch2_t
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("name", [name for name in COURSE.assignments if name != "ch2"])
+def test_every_assignments_tree_imports_whole(name, python, tmp_path):
+    target = tmp_path / "tree"
+    handout.write_student_tree(target, COURSE, COURSE.assignment(name), render(REPO_ROOT / "solutions"))
+    out = _run(python, target, "-c", SCAN)
+    assert out.stdout.strip() == "all imported", out.stdout + out.stderr
+    demo = _run(python, target, "-m", "course", "demo", "--curve-only", "--repeat", "1", "--out", str(tmp_path / "out"))
+    assert demo.returncode == 0 and "Traceback" not in demo.stderr, demo.stderr
+
+
+@pytest.mark.slow
 def test_the_ch2_trees_readme_commands_work(ch2_tree, python, tmp_path):
     """What its README says a student runs: ``make demo`` (the chapters handed out so far, and a line for each
     later one) and ``make check`` (0 with the stubs, every public point with the reference copied in)."""

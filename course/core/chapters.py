@@ -43,7 +43,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             ("pose_graph_edge", "pose_graph_assembly", "sparse_solve", "ceres_edge_cost", "pose_graph_fast",
              "pose_graph"), ("posegraph",),
             ("course/problems/posegraph", "course/backends/posegraph", "course/notebook_helpers/chapter2.py",
-             "notebooks/chapter2_*")),
+             "course/app/benchmark.py", "notebooks/chapter2_*")),
     Chapter("ch3", "Powell's dogleg", ("dogleg",), (),
             ("course/notebook_helpers/chapter3.py", "notebooks/chapter3_*")),
     Chapter("ch3b", "initialisation", ("initialisation",), (),
