@@ -217,6 +217,21 @@ class SparseCholeskySolver:
     def solve(self, H_upper, b):
         return self._solver.solve(H_upper, b)
 ''',
+    # the curve peer's analytic model (scipy's recorder): the peers run the implementation's model now
+    "curve_model.py": '''
+import numpy as np
+from course.backends.curve.scipy import _Recorder
+
+
+class _Data:
+    def __init__(self, x, y):
+        self.x, self.y, self.weights = x, y, np.ones_like(x)
+
+
+def residuals_and_jacobian(params, x, y):
+    recorder = _Recorder(_Data(np.asarray(x, dtype=float), np.asarray(y, dtype=float)))
+    return recorder.residuals(np.asarray(params, dtype=float)), recorder.jacobian(np.asarray(params, dtype=float))
+''',
     # the IMU factor's residual, which the analytic Jacobian's module computed "exactly": it computes none now
     "imu_preintegration.py": '''
 import numpy as np
@@ -256,7 +271,7 @@ def test_the_lazy_folder_scores_what_the_stubs_score(ch2_tree, python, tmp_path)
     graded = _run(python, ch2_tree, "-m", "autograder", "--impl", str(lazy))
     assert _total(graded.stdout)[0] == 0, graded.stdout[-3000:]
     whole = _lazy_folder(tmp_path / "whole", REPO_ROOT / "exercises")
-    for only in ("sparse_solve", "imu_preintegration.imu_factor_residual"):
+    for only in ("curve_model", "sparse_solve", "imu_preintegration.imu_factor_residual"):
         out = subprocess.run([os.sys.executable, "-m", "autograder", "--impl", str(whole), "--only", only],
                              cwd=REPO_ROOT, capture_output=True, text=True, timeout=600)
         assert _total(out.stdout)[0] == 0, out.stdout[-3000:]
