@@ -258,6 +258,32 @@ def _lazy_folder(target: Path, base: Path) -> Path:
     return target
 
 
+@pytest.fixture(scope="module")
+def clean_python(tmp_path_factory):
+    """An interpreter with this venv's packages but none of its editable installs: as in a student's own venv,
+    nothing maps ``course.*`` to this repository (the grader's children add the borrowed site folders, whose
+    editable-install finder would otherwise find ``course.factorgraph`` here for a tree that has none)."""
+    import sysconfig
+    import venv
+
+    folder = tmp_path_factory.mktemp("clean-python")
+    folder.chmod(0o755)
+    packages = folder / "site-packages"
+    packages.mkdir()
+    for source in dict.fromkeys([sysconfig.get_path("purelib"), sysconfig.get_path("platlib")]):
+        for entry in Path(source).iterdir():
+            if not entry.name.startswith("__editable__") and not (packages / entry.name).exists():
+                (packages / entry.name).symlink_to(entry)
+    venv.create(folder / "venv", with_pip=False)
+    exe = folder / "venv" / "bin" / "python"
+    purelib = subprocess.run([str(exe), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+                             capture_output=True, text=True, check=True).stdout.strip()
+    (Path(purelib) / "course_packages.pth").write_text(f"{packages}\n")
+    for path in (folder, packages):
+        path.chmod(0o755)
+    return str(exe)
+
+
 def _total(text):
     found = re.search(r"^Total: (\d+(?:\.\d+)?) / (\d+(?:\.\d+)?)", text, flags=re.M)
     assert found, text[-3000:]
@@ -265,11 +291,17 @@ def _total(text):
 
 
 @pytest.mark.slow
-def test_the_lazy_folder_scores_what_the_stubs_score(ch2_tree, python, tmp_path):
+def test_the_lazy_folder_scores_what_the_stubs_score(ch2_tree, clean_python, tmp_path):
     """In the ch2 tree (no chapter-7 engine there) and in the whole course for what no tree holds any more."""
     lazy = _lazy_folder(tmp_path / "lazy", ch2_tree / "exercises")
-    graded = _run(python, ch2_tree, "-m", "autograder", "--impl", str(lazy))
+    graded = _run(clean_python, ch2_tree, "-m", "autograder", "--impl", str(lazy))
     assert _total(graded.stdout)[0] == 0, graded.stdout[-3000:]
+    derived = tmp_path / "derived"  # the same interpreter grades a derived edge: the zero above is the lazy file's
+    shutil.copytree(ch2_tree / "exercises", derived)
+    shutil.copyfile(REPO_ROOT / "solutions" / "pose_graph_edge.py", derived / "pose_graph_edge.py")
+    graded = _run(clean_python, ch2_tree, "-m", "autograder", "--impl", str(derived), "--only", "pose_graph_edge")
+    score, out_of = _total(graded.stdout)
+    assert score == out_of > 0, graded.stdout[-3000:]
     whole = _lazy_folder(tmp_path / "whole", REPO_ROOT / "exercises")
     for only in ("curve_model", "sparse_solve", "imu_preintegration.imu_factor_residual"):
         out = subprocess.run([os.sys.executable, "-m", "autograder", "--impl", str(whole), "--only", only],
