@@ -365,7 +365,7 @@ for name in [g for g in GRAPHS if g != "ladybug-49"]:  # ladybug-49's solves: th
 # `python -m course benchmark --autodiff`: the median time of one linearisation (the Jacobians, $H$ and
 # $b$) and of one iteration of a whole solve, ours against the factor graph's, the runs interleaved so
 # that the machine's load falls on all alike. On ladybug-49 the factor graph eliminates the points first,
-# as chapter 4 does, but from the $H$ its generic assembly stores (`course.solver.schur_elimination`: any
+# as chapter 4 does, but from the $H$ its generic assembly stores (`course.factorgraph.schur_elimination`: any
 # kind of variable that no factor joins to another of its kind, here the points), where chapter 4 keeps
 # $H$ as its blocks; so the linearisation's ratio is the automatic differentiation's and the generic
 # assembly's together. There the 50 iterations stop short of the minimum: the two paths step alike to

@@ -125,3 +125,22 @@ def test_unknown_method_and_option(data):
         scipy_curve.solve(data, "dogbox")
     with pytest.raises(ValueError, match="no option 'not_an_option'"):
         ceres_curve.solve(data, "dogleg", not_an_option=1)
+
+
+@pytest.mark.parametrize(("module", "method"), PEERS)
+def test_peers_run_the_implementations_model(data, module, method, tmp_path):
+    """The peers take the residuals and the Jacobian from the implementation's ``curve_model``, as our
+    solvers do (no analytic copy of the exercise's answer in the framework): the stubs stop them at the
+    TODO, and a model shifted by 1 moves their minimum away from the reference's."""
+    from course.core.impl import REPO_ROOT
+
+    module = peer(module)
+    with pytest.raises(NotImplementedError, match="curve_model"):
+        module.solve(data, method, impl="exercises")
+    folder = tmp_path / "shifted"
+    folder.mkdir()
+    (folder / "__init__.py").write_text("")
+    source = (REPO_ROOT / "solutions" / "curve_model.py").read_text()
+    (folder / "curve_model.py").write_text(source.replace("    r = y_hat - y\n", "    r = y_hat - y + 1.0\n"))
+    shifted, reference = module.solve(data, method, impl=str(folder)), module.solve(data, method)
+    assert not np.allclose(shifted.params, reference.params, rtol=1e-3)

@@ -1,4 +1,4 @@
-"""The factor graph's elimination of point-like variables (course.solver.schur_elimination): the step is
+"""The factor graph's elimination of point-like variables (course.factorgraph.schur_elimination): the step is
 the whole H's, the graphs that have no such variables solve the whole H, and a singular block is named."""
 
 import numpy as np
@@ -55,7 +55,7 @@ def test_the_landmarks_are_eliminated_and_the_step_is_the_whole_hs():
 
 
 def test_a_large_reduced_system_is_solved_sparsely_and_a_duplicate_entry_summed(monkeypatch):
-    from course.solver import schur_elimination
+    from course.factorgraph import schur_elimination
 
     graph = _slam()
     schur, whole = FactorGraphProblem(graph), FactorGraphProblem(graph, eliminate=None)

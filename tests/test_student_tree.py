@@ -168,19 +168,20 @@ def test_pytest_in_the_tree_lists_the_public_checks(tree, python):
 
 
 @pytest.mark.slow
-def test_demo_with_the_stubs_runs_the_peers_and_names_the_todos(tree, python, tmp_path):
+def test_demo_with_the_stubs_names_the_todos(tree, python, tmp_path):
+    """The curve's peers run the student's model too (no analytic copy of it in the tree): with the stubs
+    every row of the curve names its TODO, and the demo still writes its files and exits 0."""
     out = _run(python, tree, "-m", "course", "demo", "--curve-only", "--repeat", "1", "--out", str(tmp_path / "out"))
     assert out.returncode == 0, out.stderr
-    assert "Traceback" not in out.stdout + out.stderr
+    assert "Traceback" not in out.stdout + out.stderr and "Warning" not in out.stderr
     assert "impl exercises" in out.stdout
-    for method in ("gauss-newton", "lm-type1", "lm-type2", "lm-type3", "dogleg"):
-        assert re.search(rf"^ours +{method} +not implemented: TODO curve_model\.residuals_and_jacobian$",
+    for backend, method in (("ours", "gauss-newton"), ("ours", "lm-type1"), ("ours", "lm-type2"), ("ours", "lm-type3"),
+                            ("ours", "dogleg"), ("scipy", "lm"), ("scipy", "trf")):
+        assert re.search(rf"^{backend} +{method} +not implemented: TODO curve_model\.residuals_and_jacobian$",
                          out.stdout, flags=re.M), method
-    for peer in ("levenberg-marquardt", "trf"):
-        assert re.search(rf"^\w+ +{peer} +\d+ ", out.stdout, flags=re.M), peer
     doc = json.loads((tmp_path / "out" / "curve.json").read_text())
     skipped = [r for r in doc["runs"] if r.get("not_run")]
-    assert len(skipped) == 5 and all(r["backend"] == "ours" and r["final_chi2"] is None for r in skipped)
+    assert len(skipped) == len(doc["runs"]) and all(r["final_chi2"] is None for r in skipped)
     for name in ("curve_chi2.png", "curve_lambda.png", "curve_fit.png"):
         assert (tmp_path / "out" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -26,11 +26,9 @@ from course.problems.posegraph3d.initialise import initialise
 from course.problems.posegraph3d.problem import PoseGraph3DProblem
 from course.solver import SolverOptions, minimize
 from course.solver.cholmod import CholmodSolver
+from course.solver.options import TIME_TO_SOLUTION_STOP as STOP
 
 GRAPHS = ("sphere2500", "torus3D", "parking-garage")
-#: time to solution, 3D and 2D (``course.app.benchmark``): every run stops at the first step that lowers
-#: chi2 by less than this, relative (g2o's gain threshold, our ``cost_tolerance``)
-STOP = 1e-10
 
 
 def our_solvers() -> dict:

@@ -11,7 +11,7 @@ custom factors (``gtsam-custom``), with each one's ratio to ``ours``. The runs a
 Where a back end changes the problem or the solve:
 
 - the factor graph eliminates the points first, as chapter 4 does, but from the H its generic
-  assembly stores (``course.solver.schur_elimination``), where chapter 4's problem keeps H as its
+  assembly stores (``course.factorgraph.schur_elimination``), where chapter 4's problem keeps H as its
   blocks: the linearisation's ratio is the automatic differentiation's and the generic assembly's;
 - ``jax``: the same problem and the same minimizer; only the factors' residuals and Jacobians in
   each linearisation come from JAX (``course.backends.factorgraph.jax_factors``). Its compilation

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from course.backends import registry
+from course.core import chapters
 from course.core.backend_names import FACTOR_GRAPH_BACKENDS, OURS
 from course.core.errors import CourseError
 from course.core.impl import default_impl, failure_reason, not_implemented_reason
@@ -56,12 +57,18 @@ class Runner:
 
 
 def find_runner(dataset: str) -> Runner:
-    """The first of ``RUNNERS`` that accepts ``dataset``, or ``UnknownDatasetError`` listing what is known."""
-    for runner in RUNNERS:
+    """The first of ``RUNNERS`` that accepts ``dataset``, or ``UnknownDatasetError`` listing what is known.
+    A kind whose chapter this tree does not hold (an assignment's tree) is not tried: the error names it
+    as not handed out yet."""
+    here = [r for r in RUNNERS if chapters.handed_out(chapters.of_family(r.kind).name)]
+    for runner in here:
         if runner.matches(dataset):
             return runner
-    known = "; ".join(f"{r.kind}: {r.description}" if r.description else r.kind for r in RUNNERS)
-    raise UnknownDatasetError(f"unknown dataset {dataset!r}; known datasets: {known}")
+    known = "; ".join(f"{r.kind}: {r.description}" if r.description else r.kind for r in here)
+    later = [f"chapter {chapters.of_family(r.kind).name[2:]}'s {r.kind}: {r.description or r.kind}"
+             for r in RUNNERS if r not in here]
+    missing = f"; not handed out yet in this tree: {'; '.join(later)}" if later else ""
+    raise UnknownDatasetError(f"unknown dataset {dataset!r}; known datasets: {known}{missing}")
 
 
 def run(dataset: str, impl=None, methods=None, backends=None, **options) -> list:
@@ -147,6 +154,8 @@ def _solve_or_row(solve, repeat, backend, method, unimplemented) -> RunResult:
         return _median_run(solve, repeat)
     except PeerMissing as exc:
         return RunResult.skipped(backend, method, f"not run: {exc.library} is not installed here")
+    except chapters.NotHandedOut as exc:  # an assignment's tree: a later chapter's back end
+        return RunResult.skipped(backend, method, f"not run: {exc}")
     except NotImplementedError as exc:
         if unimplemented == "raise":
             raise
@@ -271,8 +280,15 @@ def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_i
     def ours(method, callback):
         return minimize(CurveProblem(data, impl=impl), method, impl=impl, options=options, callback=callback)
 
-    def peer(backend, method):
-        return _run_peer("curve", backend, data, method, max_iterations=max_iterations)
+    def peer(backend, method):  # the peers run the implementation's curve_model: its errors are rows too
+        try:
+            return _run_peer("curve", backend, data, method, max_iterations=max_iterations, impl=impl)
+        except (PeerMissing, NotImplementedError):
+            raise
+        except Exception as exc:
+            if unimplemented == "raise":
+                raise
+            return RunResult.skipped(backend, method, failure_reason(exc))
 
     return _run_pairs(curve_plan(methods, backends), ours, peer, repeat, unimplemented, progress)
 
@@ -343,6 +359,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
 
     def peer(backend, method):
         if backend in FACTOR_GRAPH_BACKENDS or backend in registry.FACTOR_GRAPH_PEERS:
+            chapters.require("ch7", f"back end {backend}")
             from course.problems.posegraph.factor_graph import as_factor_graph
 
             result = factor_graph_run(as_factor_graph(graph), backend, method, impl, options)
@@ -428,6 +445,7 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
 
     def peer(backend, method):
         if backend in FACTOR_GRAPH_BACKENDS or backend in registry.FACTOR_GRAPH_PEERS:
+            chapters.require("ch7", f"back end {backend}")
             from course.problems.bal.factor_graph import as_factor_graph
 
             result = factor_graph_run(as_factor_graph(problem), backend, method, impl, options)
@@ -496,6 +514,7 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
 
     def peer(backend, method):
         if backend in FACTOR_GRAPH_BACKENDS or backend in registry.FACTOR_GRAPH_PEERS:
+            chapters.require("ch7", f"back end {backend}")
             from course.problems.posegraph3d.factor_graph import as_factor_graph
 
             return factor_graph_run(as_factor_graph(graph), backend, method, impl, options)

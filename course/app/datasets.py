@@ -1,15 +1,23 @@
 """The named data of chapters 4 and 5 for ``python -m course datasets`` (the pose graphs list
 their own: ``course.problems.posegraph.dataset.list_datasets``)."""
 
+from course.core import chapters
 from course.core.errors import DatasetError
-from course.problems.bal import dataset as bal
-from course.problems.vio import ape
 
 
 def list_other_data() -> list[tuple[str, str, str, str]]:
     """The other chapters' named data: ``(name, size, where, reason missing or "")`` for the BAL
-    problems (chapter 4), EuRoC MH_05's trajectories and the VIO simulator (chapter 5)."""
-    rows = bal.catalogue()
+    problems (chapter 4), EuRoC MH_05's trajectories and the VIO simulator (chapter 5), those of the
+    chapters this tree holds."""
+    rows: list[tuple[str, str, str, str]] = []
+    if chapters.handed_out("ch4"):
+        from course.problems.bal import dataset as bal
+
+        rows += bal.catalogue()
+    if not chapters.handed_out("ch5"):
+        return rows
+    from course.problems.vio import ape
+
     try:
         ape.euroc_mh05_files()
         reason = ""

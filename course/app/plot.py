@@ -84,7 +84,8 @@ def chi2_per_iteration(runs, path=None, title="chi2 per iteration") -> Figure:
     ax.set_ylabel("chi2")
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="small")
+    if ax.get_legend_handles_labels()[0]:  # no run ran (every row a TODO): no legend
+        ax.legend(fontsize="small")
     if path is not None:
         save(fig, path)
     return fig

@@ -10,7 +10,7 @@ by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pat
 step comes from the implementation's sparse Cholesky solver (chapter 2), or SuperLU where qdldl is
 not installed; where one kind of variable is never joined to another of its kind by a factor (the
 points of bundle adjustment, the landmarks of SLAM), those are eliminated first
-(``course.solver.schur_elimination``, chapter 4's Schur complement for any graph).
+(``course.factorgraph.schur_elimination``, chapter 4's Schur complement for any graph).
 """
 
 import numpy as np
@@ -20,11 +20,11 @@ from course.core.errors import NonFiniteError, ShapeError, SingularSystemError, 
 from course.factorgraph import noise
 from course.factorgraph.graph import FactorGraph
 from course.factorgraph.numeric import central_differences
+from course.factorgraph.schur_elimination import SchurElimination
 from course.factorgraph.values import Values
 from course.solver import robust
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
-from course.solver.schur_elimination import SchurElimination
 from course.solver.superlu import checked_step, sparse_solver
 
 JACOBIANS = ("autodiff", "numeric")

@@ -35,7 +35,7 @@ from course.core import impl as impl_loader
 from course.core.impl import not_implemented_reason
 from course.geometry.so3 import so3_exp, so3_log
 from course.notebook_helpers.lesson import JacobianSetup
-from course.problems.vio.imu_jacobians import imu_residual_jacobian
+from course.problems.vio.imu_jacobians import imu_jacobian
 from course.problems.vio.sim import VioSim
 from course.problems.vio.window import FIRST_SIGMAS
 
@@ -280,7 +280,8 @@ def residual_setup(interval: Interval, impl: Any = "solutions", seed: int = 0) -
     preintegration of ``interval`` by your ``preintegrate``, at the interval's true states moved a
     little (``seed``: about 0.02 rad, 0.05 m/s, 0.05 m, and biases 0.01 off ``b^``, so that every
     term of the residual is at work), and the window's analytic Jacobian of it
-    (``course.problems.vio.imu_jacobians.imu_residual_jacobian``), one (9, 3) block per variable.
+    (``course.problems.vio.imu_jacobians.imu_jacobian`` at your residual's rotation rows), one (9, 3)
+    block per variable.
     Raises ``NotImplementedError`` while ``preintegrate`` or ``imu_factor_residual`` is a TODO."""
     module = _module(impl, "imu_preintegration")
     pre = interval.preintegrate(module)
@@ -296,10 +297,10 @@ def residual_setup(interval: Interval, impl: Any = "solutions", seed: int = 0) -
     def f(R_i, p_i, v_i, b_g, b_a, R_j, p_j, v_j):
         return module.imu_factor_residual((R_i, v_i, p_i), (R_j, v_j, p_j), pre, (b_g, b_a), g)
 
-    f(R_i, p_i, v_i, b_g, b_a, R_j, p_j, v_j)  # a TODO raises here, before the checker's report
+    r = f(R_i, p_i, v_i, b_g, b_a, R_j, p_j, v_j)  # a TODO raises here, before the checker's report
     s_i = np.r_[so3_log(R_i), p_i, v_i, b_g, b_a]
     s_j = np.r_[so3_log(R_j), p_j, v_j, b_g, b_a]
-    _, J = imu_residual_jacobian(s_i, s_j, tuple(pre), g)
+    J = imu_jacobian(s_i, s_j, tuple(pre), g, np.asarray(r, dtype=float)[0:3])
     x = [R_i, p_i, v_i, b_g, b_a, R_j, p_j, v_j]
     return JacobianSetup(f, x, [J[:, c] for c in RESIDUAL_COLUMNS], RESIDUAL_SPACES, RESIDUAL_NAMES, RESIDUAL_ROWS)
 

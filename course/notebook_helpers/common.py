@@ -21,7 +21,6 @@ import numpy as np
 from course.app import plot
 from course.core.errors import DatasetError
 from course.core.trace import RunResult
-from course.problems.posegraph import dataset as datasets
 
 T = TypeVar("T")
 
@@ -44,6 +43,8 @@ def not_run_note(runs: Sequence[RunResult]) -> str:
 
 def load(name: str) -> Any:
     """The named pose graph, or None (saying why) when its file is not on this machine."""
+    from course.problems.posegraph import dataset as datasets  # chapter 2's: a chapter-1 tree has none
+
     try:
         return datasets.load_dataset(name)
     except DatasetError as exc:

@@ -12,7 +12,10 @@ student tree of assignment NAME holds, beside the framework:
   :mod:`course.release.carried_config`); ``ASSIGNMENT`` naming it, so that
   ``python -m autograder``, ``make check`` and ``pytest`` grade NAME with its points; ``given/``, the
   solved files the grader composes with the student's (:func:`autograder.grade.compose`).
-* ``notebooks/``: the notebooks of NAME's and earlier chapters (``chN_...`` for assignment ``chN``).
+* the framework of the chapters up to the latest one NAME or an earlier assignment hands out exercises
+  of, and of no later chapter (no later problem family, peers, engine, notebook or notebook helper):
+  ``course.core.chapters`` says which paths each chapter adds; a command that needs a later one says
+  that chapter is not handed out yet.
 * ``README.md``: the student's, opening with what the assignment asks, gives and when it is due.
 
 The Gradescope zip of NAME is the whole grader (the reference too, for the hidden checks) with
@@ -24,10 +27,10 @@ Gradescope's extensions).
 """
 
 import json
-import re
 import shutil
 from pathlib import Path
 
+from course.core import chapters
 from course.core.hints import HINTS_FILE
 from course.core.impl import REPO_ROOT
 from course.release.carried_config import config_text
@@ -83,12 +86,6 @@ def later(course, name: str) -> list:
     return names[names.index(name) + 1:]
 
 
-def notebook_prefix(name: str) -> str:
-    """``chapter3b_`` for assignment ``ch3b`` ('' when the name is not ``chN...``)."""
-    match = re.fullmatch(r"ch(\w+)", name)
-    return f"chapter{match.group(1)}_" if match else ""
-
-
 def dropped(course, assignment, root: Path = REPO_ROOT) -> list:
     """Paths (relative to the repository) a student tree of ``assignment`` does not hold."""
     out = []
@@ -102,11 +99,17 @@ def dropped(course, assignment, root: Path = REPO_ROOT) -> list:
             for folder in ("checks", "tasks"):
                 if Path(root, "autograder", folder, f"{module}.py").is_file():
                     out.append(f"autograder/{folder}/{module}.py")
-    for name in after:
-        prefix = notebook_prefix(name)
-        if prefix:
-            out += [f"notebooks/{p.name}" for p in sorted(Path(root, "notebooks").glob(f"{prefix}*"))]
+    handed = chapters.up_to(handed_out_exercises(course, assignment))
+    for one in chapters.CHAPTERS[len(handed):]:
+        out += chapters.files(one, root)
     return out
+
+
+def handed_out_exercises(course, assignment) -> list:
+    """The check modules of ``assignment`` and of the assignments before it, those it gives solved included:
+    the tree holds the framework of their chapters (:func:`course.core.chapters.up_to`) and no later one's."""
+    names = [name for other in course.earlier(assignment.name) for name in course.assignment(other).exercises]
+    return names + list(assignment.exercises) + [m for m in assignment.solved if m in _check_owner(course)]
 
 
 # ---------------------------------------------------------------- the configuration it carries
@@ -124,7 +127,7 @@ def assignment_files(course, assignment, root: Path = REPO_ROOT, personal: bool 
 # ---------------------------------------------------------------- the student tree
 
 
-def readme_section(assignment) -> str:
+def readme_section(assignment, course=None) -> str:
     late = assignment.late
     if late.per_day or late.per_hour:
         rate = f"{100 * (late.per_day or late.per_hour):g}% per started {'day' if late.per_day else 'hour'} late"
@@ -144,6 +147,11 @@ def readme_section(assignment) -> str:
     lines += [f"Due {due}; {rate}.",
               f"`make check` and `pytest` grade this assignment only: {assignment.maximum('public'):g} points on the "
               "public checks; the hidden checks run when you submit.", ""]
+    if course is not None:
+        held = chapters.up_to(handed_out_exercises(course, assignment))
+        if held and held[-1] is not chapters.CHAPTERS[-1]:
+            lines[-1:] = [f"This tree holds the course up to chapter {held[-1].name[2:]} ({held[-1].title}); the "
+                          "later chapters come with their assignments (their commands say so here).", ""]
     return "\n".join(lines) + "\n"
 
 
@@ -174,7 +182,7 @@ def write_student_tree(target, course, assignment, stub_files: dict, root: Path 
         if function:
             text = text.replace("hint dogleg_step 2", f"hint {function.split('.')[-1]} 2")
     head, _, rest = text.partition("\n\n")
-    readme.write_text(f"{head}\n\n{readme_section(assignment)}\n{rest}")
+    readme.write_text(f"{head}\n\n{readme_section(assignment, course)}\n{rest}")
 
 
 def bundle_overlay(course, assignment, stub_files: dict, root: Path = REPO_ROOT) -> dict:

@@ -2,6 +2,11 @@
 
 from dataclasses import dataclass
 
+#: the benchmarks' time to solution, 2D and 3D (``course.app.benchmark``, ``course.app.benchmark_3d``): every
+#: run stops at the first step that lowers chi2 by less than this, relative (g2o's gain threshold, our
+#: ``cost_tolerance``)
+TIME_TO_SOLUTION_STOP = 1e-10
+
 
 @dataclass(frozen=True)
 class SolverOptions:

@@ -1,12 +1,14 @@
 """The chapter 1 curve fit through Ceres (``pyceres``), with the model in Python.
 
 ``y = exp(a x^2 + b x + c)``. Ceres minimizes ``1/2 sum f_k^2`` with the whitened
-residuals ``f = sqrt(w) (y_hat - y)``, so ``chi2 = 2 * cost`` is our chi2. Same data,
-same start (``data.start``) and same weights as our solvers.
+residuals ``f = sqrt(w) r`` and their Jacobian ``sqrt(w) J``, ``r`` and ``J`` the implementation's
+``curve_model.residuals_and_jacobian`` (chapter 1's exercise: the peer runs the student's model, as
+our solvers do), so ``chi2 = 2 * cost`` is our chi2. Same data, same start (``data.start``) and
+same weights as our solvers.
 
 Layout (measured, see ``solve(per_point=...)``): by default ONE residual block holds
 all m points (``CurveCost``, m residuals, vectorized with numpy); the alternative,
-one block per point (``PointCost``, 1 residual each, as the source's C++ does), makes
+one block per point (a ``CurveCost`` of one point each, as the source's C++ does), makes
 Ceres call Python m times per evaluation. Measured on the default data (m = 100, LM, median
 of 5): one block 0.7 ms for the whole solve (26 iterations), one block per point 11 ms
 (25 iterations), about 15x: the Python call, not the arithmetic, is what a Python cost
@@ -23,6 +25,7 @@ import numpy as np
 import pyceres
 
 from course.backends import registry
+from course.core import impl as impl_loader
 from course.core.errors import NonFiniteError
 from course.core.trace import IterationRecord, RunResult
 from course.problems.curve.problem import curve_chi2
@@ -35,70 +38,50 @@ TOLERANCES = {"function_tolerance": 1e-15, "gradient_tolerance": 1e-15, "paramet
 
 
 class CurveCost(pyceres.CostFunction):
-    """All m points in one residual block: ``f = sqrt(w) (exp(a x^2 + b x + c) - y)`` (m,).
+    """Points in one residual block: ``f = sqrt(w) r`` (m,), ``(r, J) = model(params, x, y)`` the
+    implementation's ``residuals_and_jacobian``.
 
     ``Evaluate(parameters, residuals, jacobians)``: ``parameters[0]`` is the (3,) block;
     ``residuals`` (m,) and ``jacobians[0]`` (3 m,), the row-major (m, 3) Jacobian, are
     written in place; ``jacobians`` or ``jacobians[0]`` may be None. Returns False
-    (Ceres then rejects the step) when the model overflows.
+    (Ceres then rejects the step) when the model is not finite there.
     """
 
-    def __init__(self, x, y, weights):
+    def __init__(self, x, y, weights, model):
         pyceres.CostFunction.__init__(self)  # without it pyceres segfaults
-        self.x = np.ascontiguousarray(x, dtype=float)
-        self.y = np.ascontiguousarray(y, dtype=float)
-        self.sqrt_w = np.sqrt(np.asarray(weights, dtype=float))
-        self.basis = np.stack([self.x**2, self.x, np.ones_like(self.x)], axis=1)
+        self.x = np.ascontiguousarray(np.atleast_1d(x), dtype=float)
+        self.y = np.ascontiguousarray(np.atleast_1d(y), dtype=float)
+        self.sqrt_w = np.sqrt(np.atleast_1d(np.asarray(weights, dtype=float)))
+        self.model = model
         self.set_num_residuals(len(self.x))
         self.set_parameter_block_sizes([3])
 
     def Evaluate(self, parameters, residuals, jacobians):  # noqa: N802 (the pyceres name)
-        a, b, c = parameters[0]
-        with np.errstate(over="ignore", invalid="ignore"):
-            y_hat = np.exp(a * self.x**2 + b * self.x + c)
-        if not np.all(np.isfinite(y_hat)):
+        with np.errstate(over="ignore", invalid="ignore"):  # an error of the model leaves pyceres.solve
+            r, J = self.model(np.array(parameters[0], dtype=float), self.x.copy(), self.y.copy())
+            f = self.sqrt_w * np.asarray(r, dtype=float)
+            J = self.sqrt_w[:, None] * np.asarray(J, dtype=float)
+        if not np.all(np.isfinite(f)):
             return False
-        scaled = self.sqrt_w * y_hat
-        np.subtract(scaled, self.sqrt_w * self.y, out=residuals)
+        residuals[:] = f
         if jacobians is not None and jacobians[0] is not None:
-            np.multiply(scaled[:, None], self.basis, out=jacobians[0].reshape(-1, 3))
+            jacobians[0][:] = J.ravel()
         return True
 
 
-class PointCost(pyceres.CostFunction):
-    """One point per residual block: ``f = sqrt(w_k) (exp(a x_k^2 + b x_k + c) - y_k)``."""
-
-    def __init__(self, x, y, weight):
-        pyceres.CostFunction.__init__(self)
-        self.x, self.y, self.sqrt_w = float(x), float(y), float(np.sqrt(weight))
-        self.set_num_residuals(1)
-        self.set_parameter_block_sizes([3])
-
-    def Evaluate(self, parameters, residuals, jacobians):  # noqa: N802
-        a, b, c = parameters[0].tolist()
-        x = self.x
-        try:
-            y_hat = np.exp(a * x * x + b * x + c).item()
-        except OverflowError:
-            return False
-        if not np.isfinite(y_hat):
-            return False
-        residuals[0] = self.sqrt_w * (y_hat - self.y)
-        if jacobians is not None and jacobians[0] is not None:
-            s = self.sqrt_w * y_hat
-            jacobians[0][:] = (s * x * x, s * x, s)
-        return True
-
-
-def build_problem(data, per_point=False):
+def build_problem(data, per_point=False, impl="solutions"):
     """``(problem, block, costs)``: ``block`` the (3,) parameter array (starts at
-    ``data.start``, updated in place), ``costs`` the cost functions (keep them alive)."""
+    ``data.start``, updated in place), ``costs`` the cost functions (keep them alive): one
+    :class:`CurveCost` of every point, or one per point (``per_point``), on the model of ``impl``."""
+    model = impl_loader.load(impl).module("curve_model").residuals_and_jacobian
+    model(np.array(data.start, dtype=float), np.asarray(data.x, dtype=float)[:1].copy(),
+          np.asarray(data.y, dtype=float)[:1].copy())  # a TODO raises here, before Ceres runs
     block = np.array(data.start, dtype=np.float64, order="C", copy=True)
     problem = pyceres.Problem()
     if per_point:
-        costs = [PointCost(x, y, w) for x, y, w in zip(data.x, data.y, data.weights)]
+        costs = [CurveCost(x, y, w, model) for x, y, w in zip(data.x, data.y, data.weights)]
     else:
-        costs = [CurveCost(data.x, data.y, data.weights)]
+        costs = [CurveCost(data.x, data.y, data.weights, model)]
     for cost in costs:
         problem.add_residual_block(cost, None, [block])
     return problem, block, costs
@@ -131,7 +114,8 @@ class _TraceCallback(pyceres.IterationCallback):
         return pyceres.CallbackReturnType.SOLVER_CONTINUE
 
 
-def solve(data, method="levenberg-marquardt", max_iterations=100, per_point=False, **options) -> RunResult:
+def solve(data, method="levenberg-marquardt", max_iterations=100, per_point=False, impl="solutions",
+          **options) -> RunResult:
     """Fit ``data`` (a ``CurveData``) with Ceres' ``method`` (one of ``METHODS``).
 
     Args:
@@ -139,6 +123,7 @@ def solve(data, method="levenberg-marquardt", max_iterations=100, per_point=Fals
         method: ``"levenberg-marquardt"`` or ``"dogleg"``.
         max_iterations: ``SolverOptions.max_num_iterations``.
         per_point: one residual block per point instead of one for all (slower).
+        impl: the implementation whose ``curve_model`` gives the residuals and the Jacobian.
         **options: any ``pyceres.SolverOptions`` attribute (e.g. ``function_tolerance``,
             ``initial_trust_region_radius``); the defaults are ``TOLERANCES``.
 
@@ -159,7 +144,7 @@ def solve(data, method="levenberg-marquardt", max_iterations=100, per_point=Fals
     initial_chi2 = curve_chi2(data, data.start)
     if not np.isfinite(initial_chi2):
         raise NonFiniteError(f"ceres_curve: the model is not finite at the start {list(data.start)}")
-    problem, block, costs = build_problem(data, per_point=per_point)
+    problem, block, costs = build_problem(data, per_point=per_point, impl=impl)
     solver_options = pyceres.SolverOptions()
     solver_options.max_num_iterations = int(max_iterations)
     solver_options.linear_solver_type = pyceres.LinearSolverType.DENSE_QR

@@ -1,9 +1,10 @@
 """The chapter 1 curve fit through ``scipy.optimize.least_squares`` (a peer).
 
 ``y = exp(a x^2 + b x + c)``: scipy minimizes ``1/2 sum f_k^2`` with the whitened
-residuals ``f = sqrt(w) (y_hat - y)`` (m,) and their analytic Jacobian
-``sqrt(w)[:, None] y_hat[:, None] (x^2, x, 1)`` (m, 3), so ``sum f^2`` is our chi2.
-Same data, same start (``data.start``) and same weights as our solvers.
+residuals ``f = sqrt(w) r`` (m,) and their Jacobian ``sqrt(w)[:, None] J`` (m, 3), ``r`` and ``J``
+the implementation's ``curve_model.residuals_and_jacobian`` (chapter 1's exercise: the peer runs
+the student's model, as our solvers do), so ``sum f^2`` is our chi2. Same data, same start
+(``data.start``) and same weights as our solvers.
 
 Methods: ``lm`` (MINPACK's ``lmder``: Levenberg-Marquardt with Moré's trust region)
 and ``trf`` (trust-region reflective; unbounded here, so a plain trust-region method
@@ -35,6 +36,7 @@ import time
 import numpy as np
 
 from course.backends import registry
+from course.core import impl as impl_loader
 from course.core.errors import NonFiniteError
 from course.core.trace import IterationRecord, RunResult
 from course.problems.curve.problem import curve_chi2
@@ -47,28 +49,39 @@ TOLERANCES = {"ftol": 1e-15, "xtol": 1e-15, "gtol": 1e-15}
 
 
 class _Recorder:
-    """Residual and Jacobian functions for least_squares that log every call."""
+    """Residual and Jacobian functions for least_squares that log every call; ``model`` is the
+    implementation's ``residuals_and_jacobian(params, x, y) -> (r (m,), J (m, 3))``, called once per
+    point (the Jacobian of the last residual evaluation is kept)."""
 
-    def __init__(self, data):
+    def __init__(self, data, model):
         self.x, self.y = np.asarray(data.x, float), np.asarray(data.y, float)
         self.sqrt_w = np.sqrt(np.asarray(data.weights, float))
-        self.basis = np.stack([self.x**2, self.x, np.ones_like(self.x)], axis=1)
+        self.model = model
         self.evaluations = []  # (params copy, chi2, seconds)
         self.jacobian_points = set()
+        self.last: tuple | None = None  # (params bytes, J whitened)
         self.start = time.perf_counter()
 
-    def _y_hat(self, p):
+    def _evaluate(self, p):
+        p = np.array(p, dtype=float)
         with np.errstate(over="ignore", invalid="ignore"):
-            return np.exp(p[0] * self.x**2 + p[1] * self.x + p[2])
+            r, J = self.model(p.copy(), self.x.copy(), self.y.copy())
+        f = self.sqrt_w * np.asarray(r, dtype=float)
+        self.last = (p.tobytes(), self.sqrt_w[:, None] * np.asarray(J, dtype=float))
+        return p, f
 
     def residuals(self, p):
-        f = self.sqrt_w * (self._y_hat(p) - self.y)
-        self.evaluations.append((np.array(p, dtype=float), float(f @ f), time.perf_counter() - self.start))
+        p, f = self._evaluate(p)
+        self.evaluations.append((p, float(f @ f), time.perf_counter() - self.start))
         return f
 
     def jacobian(self, p):
-        self.jacobian_points.add(np.asarray(p, dtype=float).tobytes())
-        return (self.sqrt_w * self._y_hat(p))[:, None] * self.basis
+        key = np.asarray(p, dtype=float).tobytes()
+        self.jacobian_points.add(key)
+        if self.last is None or self.last[0] != key:
+            self._evaluate(p)
+        assert self.last is not None
+        return self.last[1]
 
     def trace(self, solution):
         """One record per residual evaluation (0 = the start), see the module docstring."""
@@ -95,13 +108,15 @@ class _Recorder:
         return records
 
 
-def solve(data, method="lm", max_iterations=100, **options) -> RunResult:
+def solve(data, method="lm", max_iterations=100, impl="solutions", **options) -> RunResult:
     """Fit ``data`` (a ``CurveData``) with ``scipy.optimize.least_squares(method=...)``.
 
     Args:
         data: ``course.problems.curve.problem.CurveData``; starts from ``data.start``.
         method: ``"lm"`` or ``"trf"``.
         max_iterations: step attempts allowed, passed as ``max_nfev = max_iterations + 1``.
+        impl: the implementation whose ``curve_model`` gives the residuals and the Jacobian
+            (``NotImplementedError`` naming the TODO while it is one).
         **options: passed to ``least_squares`` (e.g. ``ftol``, ``x_scale``); the
             defaults are ``TOLERANCES``.
 
@@ -119,7 +134,9 @@ def solve(data, method="lm", max_iterations=100, **options) -> RunResult:
         raise NonFiniteError(f"scipy_curve: the model is not finite at the start {start.tolist()}")
     kwargs = dict(TOLERANCES)
     kwargs.update(options)
-    recorder = _Recorder(data)
+    recorder = _Recorder(data, impl_loader.load(impl).module("curve_model").residuals_and_jacobian)
+    recorder.residuals(start)  # a TODO raises here, before scipy; the start is record 0 either way
+    recorder.evaluations.clear()
     t0 = time.perf_counter()
     recorder.start = t0
     result = least_squares(

@@ -1,12 +1,12 @@
-"""Chapter 5: the residual of an IMU factor and its analytic Jacobian in the frames' tangents.
+"""Chapter 5: the analytic Jacobian of an IMU factor's residual in the frames' tangents.
 
 The VIO problem (``course.problems.vio.problem``) stores a keyframe as ``s = (phi, p, v, b_g, b_a)``
 (15,) with ``R = Exp(phi)`` and the tangent ``(dphi, dp, dv, db_g, db_a)``: ``R <- R Exp(dphi)``
-(a right perturbation), the rest added. :func:`imu_residual_jacobian` gives the residual of the
-IMU factor between frames i and j exactly as the chapter's ``imu_factor_residual`` defines it,
-and its Jacobian (9, 30) in the 30 tangent coordinates
-``(dphi_i, dp_i, dv_i, dbg_i, dba_i, dphi_j, dp_j, dv_j, dbg_j, dba_j)``. It needs no
-implementation module (it works in a student tree too): only the preintegrated values.
+(a right perturbation), the rest added. :func:`imu_jacobian` gives the Jacobian (9, 30) of the
+residual of the IMU factor between frames i and j in the 30 tangent coordinates
+``(dphi_i, dp_i, dv_i, dbg_i, dba_i, dphi_j, dp_j, dv_j, dbg_j, dba_j)``. It computes no residual:
+the residual is the exercise's (``imu_factor_residual``), and the problem passes the rotation rows
+of the implementation's residual at the same states, from which ``E = Exp(r_R)`` below.
 
 The residual is the one of chapter 5's exercise ``imu_factor_residual`` (Forster, Carlone, Dellaert,
 Scaramuzza, T-RO 2017, eq. 45, first-order bias correction), ``r = (r_R, r_v, r_p)``: its docstring
@@ -48,7 +48,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from course.geometry.so3 import exp_many, log_many, right_jacobian_many, skew
+from course.geometry.so3 import exp_many, right_jacobian_many, skew
 
 #: below this angle (rad) J_r^-1 uses its Taylor series
 SMALL_ANGLE = 1e-4
@@ -110,33 +110,36 @@ def _frame(s, name) -> np.ndarray:
     return s
 
 
-def imu_residual_jacobian(s_i, s_j, preintegrated, gravity) -> tuple[np.ndarray, np.ndarray]:
-    """The residual ``r`` (9,) of the IMU factor between frames i and j and ``J = dr/d(tangents)``
-    (9, 30) (the module docstring's formulas).
+def imu_jacobian(s_i, s_j, preintegrated, gravity, r_R) -> np.ndarray:
+    """``J = dr/d(tangents)`` (9, 30) of the IMU factor between frames i and j (the module docstring's
+    formulas), at the rotation rows ``r_R`` (3,) of its residual there.
 
     Args: ``s_i``, ``s_j`` (15,) frame states ``(phi, p, v, b_g, b_a)`` (the biases of j are not
     used: their columns are zero); ``preintegrated``: the 12 values of a ``Preintegrated``
     (``delta_R, delta_v, delta_p, delta_t, covariance, dR_dbg, dv_dbg, dv_dba, dp_dbg, dp_dba,
-    bias_gyro, bias_accel``; the covariance is not used); ``gravity`` (3,).
+    bias_gyro, bias_accel``; the covariance is not used); ``gravity`` (3,); ``r_R`` the first three
+    entries of ``imu_factor_residual((R_i, v_i, p_i), (R_j, v_j, p_j), preintegrated, (b_g,i, b_a,i),
+    gravity)`` at these states, as the implementation computes it (this module computes no residual).
 
-    ``r`` is ``imu_factor_residual((R_i, v_i, p_i), (R_j, v_j, p_j), preintegrated, (b_g,i, b_a,i),
-    gravity)`` (rows r_R, r_v, r_p), not whitened; the columns of ``J`` are
+    The rows of ``J`` are ``(r_R, r_v, r_p)``, not whitened; its columns
     ``(dphi_i, dp_i, dv_i, dbg_i, dba_i)`` then the same for j, as ``course.problems.vio.problem`` orders
-    a frame's tangent. :func:`imu_residual_jacobians` does K factors at once.
+    a frame's tangent. :func:`imu_jacobians` does K factors at once.
     """
     s_i, s_j = _frame(s_i, "s_i"), _frame(s_j, "s_j")
     if len(preintegrated) != PREINTEGRATED_LENGTH:
         raise ValueError(f"preintegrated must hold the {PREINTEGRATED_LENGTH} values of a Preintegrated, "
                          f"got {len(preintegrated)}")
-    r, J = imu_residual_jacobians(s_i[None], s_j[None], stack_preintegrated([tuple(preintegrated)]), gravity)
-    return r[0], J[0]
+    r_R = np.asarray(r_R, dtype=float)
+    if r_R.shape != (3,):
+        raise ValueError(f"r_R must be the rotation rows (3,) of the factor's residual, got shape {r_R.shape}")
+    return imu_jacobians(s_i[None], s_j[None], stack_preintegrated([tuple(preintegrated)]), gravity, r_R[None])[0]
 
 
-def imu_residual_jacobians(s_i, s_j, pre: StackedPreintegration, gravity, R_i=None,
-                           R_j=None) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`imu_residual_jacobian` of K factors at once: ``s_i``, ``s_j`` (K, 15), ``pre`` a
-    :class:`StackedPreintegration` of K; ``R_i``, ``R_j`` (K, 3, 3) ``Exp`` of the frames' rotation
-    vectors where the caller has them; returns ``r`` (K, 9) and ``J`` (K, 9, 30)."""
+def imu_jacobians(s_i, s_j, pre: StackedPreintegration, gravity, r_R, R_i=None, R_j=None) -> np.ndarray:
+    """:func:`imu_jacobian` of K factors at once: ``s_i``, ``s_j`` (K, 15), ``pre`` a
+    :class:`StackedPreintegration` of K, ``r_R`` (K, 3) the rotation rows of their residuals; ``R_i``,
+    ``R_j`` (K, 3, 3) ``Exp`` of the frames' rotation vectors where the caller has them; returns ``J``
+    (K, 9, 30)."""
     s_i, s_j = np.asarray(s_i, dtype=float), np.asarray(s_j, dtype=float)
     K = len(pre.delta_t)
     if s_i.shape != (K, FRAME_DOF) or s_j.shape != (K, FRAME_DOF):
@@ -144,6 +147,9 @@ def imu_residual_jacobians(s_i, s_j, pre: StackedPreintegration, gravity, R_i=No
     g = np.asarray(gravity, dtype=float)
     if g.shape != (3,):
         raise ValueError(f"gravity must have shape (3,), got {g.shape}")
+    r_R = np.asarray(r_R, dtype=float)
+    if r_R.shape != (K, 3):
+        raise ValueError(f"r_R must be the rotation rows ({K}, 3) of the factors' residuals, got shape {r_R.shape}")
     T = pre.delta_t[:, None]
     R_i = exp_many(s_i[:, 0:3]) if R_i is None else R_i
     R_j = exp_many(s_j[:, 0:3]) if R_j is None else R_j
@@ -152,20 +158,13 @@ def imu_residual_jacobians(s_i, s_j, pre: StackedPreintegration, gravity, R_i=No
     def times(M, v):  # M_k v_k, (K, 3)
         return np.einsum("kab,kb->ka", M, v)
 
-    # the residual, as imu_factor_residual computes it
-    dbg, dba = s_i[:, 9:12] - pre.bias_gyro, s_i[:, 12:15] - pre.bias_accel
-    theta = times(pre.dR_dbg, dbg)
-    dR = np.matmul(pre.delta_R, exp_many(theta))
-    dv = pre.delta_v + times(pre.dv_dbg, dbg) + times(pre.dv_dba, dba)
-    dp = pre.delta_p + times(pre.dp_dbg, dbg) + times(pre.dp_dba, dba)
+    theta = times(pre.dR_dbg, s_i[:, 9:12] - pre.bias_gyro)
+    E = exp_many(r_R)  # r_R = Log(E), |r_R| <= pi
     Rt = R_i.transpose(0, 2, 1)
-    E = np.matmul(dR.transpose(0, 2, 1), np.matmul(Rt, R_j))
-    r_R = log_many(E)
     u_v = times(Rt, v_j - v_i - g * T)
     u_p = times(Rt, p_j - p_i - v_i * T - 0.5 * g * T * T)
-    r = np.concatenate([r_R, u_v - dv, u_p - dp], axis=1)
 
-    # the Jacobian: rows (r_R, r_v, r_p); columns i: 0 dphi, 3 dp, 6 dv, 9 dbg, 12 dba; j: + 15
+    # rows (r_R, r_v, r_p); columns i: 0 dphi, 3 dp, 6 dv, 9 dbg, 12 dba; j: + 15
     J = np.zeros((K, 9, 2 * FRAME_DOF))
     Jinv = right_jacobian_inverse(r_R)
     J[:, 0:3, 0:3] = -np.matmul(Jinv, np.matmul(R_j.transpose(0, 2, 1), R_i))
@@ -183,4 +182,4 @@ def imu_residual_jacobians(s_i, s_j, pre: StackedPreintegration, gravity, R_i=No
     J[:, 6:9, 9:12] = -pre.dp_dbg
     J[:, 6:9, 12:15] = -pre.dp_dba
     J[:, 6:9, 18:21] = Rt
-    return r, J
+    return J

@@ -21,9 +21,9 @@ Factors (every residual whitened, so chi2 is a plain sum of squares, as in the c
   ``L^T r_imu`` with ``L L^T = Sigma^-1``; and the bias random walk
   ``((b_g,j - b_g,i) / (sigma_g sqrt(dT)), (b_a,j - b_a,i) / (sigma_a sqrt(dT)))`` (6,).
   The Jacobians of ``r_imu`` in the 30 tangent coordinates of (i, j) are analytic
-  (``course.problems.vio.imu_jacobians``, Forster et al.'s, 56 times faster than the central differences
-  with step :data:`FD_STEP` through :meth:`retract` that ``imu_jacobian="numeric"`` takes of the
-  loaded implementation's residual); the bias walk's are exact.
+  (``course.problems.vio.imu_jacobians``, Forster et al.'s, at the rotation rows of the loaded
+  implementation's residual; 56 times faster than the central differences with step :data:`FD_STEP`
+  through :meth:`retract` that ``imu_jacobian="numeric"`` takes of that residual); the bias walk's are exact.
 - Reprojection (pinhole, **analytic** Jacobians): ``X_b = R^T (X - p)``, ``X_c = R_bc^T (X_b -
   t_bc)``, ``r = (pi(K X_c) - u) / sigma_px`` (2,). With ``P = d pi / d X_c`` (2, 3) =
   ``[[fx/z, 0, -fx x/z^2], [0, fy/z, -fy y/z^2]] / sigma_px``::
@@ -52,10 +52,10 @@ factors' 30 columns, a reprojection's 9: its frame's dphi and dp and its point) 
 columns say, the priors' constant ``J^T J`` kept from the first linearization. A problem of at
 least :data:`SPARSE_FROM` unknowns (the 12-s batch: 1488) sums them into H's upper triangle on a
 CSC pattern made once and takes the step by the implementation's sparse Cholesky (chapter 2;
-SuperLU where qdldl is not installed; :class:`course.solver.per_pattern.PerPattern`, so the
-pattern is analysed once); a smaller one (a window: a few hundred unknowns, with the
-marginalisation prior's dense block) sums them into a dense H and takes a dense Cholesky step,
-the landmarks no prior touches eliminated first (:meth:`VioProblem.solve`), which is faster there.
+SuperLU where qdldl is not installed; the pattern is made once, so it is analysed once); a smaller
+one (a window: a few hundred unknowns, with the marginalisation prior's dense block) sums them into a
+dense H and takes the implementation's dense Cholesky step (chapter 2's ``dense_solve``), the landmarks
+no prior touches eliminated first (:meth:`VioProblem.solve`), which is faster there.
 :meth:`VioProblem.residual_and_jacobian` stacks the same rows into a sparse J (the
 marginalisation and the tests use it).
 """
@@ -63,18 +63,16 @@ marginalisation and the tests use it).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
-import scipy.linalg
 import scipy.sparse as sp
 
 from course.core import impl as impl_loader
 from course.core.errors import SingularSystemError
 from course.geometry.so3 import exp_many, log_many, so3_exp, so3_log
-from course.problems.vio.imu_jacobians import imu_residual_jacobians, stack_preintegrated
+from course.problems.vio.imu_jacobians import imu_jacobians, stack_preintegrated
 from course.solver.linearization import Linearization
-from course.solver.per_pattern import PerPattern
 from course.solver.robust import RobustLoss, reweight, robust_chi2
 from course.solver.superlu import sparse_solver
 
@@ -228,7 +226,8 @@ class VioProblem:
 
     ``frames0`` (F, 15) and ``landmarks0`` (L, 3) the start; ``data`` a :class:`VioData`;
     ``loss`` the robust loss of the reprojections (None: plain least squares); ``imu_jacobian``
-    ``"analytic"`` (the reference residual's) or ``"numeric"`` (of the loaded implementation's);
+    ``"analytic"`` (Forster's formulas at the implementation's residual) or ``"numeric"`` (central
+    differences of it);
     ``sparse`` True or False, or None: sparse from :data:`SPARSE_FROM` unknowns.
     """
 
@@ -249,7 +248,7 @@ class VioProblem:
                                   np.asarray(landmarks0, dtype=float).ravel()])
         self._last_imu: tuple | None = None
         self.sparse = self.n >= SPARSE_FROM if sparse is None else bool(sparse)
-        self._sparse_solver = PerPattern(lambda: sparse_solver(self.impl.module("sparse_solve")))
+        self._sparse_solver: Any = None  # the implementation's, made on the first sparse step (one pattern)
         self._info_roots = []
         for factor in data.imu:
             cov = np.asarray(factor.preintegrated.covariance)
@@ -329,14 +328,22 @@ class VioProblem:
         last = self._last_imu
         if last is not None and np.array_equal(last[0], frames):
             return last[1]
-        R = self._rotations(frames)
-        given = frames.copy()  # the implementation gets copies: what it does to them stays there
-        raw = np.array([self._raw_imu_residual(k, given[f.i], given[f.j], R[f.i].copy(), R[f.j].copy())
-                        for k, f in enumerate(self.data.imu)]).reshape(-1, 9)
+        raw = self._raw_imu_residuals(frames)
         walk = (frames[self._imu_j, 9:15] - frames[self._imu_i, 9:15]) * self._walk_scale
         r = np.concatenate([np.matmul(self._root_t, raw[:, :, None])[:, :, 0], walk], axis=1)
-        self._last_imu = (frames.copy(), r)
+        self._last_imu = (frames.copy(), r, raw)
         return r
+
+    def _raw_imu_residuals(self, frames) -> np.ndarray:
+        """The implementation's ``imu_factor_residual`` (K, 9) of every IMU factor at the frame states
+        ``frames`` (F, 15), not whitened (the last point's kept by :meth:`_imu_residuals`)."""
+        last = self._last_imu
+        if last is not None and np.array_equal(last[0], frames):
+            return last[2]
+        R = self._rotations(frames)
+        given = frames.copy()  # the implementation gets copies: what it does to them stays there
+        return np.array([self._raw_imu_residual(k, given[f.i], given[f.j], R[f.i].copy(), R[f.j].copy())
+                         for k, f in enumerate(self.data.imu)]).reshape(-1, 9)
 
     def _raw_imu_residual(self, k, s_i, s_j, Ri=None, Rj=None):
         """The implementation's ``imu_factor_residual`` (9,) of IMU factor k at frame states ``s_i``,
@@ -354,15 +361,16 @@ class VioProblem:
 
     def _imu_jacobians(self, frames) -> np.ndarray:
         """(K, 15, 30): the rows of every :meth:`_imu_residual` in the tangents of its (i, j), at the
-        frame states ``frames`` (F, 15): analytic (``course.problems.vio.imu_jacobians``, the
-        reference residual's, all factors at once) or, with ``imu_jacobian="numeric"``, central
-        differences of the loaded implementation's residual; exact for the bias walk."""
+        frame states ``frames`` (F, 15): analytic (``course.problems.vio.imu_jacobians``, all factors at
+        once, at the rotation rows of the loaded implementation's residual) or, with
+        ``imu_jacobian="numeric"``, central differences of that residual; exact for the bias walk."""
         K = len(self._imu_i)
         J = np.zeros((K, 15, 30))
         if self.imu_jacobian == "analytic":
             R = self._rotations(frames)
-            _, J_imu = imu_residual_jacobians(frames[self._imu_i], frames[self._imu_j], self._stacked,
-                                              self.data.gravity, R[self._imu_i], R[self._imu_j])
+            r_R = self._raw_imu_residuals(frames)[:, 0:3]
+            J_imu = imu_jacobians(frames[self._imu_i], frames[self._imu_j], self._stacked, self.data.gravity, r_R,
+                                  R[self._imu_i], R[self._imu_j])
             J[:, :9] = np.matmul(self._root_t, J_imu)
         else:
             for k in range(K):
@@ -640,14 +648,18 @@ class VioProblem:
         """Step (n,) of ``(H + diag(damping)) h = -b`` by a dense or a sparse Cholesky factorisation."""
         A = lin.with_diagonal_added(damping)
         if lin.upper:
+            if self._sparse_solver is None:  # H's pattern is made once (:meth:`_upper_pattern`): one analysis
+                self._sparse_solver = sparse_solver(self.impl.module("sparse_solve"))
             h = np.asarray(self._sparse_solver.solve(A, lin.b), dtype=np.float64)
             if h.shape != lin.b.shape or not np.all(np.isfinite(h)) or h @ lin.b > 0:
                 raise SingularSystemError("vio: the sparse solve gave a non-finite step or an ascent direction: "
                                           "H (+ damping) is not positive definite")
             return h
+        if not np.all(np.isfinite(A)):
+            raise SingularSystemError("vio: H (+ damping) has a non-finite entry")
         try:
             h = self._eliminating_free_landmarks(A, lin.b) if len(self._free_columns) >= MIN_ELIMINATED \
-                else _cholesky_solve(A, -lin.b)
+                else self._dense_step(A, lin.b)
         except np.linalg.LinAlgError:
             raise SingularSystemError("vio: H (+ damping) is not positive definite") from None
         if not np.all(np.isfinite(h)):
@@ -679,14 +691,13 @@ class VioProblem:
         rhs = -b[K]
         rhs[:F] += W @ b_E
         h = np.empty(self.n)
-        h[K] = _cholesky_solve(S, rhs)
+        h[K] = self._dense_step(S, -rhs)
         coupled = (b_E + A_FE.T @ h[:F]).reshape(e, POINT_DOF)
         h[E.ravel()] = -np.einsum("eij,ej->ei", inv_EE, coupled).ravel()
         return h
 
-
-def _cholesky_solve(A, rhs) -> np.ndarray:
-    """``A^-1 rhs`` by a dense Cholesky factorisation (``LinAlgError`` when A is not positive
-    definite); A is not checked for finite entries (a copy of its n^2 entries): a non-finite A gives
-    a non-finite result, which the caller checks."""
-    return scipy.linalg.cho_solve(scipy.linalg.cho_factor(A, check_finite=False), rhs, check_finite=False)
+    def _dense_step(self, A, b) -> np.ndarray:
+        """``h`` (n,) of ``A h = -b``, A dense and positive definite: the implementation's
+        ``sparse_solve.dense_solve`` (chapter 2's exercise; ``LinAlgError`` from the reference when A
+        is not positive definite)."""
+        return np.asarray(self.impl.module("sparse_solve").dense_solve(A, b), dtype=np.float64)
