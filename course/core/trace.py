@@ -49,6 +49,9 @@ class RunResult:
     ``information_repair`` how; ``note`` says it in words.
     ``compile_seconds``: a back end's compilation before its first linearisation (JAX's ``jit``),
     not in ``seconds`` (0.0 where nothing is compiled).
+    ``called``: the implementation's functions the run called (``module.qualname``, in the order
+    first called; ``course.core.calls``), the code to blame when it ends wrong; ``None`` where nobody
+    recorded them.
     """
 
     backend: str
@@ -68,6 +71,7 @@ class RunResult:
     repaired_edges: int = 0
     information_repair: str = ""
     compile_seconds: float = 0.0
+    called: tuple | None = None
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
