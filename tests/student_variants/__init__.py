@@ -399,6 +399,27 @@ ALTERNATIVES_WRAP = {
         set()),
 }
 
+#: wraps that are really wrong, beside the right ones above: none, or into [0, 2 pi) (off by 2 pi on half
+#: the range); the angle at exactly pi, which both right wraps pass, must not hide them
+BUGS_WRAP = {
+    "edge_wrapped_to_0_2pi": V(
+        "pose_graph_edge.py", [], "e[2] = (x_j[2] - x_i[2] - z_ij[2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[2] = (x_j[2] - x_i[2] - z_ij[2]) % (2.0 * np.pi)",
+        {EDGE + "e_theta wrapped to [-pi, pi)", "pose_graph.end_to_end: gauss-newton"}, "e_theta is not wrapped"),
+    "ceres_angle_not_wrapped": V(
+        "ceres_edge_cost.py", ["def _wrap"], "return (angle + math.pi) % (2.0 * math.pi) - math.pi", "return angle",
+        {CERES + "residuals r = U e"}, "the angle error is not wrapped"),
+    "ceres_wrapped_to_0_2pi": V(
+        "ceres_edge_cost.py", ["def _wrap"], "return (angle + math.pi) % (2.0 * math.pi) - math.pi",
+        "return angle % (2.0 * math.pi)", {CERES + "residuals r = U e"}, "not wrapped to [-pi, pi)"),
+    "fast_edges_wrapped_to_0_2pi": V(
+        "pose_graph_fast.py", [],
+        "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2]) % (2.0 * np.pi)",
+        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges (optional)", DL_E2E + "pose graph"},
+        "e[1, 2] = "),
+}
+
 
 TREE = "initialisation.spanning_tree_poses: poses along the breadth-first tree"
 ROTATIONS = "initialisation.chordal_rotations: theta by the chordal relaxation"
@@ -1492,7 +1513,7 @@ ALTERNATIVES_FACTOR_GRAPH = {
 
 
 VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION,
-            **ALTERNATIVES_INITIALISATION, **ALTERNATIVES_WRAP,
+            **ALTERNATIVES_INITIALISATION, **ALTERNATIVES_WRAP, **BUGS_WRAP,
             **BUGS_BUNDLE_ADJUSTMENT, **ALTERNATIVES_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS,
             **ALTERNATIVES_ROBUST_KERNELS,
             **BUGS_GAUGE, **ALTERNATIVES_GAUGE, **BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY,
