@@ -238,17 +238,17 @@ def _run_pairs(plan, ours, peer, repeat=1, unimplemented="raise", progress=None,
     for backend, method in plan:
         with progress.run(backend, method) as callback:
             solve = partial(ours, method, callback) if backend == "ours" else partial(peer, backend, method)
-            recording = load_impl(impl).recording() if impl is not None else contextlib.nullcontext()
-            with recording:
+            recording = load_impl(impl).recording() if impl is not None else None
+            with recording or contextlib.nullcontext():
                 try:
                     result = _solve_or_row(solve, repeat, backend, method, unimplemented)
                 except failures as exc:
                     result = RunResult.skipped(backend, method, f"failed: {exc}")
                 except Exception as exc:  # a peer's run that failed in the implementation's code (Ceres' cost)
-                    if unimplemented == "raise" or impl is None or not recording.names:
+                    if unimplemented == "raise" or recording is None or not recording.names:
                         raise
                     result = RunResult.skipped(backend, method, failure_reason(exc))
-            if impl is not None:
+            if recording is not None:
                 result.called = tuple(dict.fromkeys((*started, *recording.names)))
         results.append(result)
     return results

@@ -120,6 +120,8 @@ class RunResult:
         if self.repaired_edges:
             out.update(repaired_edges=int(self.repaired_edges), information_repair=self.information_repair,
                        note=self.note)
+        if self.called is not None:
+            out["called"] = list(self.called)
         if self.not_run:  # JSON has no NaN
             out.update(not_run=self.not_run, initial_chi2=None, final_chi2=None)
         if with_params:
