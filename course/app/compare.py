@@ -18,8 +18,10 @@ back end; where the reader repaired edges, every result says how many (``RunResu
 turns a pair that stops at an unwritten TODO (``NotImplementedError``) into a row saying
 so (``RunResult.not_run``) instead of stopping the whole comparison (``compare`` and ``demo`` always
 ask for it; ``todo_hint`` says how to select what is written); the default ``"raise"`` lets the
-error through. ``advice`` gives the lines naming the exercise to look at when a run of the
-student's ends above the peers' best chi2 or at the iteration limit. A peer whose library is not
+error through. Each row records the implementation's functions its run called (``RunResult.called``,
+``course.core.calls``), and ``advice`` gives the lines naming them when a row that ran the student's
+code (ours, and Ceres' with the student's cost) ends above the other peers' best chi2 or at the
+iteration limit. A peer whose library is not
 installed here is always a row (``not run: gtsam is not installed here``), said once on stderr
 (``course.core.peers``).
 """
