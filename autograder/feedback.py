@@ -160,12 +160,17 @@ def call_fields(ctx, hints=None, failed=first_error):
     return triples, None
 
 
-def close(actual, expected, rtol, atol) -> bool:
+def close(actual, expected, rtol, atol, same_non_finite=False) -> bool:
+    """``|actual - expected| <= atol + rtol |expected|`` everywhere; with ``same_non_finite`` an entry
+    that is the same infinity, or nan, in both counts as close (a slip that gives inf or nan there)."""
     actual, expected = np.asarray(actual, float), np.asarray(expected, float)
     if actual.shape != expected.shape:
         return False
     with np.errstate(invalid="ignore", over="ignore"):
-        return bool(np.all(np.abs(actual - expected) <= atol + rtol * np.abs(expected)))
+        near = np.abs(actual - expected) <= atol + rtol * np.abs(expected)
+    if same_non_finite:
+        near |= (actual == expected) | (np.isnan(actual) & np.isnan(expected))
+    return bool(np.all(near))
 
 
 def compare(actual, expected, name, rtol, atol, where="", mistakes=(), cause="", scalar=False, groups=None):
@@ -203,10 +208,14 @@ def compare(actual, expected, name, rtol, atol, where="", mistakes=(), cause="",
                 return f"{text}: {why}"
         return text
     finite = np.isfinite(actual)
-    if not finite.all():
+    if not finite.all():  # the first entry that is not a number, with the slip or the cause as for any other
         index = tuple(int(k) for k in np.argwhere(~finite)[0])
-        return (f"{entry(index)} = {actual[index]} (not a finite number), expected "
+        text = (f"{entry(index)} = {actual[index]} (not a finite number), expected "
                 f"{fmt(expected[index])}{at}{which_rows(~finite, groups or {})}")
+        for value, why in mistakes:
+            if np.shape(value) == actual.shape and close(actual, value, rtol, atol, same_non_finite=True):
+                return f"{text}: {why}"
+        return f"{text}: {cause}" if cause else text
     excess = np.abs(actual - expected) - (atol + rtol * np.abs(expected))
     bad = excess > 0
     if not bad.any():
@@ -269,7 +278,8 @@ def _index(index) -> str:
     return "[" + ", ".join(str(k) for k in index) + "]" if index else ""
 
 
-def values(names, rtol, atol, cause="", labels=None, scalar=False, errors=None, atol_scaled=False):
+def values(names, rtol, atol, cause="", labels=None, scalar=False, errors=None, atol_scaled=False,
+           equivalent=None):
     """A judge comparing the outputs ``names`` of every call with the reference.
 
     The known mistakes of each call (``ctx.known(k)``, ``{name: [(value, text), ...]}``)
@@ -277,9 +287,12 @@ def values(names, rtol, atol, cause="", labels=None, scalar=False, errors=None, 
     output to its name in feedback (``{"value": "h"}``); ``errors`` maps an exception
     type name to a likely cause (``{"LinAlgError": "..."}``). ``atol_scaled``: ``atol`` is
     relative to the output's largest reference entry (at least 1), for outputs whose
-    entries span orders of magnitude (Jacobians, normal-equation blocks).
+    entries span orders of magnitude (Jacobians, normal-equation blocks). ``equivalent``: for an
+    output whose right answer is not unique (an angle at the end of its range), ``{name: f(got, want,
+    call)}`` giving ``got`` with every entry that is as right as the reference's replaced by it.
     """
     labels = labels or {}
+    equivalent = equivalent or {}
 
     def judge(ctx):
         triples, failure = call_fields(ctx, errors)
@@ -288,7 +301,8 @@ def values(names, rtol, atol, cause="", labels=None, scalar=False, errors=None, 
             for name in names:
                 hint = cause.get(name, "") if isinstance(cause, dict) else cause
                 tolerance = atol * max(1.0, float(np.max(np.abs(want[name])))) if atol_scaled else atol
-                text = compare(got[name], want[name], labels.get(name, name), rtol, tolerance,
+                answer = equivalent[name](got[name], want[name], call) if name in equivalent else got[name]
+                text = compare(answer, want[name], labels.get(name, name), rtol, tolerance,
                                call.where, known.get(name, ()), hint, scalar, call.groups)
                 if text:
                     return Verdict(0.0, text)

@@ -16,6 +16,11 @@ per check too where the set graded is "all" (the instructor's tree,
 ``autograder.grade.default_set``; ``--autograder-set`` picks another). Any other folder is left
 to pytest, so a test suite beside it (``tests/``) collects as before.
 
+**Selecting.** ``-k`` matches any part of an item's name (``-k pose_graph`` also takes
+``pose_graph_3d.py``); each item carries its check module's name as a marker, and ``-m`` matches
+marker names exactly: ``-m pose_graph`` selects that exercise's checks and no other
+(``-m "pose_graph_edge or pose_graph_assembly"`` several).
+
 **Running.** The first item of a folder that runs grades every selected item of that folder
 (after ``-k``, ``--lf``, ``--deselect``) in one grading run, ``autograder.grade.grade`` with two
 workers: the same children, judge and feedback as ``python -m autograder``. Each item then reports
@@ -52,9 +57,16 @@ def pytest_addoption(parser):
                          "python -m autograder --only); repeatable")
 
 
+def check_module_names() -> list:
+    """The check modules' names (``autograder/checks/NAME.py``), read from the folder (nothing imported)."""
+    return sorted(entry.stem for entry in CHECKS_DIR.glob("*.py") if entry.stem not in NOT_CHECKS)
+
+
 def pytest_configure(config):
     config.addinivalue_line("markers", "public: an autograder check on the inputs shipped with the course")
     config.addinivalue_line("markers", "hidden: an autograder check on fresh inputs, judged with the reference")
+    for name in check_module_names():  # -m NAME: one exercise exactly (-k matches any part of a name)
+        config.addinivalue_line("markers", f"{name}: the autograder checks of {name} (select them with -m {name})")
     if config.getoption("autograder_set"):
         which_set(config)  # a usage error now rather than at collection
 
@@ -181,7 +193,7 @@ class ChecksOf:
             # the id from its text, as pytest reads ids back (``--lf``'s cache): a "[" there opens
             # parameters, and the names hold brackets ("[2 pts]", "lambda clamped to [1e-7, 1e7]")
             yield CheckItem.from_parent(self, name=name, nodeid=f"{self.nodeid}::{name}", check=check,
-                                        hidden=hidden, folder=self.folder)
+                                        hidden=hidden, folder=self.folder, module=self.prefix)
 
 
 class ExerciseFile(ChecksOf, pytest.File):
@@ -230,10 +242,12 @@ def impl_argument(folder: Path) -> str:
 class CheckItem(pytest.Item):
     """One check of one set (public or hidden inputs) on the folder's implementation."""
 
-    def __init__(self, *, check, hidden: bool, folder: Path, **kwargs):
+    def __init__(self, *, check, hidden: bool, folder: Path, module: str = "", **kwargs):
         super().__init__(**kwargs)
         self.check, self.hidden, self.folder = check, hidden, folder
         self.add_marker("hidden" if hidden else "public")
+        if module:  # its check module's name as a marker: ``-m pose_graph`` selects those checks exactly
+            self.add_marker(module)
 
     @property
     def result_name(self) -> str:

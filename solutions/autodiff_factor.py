@@ -30,8 +30,10 @@ def tangent_jacobians(residual, retractions, dims, xs, jet):
         dims: the tangent sizes ``(d_1, ..., d_s)``.
         xs: the variables' values ``(x_1, ..., x_s)``, each (M, *shape_a).
         jet: the Jet class: ``jet.seed(value, offset, k)`` (value (M, n): its entry ``[..., i]`` has
-            the unit derivative in direction ``offset + i`` of ``k``); a Jet has ``value`` and
-            ``grad`` (value's shape + (k,)).
+            the unit derivative in direction ``offset + i`` of ``k``) and ``jet.constant(value, k)``
+            (a zero derivative); a Jet has ``value`` and ``grad`` (value's shape + (k,)) and an array's
+            container: indexing and slicing (``jet_M_k[:, 2:5]``), ``reshape``, ``+``, ``-`` and scaling
+            by a number.
     """
     # BEGIN SOLUTION
     k = int(sum(dims))

@@ -102,8 +102,11 @@ def test_a_broken_lm_type1_is_flagged_by_compare(tmp_path, capsys):
     out = capsys.readouterr().out
     (line,) = [line for line in out.splitlines() if line.startswith("check: ours")]
     assert line.startswith("check: ours lm-type1 ended at chi2") and "above the peers' best" in line
-    assert line.endswith("stopped at the iteration limit (100 step attempts) without converging: if more "
-                         "iterations (--max-iterations) do not end it at the peers' chi2, look at damping.GavinType1")
+    assert ("stopped at the iteration limit (100 step attempts) without converging: if more iterations "
+            "(--max-iterations) do not end it at the peers' chi2, look at damping (GavinType1.__init__, "
+            "GavinType1.initial_state, GavinType1.damping_diagonal, GavinType1.gain_denominator, "
+            "GavinType1.update), curve_model (residuals_and_jacobian), gauss_newton (") in line
+    assert "GavinType3" not in line  # what the run called, not every strategy
     assert re.search(r"^ours +lm-type1 +100 .* max_iterations ", out, flags=re.M)
     # given more iterations it still ends far above: then the line names the exercise alone
     assert main(["compare", "curve", "--impl", str(impl), "--methods", "lm-type1,lm", "--max-iterations", "300"]) == 0
@@ -196,3 +199,83 @@ def test_an_error_of_the_students_code_is_a_row_with_its_file_and_line(tmp_path,
     assert re.search(r"^ours +gauss-newton +failed: AttributeError \(see below\)$", out, flags=re.M)
     assert re.search(r"failed: AttributeError: .*\(at .*curve_model\.py:\d+\)\n  look at curve_model", out)
     assert re.search(r"^scipy +lm +failed: AttributeError", out, flags=re.M)  # the peer runs the student's model
+
+
+#: chapter 2 written, chapter 1 left as stubs (as a student of chapter 2 may have it)
+CHAPTER2 = ("pose_graph_edge", "pose_graph_assembly", "sparse_solve", "ceres_edge_cost", "pose_graph_fast")
+#: a sign slip in the vectorized A (d e_t / d theta_i's first row)
+FAST_SIGN_SLIP = ("pose_graph_fast", "A[:, 0, 2] = cz * du + sz * dv", "A[:, 0, 2] = -(cz * du + sz * dv)")
+#: a slip in the Ceres cost's rotation (R(phi)^T d's first row)
+CERES_SLIP = ("ceres_edge_cost", "qx = cp * dx + sp * dy", "qx = cp * dx - sp * dy")
+
+
+def _check_lines(out):
+    return [line for line in out.splitlines() if line.startswith("check: ")]
+
+
+@pytest.mark.slow
+def test_a_slip_in_pose_graph_fast_names_the_functions_that_ran_never_an_unwritten_one(tmp_path, capsys):
+    """Gauss-Newton on a pose graph runs pose_graph_fast and sparse_solve, never gauss_newton.solve_step:
+    with a slip in pose_graph_fast its line names what ran, and the Ceres rows (the student's correct
+    cost) are not flagged."""
+    impl = _impl(tmp_path, CHAPTER2, FAST_SIGN_SLIP)
+    assert main(["compare", "manhattan:200", "--impl", str(impl), "--backends", "ours,ceres,g2o"]) == 0
+    out = capsys.readouterr().out
+    (line,) = _check_lines(out)
+    assert line.startswith("check: ours gauss-newton ended at chi2") and "above the peers' best gauss-newton" in line
+    assert "pose_graph_fast (" in line and "edge_errors_and_jacobians" in line and "SparseAssembler.assemble" in line
+    assert "gauss_newton" not in line and "damping" not in line and "ceres_edge_cost" not in line
+    assert re.search(r"^ceres +levenberg-marquardt +\d+ ", out, flags=re.M)
+
+
+@pytest.mark.slow
+def test_a_slip_in_ceres_edge_cost_flags_the_ceres_rows_and_names_the_cost(tmp_path, capsys):
+    """The Ceres rows run the student's cost: they are judged against the other peers' best, as ours
+    are, and the line names the cost's methods; ours (the correct pose_graph_fast) is not flagged."""
+    impl = _impl(tmp_path, CHAPTER2, CERES_SLIP)
+    assert main(["compare", "manhattan:200", "--impl", str(impl), "--backends", "ours,ceres,g2o"]) == 0
+    lines = _check_lines(capsys.readouterr().out)
+    assert [line.split(" ended at")[0] for line in lines[:2]] == ["check: ceres levenberg-marquardt",
+                                                                  "check: ceres dogleg"]
+    assert all("above the peers' best" in line for line in lines[:2])
+    assert lines[2].startswith("check: the 2 runs above are off: look first at ceres_edge_cost (SE2EdgeCost.__init__, "
+                               "SE2EdgeCost.Evaluate")
+    assert not any(line.startswith("check: ours") for line in lines)
+
+
+def test_advice_judges_a_peer_row_that_ran_the_students_code_against_the_other_peers():
+    runs = [_run("ours", "gauss-newton", 65.4), _run("g2o", "gauss-newton", 65.4),
+            _run("ceres", "levenberg-marquardt", 514.0), _run("g2o", "levenberg", 65.4)]
+    runs[0].called = ("pose_graph_fast.edge_errors_and_jacobians", "sparse_solve.SparseCholeskySolver.solve")
+    runs[1].called = runs[3].called = ()
+    runs[2].called = ("ceres_edge_cost.SE2EdgeCost.__init__", "ceres_edge_cost.SE2EdgeCost.Evaluate")
+    lines = compare.advice(runs, "posegraph", "/some/path")
+    assert lines[0] == ("check: ceres levenberg-marquardt ended at chi2 514, above the peers' best "
+                        "levenberg-marquardt 65.4 (relative 6.9): look at ceres_edge_cost (SE2EdgeCost.__init__, "
+                        "SE2EdgeCost.Evaluate)")
+    assert len(lines) == 2  # and the line on grading one exercise
+    # the same row with nothing recorded is a peer's, and a peer's row is never flagged
+    runs[2].called = None
+    assert compare.advice(runs, "posegraph", "/some/path") == []
+
+
+def test_the_recording_names_what_ran_and_puts_every_function_back(tmp_path):
+    from course.core import impl as impl_loader
+
+    folder = _impl(tmp_path, ("pose_graph_edge", "pose_graph_assembly"))
+    loaded = impl_loader.load(str(folder))
+    assembly = loaded.module("pose_graph_assembly")
+    original = assembly.assemble_normal_equations
+    edge = assembly.pose_graph_edge.edge_error_and_jacobians
+    with loaded.recording() as recording:
+        assert assembly.assemble_normal_equations is not original
+        poses = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.1]])
+        assembly.assemble_normal_equations(poses, np.array([0]), np.array([1]), np.array([[1.0, 0.0, 0.1]]),
+                                           np.eye(3)[None], np.array([0]))
+        assert assembly.assemble_normal_equations is original  # put back at its first call
+    assert recording.names == ("pose_graph_assembly.assemble_normal_equations",
+                               "pose_graph_edge.edge_error_and_jacobians")
+    assert assembly.pose_graph_edge.edge_error_and_jacobians is edge
+    with loaded.recording() as recording:
+        pass
+    assert recording.names == ()  # a stub never called is never named

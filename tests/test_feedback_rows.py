@@ -38,6 +38,24 @@ def test_compare_says_it_for_wrong_and_for_non_finite_rows():
     assert compare(wrong, expected, "e", 1e-9, 1e-12).endswith("; only row 7 of 11 goes wrong")  # no kinds
 
 
+
+def test_a_non_finite_entry_keeps_the_cause_and_the_known_slip():
+    """A Jet's sqrt whose derivative at 0 is +inf where the contract wants -inf (the derivative's sign):
+    the line says which entry is not a number and, as for any other wrong entry, the likely cause, or
+    the known slip whose output has the same infinity or nan there."""
+    expected = np.array([[-np.inf, 0.5], [0.0, 1.0]])
+    got = np.array([[np.inf, 0.5], [0.0, 1.0]])
+    cause = "d sqrt(x) = dx / (2 sqrt(x)); at 0 see the docstring"
+    text = compare(got, expected, "grad", 1e-12, 1e-14, "at x = 0", (), cause)
+    assert text == (f"grad[0, 0] = inf (not a finite number), expected -inf at x = 0; only row 0 of 2 goes wrong: "
+                    f"{cause}")
+    slip = (np.array([[np.inf, 0.5], [0.0, 1.0]]), "the infinity takes the derivative's sign")
+    other = (np.array([[np.nan, 0.5], [0.0, 1.0]]), "a nan")
+    assert compare(got, expected, "grad", 1e-12, 1e-14, "at x = 0", (other, slip), cause).endswith(
+        ": the infinity takes the derivative's sign")
+    got[0, 0] = np.nan
+    assert compare(got, expected, "grad", 1e-12, 1e-14, "", (slip, other), cause).endswith(": a nan")
+
 def test_groups_travel_with_the_shipped_data():
     call = Call("m:f", (np.ones(2),), groups={"seen by camera 0": (0, 1)})
     data = decode_expected(encode_expected(Expected([call], [Outcome(fields={"value": np.ones(2)})], [{}])))

@@ -156,3 +156,20 @@ def test_an_assignment_out_of_100_passes_every_item_with_exactly_100_points(pyte
     assert (f"autograder: 100 / 100 points on the {count} checks run (public and hidden checks)"
             in result.outlines)
     assert any("[8.3333 pts]" in line for line in pytester.runpytest("--collect-only", "-q").outlines)
+
+
+def test_m_selects_one_exercise_exactly_where_k_takes_every_name_that_contains_it(pytester):
+    """The student README's ``pytest -m damping``: each item carries its check module's name as a
+    marker, matched whole; ``-k pose_graph`` also takes pose_graph_3d's checks, ``-m pose_graph`` not."""
+    folder_of(pytester, "exercises")
+    pose_graph = select(all_checks(), ["pose_graph"])
+    exact = [line for line in pytester.runpytest("--collect-only", "-q", "--autograder-set", "public", "-m",
+                                                 "pose_graph").outlines if "::" in line]
+    assert len(exact) == len(pose_graph) and all(line.startswith("exercises::pose_graph::") for line in exact)
+    loose = [line for line in pytester.runpytest("--collect-only", "-q", "--autograder-set", "public", "-k",
+                                                 "pose_graph").outlines if "::" in line]
+    assert any("pose_graph_3d" in line for line in loose) and len(loose) > len(exact)
+    result = pytester.runpytest("-m", "damping", "--autograder-set", "public")
+    result.assert_outcomes(failed=len(DAMPING), deselected=len(all_checks()) - len(DAMPING))
+    readme = (REPO / "course" / "release" / "student_tree" / "README.md").read_text()
+    assert ".venv/bin/pytest -m damping " in readme

@@ -14,7 +14,7 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Verdict
-from autograder.checks.common import check, failed, values
+from autograder.checks.common import SAME_ANGLE_ATOL, check, failed, values, wrap
 from autograder.checks.edges import Edge
 from autograder.checks.pose_graph_edge import edges
 from autograder.feedback import call_fields, compare
@@ -63,10 +63,22 @@ def _ceres_calls(task):
 # ---------------------------------------------------------------- judges
 
 
+def _r_as_reference(got, want, call):
+    """``got``, read as the reference's ``r = U e`` where it is ``U e`` with the angle error +pi in place
+    of -pi (``common.same_angle``: at a raw angle error of exactly pi both are the same angle)."""
+    z, U, x_i, x_j = (np.asarray(v, dtype=float) for v in call.args)
+    got, want = np.asarray(got, dtype=float), np.asarray(want, dtype=float)
+    if got.shape != want.shape or float(wrap(x_j[2] - x_i[2] - z[2])) != -np.pi:
+        return got
+    other = want + 2.0 * np.pi * U[:, 2]  # U e with e_theta = +pi
+    atol = SAME_ANGLE_ATOL * max(1.0, float(np.max(np.abs(want))), float(np.max(np.abs(U))))
+    return want if np.allclose(got, other, rtol=1e-9, atol=atol) else got
+
+
 def _judge_ceres(names):
     causes = {"r": "r = U e", "J_i": "jacobians[0] = U A, row-major", "J_j": "jacobians[1] = U B, row-major"}
     labels = {"r": "residuals[{}]", "J_i": "jacobians[0] as 3x3 [{}]", "J_j": "jacobians[1] as 3x3 [{}]"}
-    return values(names, 1e-9, 1e-12, causes, labels, atol_scaled=True)
+    return values(names, 1e-9, 1e-12, causes, labels, atol_scaled=True, equivalent={"r": _r_as_reference})
 
 
 def _judge_partial_jacobians(ctx):

@@ -1,6 +1,7 @@
 """What the check modules from chapter 2 on share: a check named after its exercise
 (:func:`check`), the judges' failure with every TODO named (:func:`failed`, :func:`values`)
-and angles wrapped to [-pi, pi) (:func:`wrap`)."""
+and angles wrapped to [-pi, pi) (:func:`wrap`), judged by what makes them right
+(:func:`same_angle`)."""
 
 import numpy as np
 
@@ -15,6 +16,36 @@ LOOP_NOTE = "[the per-edge loop works]"
 
 def wrap(angle):
     return (np.asarray(angle, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+#: how far (radians) an angle may be from the reference's modulo 2 pi and be the same angle
+SAME_ANGLE_ATOL = 1e-12
+
+
+def same_angle(actual, expected, atol=SAME_ANGLE_ATOL):
+    """Where ``actual`` is as right as the reference's wrapped angle ``expected`` (elementwise): finite,
+    in the contract's range taken closed, ``[-pi, pi]``, and equal to ``expected`` modulo 2 pi. At the
+    range's open end the answer is not unique: ``arctan2(sin, cos)`` gives +pi where ``(a + pi) % (2 pi)
+    - pi`` gives -pi, the same angle with the same cost and Jacobians, and both keep full marks; an
+    angle not wrapped, or off by 2 pi, is outside the range and is not."""
+    actual, expected = np.asarray(actual, dtype=float), np.asarray(expected, dtype=float)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(actual) & (np.abs(actual) <= np.pi) & (np.abs(wrap(actual - expected)) <= atol)
+
+
+def angles_as_reference(column):
+    """``values``' ``equivalent`` for an output whose ``[..., column]`` is a wrapped angle: those entries
+    that are the reference's angle (:func:`same_angle`) read as the reference's."""
+
+    def equivalent(got, want, call):
+        got, want = np.array(got, dtype=float), np.asarray(want, dtype=float)
+        if got.shape != want.shape or got.ndim == 0:
+            return got
+        same = same_angle(got[..., column], want[..., column])
+        got[..., column] = np.where(same, want[..., column], got[..., column])
+        return got
+
+    return equivalent
 
 
 def failed(ctx, hints=None):

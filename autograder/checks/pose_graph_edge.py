@@ -2,7 +2,8 @@
 A, B, and A, B against central differences of the student's own e.
 
 Public inputs: generic edges, raw angle errors beyond +-pi and near its ends, a measured
-angle near pi, raw angle errors of exactly pi and -pi (both wrap to -pi), and two seeded
+angle near pi, raw angle errors of exactly pi and -pi (both wrap to -pi; +pi, the same angle
+with the same cost and Jacobians, keeps full marks too: ``common.same_angle``), and two seeded
 random edges; hidden inputs: fresh edges of each kind (the same angle cases, other poses
 and measurements).
 
@@ -15,7 +16,7 @@ from functools import cache
 import numpy as np
 
 from autograder.checks import Call, Verdict
-from autograder.checks.common import check, failed, values, wrap
+from autograder.checks.common import check, failed, same_angle, values, wrap
 from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare, fmt
 
@@ -174,9 +175,8 @@ def _judge_e(part):
                 return Verdict(0.0, f"e has shape {got['e'].shape}, expected (3,) {call.where}")
             split = {"e_t": (got["e"][:2], want["e"][:2]), "e_theta": (got["e"][2], want["e"][2])}
             actual, expected = split[part]
-            if part == "e_theta" and abs(float(expected)) == np.pi and np.isfinite(actual) \
-                    and -np.pi <= float(actual) < np.pi and abs(float(wrap(actual - expected))) <= 1e-12:
-                continue  # at the end of the range: -pi, or pi less a rounding (the angles added in another order)
+            if part == "e_theta" and same_angle(actual, expected):
+                continue  # at the end of the range: -pi or +pi, the same angle, or either less a rounding
             text = compare(actual, expected, label, 1e-9, 1e-12, call.where, ctx.known(index).get(part, ()), hint)
             if text:
                 return Verdict(0.0, text)

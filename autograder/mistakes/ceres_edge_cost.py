@@ -14,15 +14,9 @@ def ceres_mistakes(call, ref):
     omega = U.T @ U
     raw = np.array(e, dtype=float)
     raw[2] = x_j[2] - x_i[2] - z[2]
-    at_pi = []
-    if raw[2] == np.pi:  # the one angle error whose wrap is -pi, where math.atan2 gives +pi
-        at_pi = [(U @ raw, "the angle error is +pi where theta_j - theta_i - theta_ij is exactly pi: the range is "
-                           "[-pi, pi), so pi wraps to -pi ((angle + pi) % (2 pi) - pi does; atan2(sin, cos) leaves "
-                           "+pi)")]
     upper = np.triu(U)
     return {
-        "r": [*at_pi,
-              (upper @ e, "only U's upper triangle is used: U is any square root of Omega (U^T U = Omega), not "
+        "r": [(upper @ e, "only U's upper triangle is used: U is any square root of Omega (U^T U = Omega), not "
                           "always triangular; r = U e with every entry of U"),
               (e, "r is the unwhitened error e: r = U e (sqrt_information times e), so that r^T r = e^T Omega e"),
               (omega @ e, "multiply e by the square root U, not by Omega = U^T U"),

@@ -43,9 +43,6 @@ def e_mistakes(call, ref):
     x_i, x_j, z, dt, Ri, Rz = edge_parts(call)
     raw = x_j[2] - x_i[2] - z[2]
     tz = z[:2]
-    at_pi = []
-    if raw == np.pi:  # the one angle error whose wrap is -pi, where arctan2 gives +pi
-        at_pi = [(np.array(np.pi), "e_theta = +pi where theta_j - theta_i - theta_ij is exactly pi: the range is [-pi, pi), so pi wraps to -pi ((angle + pi) % (2 pi) - pi does; arctan2(sin, cos) and 'while e > pi: e -= 2 pi' leave +pi)")]
     return {
         "e_t": [
             (Rz.T @ (Ri @ dt - tz), "R_i is used where R_i^T belongs (transposed rotation): "
@@ -59,7 +56,6 @@ def e_mistakes(call, ref):
             (Rz.T @ (Ri.T @ (x_i[:2] - x_j[:2]) - tz), "t_j - t_i, not t_i - t_j"),
         ],
         "e_theta": [
-            *at_pi,
             (np.array(raw), "e_theta is not wrapped: wrap(theta_j - theta_i - theta_ij) to [-pi, pi), "
                             "e.g. with course.geometry.se2.wrap_angle"),
             (np.array(raw % (2 * np.pi)), "e_theta is wrapped to [0, 2 pi); wrap to [-pi, pi): "

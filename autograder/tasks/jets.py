@@ -68,22 +68,25 @@ def residual_on_jets(factor, z, xs, impl):
 class TracingJet:
     """A Jet that carries the derivatives it is given and has no rules of its own: the residual and
     the retractions of ``tangent_jacobians_task`` compute theirs in closed form, so that the student's
-    ``autodiff_factor`` is graded without their ``jets``."""
+    ``autodiff_factor`` is graded without their ``jets``. It has what the real Jet's container gives
+    (``course.factorgraph``'s and the exercise's ``jets.Jet``: ``seed``, ``constant``, ``shape``,
+    ``ndim``, ``k``, ``len``, indexing and slicing, ``reshape``, ``swapaxes``, ``mT``, ``sum``, ``+``,
+    ``-`` and scaling by a number), so that any use of it the contract allows is graded alike."""
+
+    __array_ufunc__ = None  # numpy defers ``array + jet`` to ``jet.__radd__``
 
     def __init__(self, value, grad):
         self.value = np.asarray(value, dtype=float)
-        self.grad = np.asarray(grad, dtype=float)
+        grad = np.asarray(grad, dtype=float)
+        if grad.shape[:-1] != self.value.shape:
+            grad = np.broadcast_to(grad, self.value.shape + grad.shape[-1:])
+        self.grad = grad
 
-    def __neg__(self):
-        return TracingJet(-self.value, -self.grad)
-
-    def __mul__(self, number):
-        """Scaling by a number (a seed may be scaled); nothing else."""
-        if not np.isscalar(number):
-            return NotImplemented
-        return TracingJet(number * self.value, number * self.grad)
-
-    __rmul__ = __mul__
+    @classmethod
+    def constant(cls, value, k):
+        """``value`` with a zero derivative in ``k`` directions."""
+        value = np.asarray(value, dtype=float)
+        return cls(value, np.zeros(value.shape + (int(k),)))
 
     @classmethod
     def seed(cls, value, offset, k):
@@ -92,6 +95,70 @@ class TracingJet:
         grad = np.zeros(value.shape + (int(k),))
         grad[..., np.arange(n), int(offset) + np.arange(n)] = 1.0
         return cls(value, grad)
+
+    @property
+    def shape(self):
+        return self.value.shape
+
+    @property
+    def ndim(self):
+        return self.value.ndim
+
+    @property
+    def k(self):
+        return self.grad.shape[-1]
+
+    def __len__(self):
+        return len(self.value)
+
+    def __getitem__(self, index):
+        index = index if isinstance(index, tuple) else (index,)
+        if any(i is Ellipsis for i in index):
+            return TracingJet(self.value[index], self.grad[index + (slice(None),)])
+        return TracingJet(self.value[index], self.grad[index + (Ellipsis,)] if index else self.grad)
+
+    def reshape(self, *shape):
+        value = self.value.reshape(*shape)
+        return TracingJet(value, self.grad.reshape(value.shape + (self.k,)))
+
+    def swapaxes(self, a, b):
+        a, b = (axis % self.ndim for axis in (a, b))
+        return TracingJet(np.swapaxes(self.value, a, b), np.swapaxes(self.grad, a, b))
+
+    @property
+    def mT(self):  # noqa: N802 (numpy's name)
+        return self.swapaxes(-1, -2)
+
+    def sum(self, axis=None):
+        axes = tuple(range(self.ndim)) if axis is None else (axis % self.ndim,)
+        return TracingJet(self.value.sum(axis=axes), self.grad.sum(axis=axes))
+
+    def __neg__(self):
+        return TracingJet(-self.value, -self.grad)
+
+    def __pos__(self):
+        return self
+
+    def __add__(self, other):
+        if isinstance(other, TracingJet):
+            return TracingJet(self.value + other.value, self.grad + other.grad)
+        return TracingJet(self.value + np.asarray(other, dtype=float), self.grad)
+
+    __radd__ = __add__
+
+    def __sub__(self, other):
+        return self + (-other)
+
+    def __rsub__(self, other):
+        return (-self) + other
+
+    def __mul__(self, number):
+        """Scaling by a number (a seed may be scaled); nothing else."""
+        if not np.isscalar(number):
+            return NotImplemented
+        return TracingJet(number * self.value, number * self.grad)
+
+    __rmul__ = __mul__
 
 
 def _flat(point, M, size, k):

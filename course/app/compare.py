@@ -18,12 +18,15 @@ back end; where the reader repaired edges, every result says how many (``RunResu
 turns a pair that stops at an unwritten TODO (``NotImplementedError``) into a row saying
 so (``RunResult.not_run``) instead of stopping the whole comparison (``compare`` and ``demo`` always
 ask for it; ``todo_hint`` says how to select what is written); the default ``"raise"`` lets the
-error through. ``advice`` gives the lines naming the exercise to look at when a run of the
-student's ends above the peers' best chi2 or at the iteration limit. A peer whose library is not
+error through. Each row records the implementation's functions its run called (``RunResult.called``,
+``course.core.calls``), and ``advice`` gives the lines naming them when a row that ran the student's
+code (ours, and Ceres' with the student's cost) ends above the other peers' best chi2 or at the
+iteration limit. A peer whose library is not
 installed here is always a row (``not run: gtsam is not installed here``), said once on stderr
 (``course.core.peers``).
 """
 
+import contextlib
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -37,6 +40,7 @@ from course.core import chapters
 from course.core.backend_names import FACTOR_GRAPH_BACKENDS, OURS
 from course.core.errors import CourseError
 from course.core.impl import default_impl, failure_reason, not_implemented_reason
+from course.core.impl import load as load_impl
 from course.core.peers import PeerMissing
 from course.core.progress import quiet
 from course.core.trace import RunResult
@@ -199,10 +203,13 @@ def _run_peer(kind, backend, *args, **kwargs) -> RunResult:
 
 
 def _start_or_rows(initialise, graph, init, impl, plan, unimplemented):
-    """``initialise(graph, init, impl)`` (``(graph, seconds)``), or, when the start is an unwritten
-    TODO and ``unimplemented == "row"``, one row per pair of ``plan`` naming it."""
+    """``initialise(graph, init, impl)`` (``(graph, seconds, called)``: ``called`` the implementation's
+    functions it ran, ``course.core.calls``), or, when the start is an unwritten TODO and
+    ``unimplemented == "row"``, one row per pair of ``plan`` naming it."""
     try:
-        return initialise(graph, init, impl)
+        with load_impl(impl).recording() as recording:
+            graph, seconds = initialise(graph, init, impl)
+        return graph, seconds, recording.names
     except NotImplementedError as exc:
         if unimplemented != "row":
             raise
@@ -227,23 +234,33 @@ def _median_run(solve, repeat: int) -> RunResult:
 
 
 def _run_pairs(plan, ours, peer, repeat=1, unimplemented="raise", progress=None,
-               failures: type[Exception] | tuple[type[Exception], ...] = ()) -> list:
+               failures: type[Exception] | tuple[type[Exception], ...] = (), impl=None, started=()) -> list:
     """One ``RunResult`` per ``(backend, method)`` of ``plan``, in its order: the run loop of every kind.
 
     ``ours(method, callback)`` solves with our minimizer (``callback`` the progress line's, or
     None); ``peer(backend, method)`` with a peer. Each pair runs ``repeat`` times (the
     median-time run kept) or becomes a row (``_solve_or_row``); an exception among ``failures``
-    becomes a row ``failed: ...``.
+    becomes a row ``failed: ...``. With ``impl``, each row records in ``called`` the functions of
+    the implementation that its pair ran (``course.core.calls``; a peer's row too: Ceres runs the
+    implementation's cost), after ``started``, those the shared start ran.
     """
     progress = progress or quiet()
     results = []
     for backend, method in plan:
         with progress.run(backend, method) as callback:
             solve = partial(ours, method, callback) if backend == "ours" else partial(peer, backend, method)
-            try:
-                result = _solve_or_row(solve, repeat, backend, method, unimplemented)
-            except failures as exc:
-                result = RunResult.skipped(backend, method, f"failed: {exc}")
+            recording = load_impl(impl).recording() if impl is not None else None
+            with recording or contextlib.nullcontext():
+                try:
+                    result = _solve_or_row(solve, repeat, backend, method, unimplemented)
+                except failures as exc:
+                    result = RunResult.skipped(backend, method, f"failed: {exc}")
+                except Exception as exc:  # a peer's run that failed in the implementation's code (Ceres' cost)
+                    if unimplemented == "raise" or recording is None or not recording.names:
+                        raise
+                    result = RunResult.skipped(backend, method, failure_reason(exc))
+            if recording is not None:
+                result.called = tuple(dict.fromkeys((*started, *recording.names)))
         results.append(result)
     return results
 
@@ -290,7 +307,7 @@ def run_curve(impl=None, methods=None, backends=None, data=None, repeat=1, max_i
                 raise
             return RunResult.skipped(backend, method, failure_reason(exc))
 
-    return _run_pairs(curve_plan(methods, backends), ours, peer, repeat, unimplemented, progress)
+    return _run_pairs(curve_plan(methods, backends), ours, peer, repeat, unimplemented, progress, impl=impl)
 
 
 #: the C++ source's own data (``course.problems.curve.source_data``), as a dataset name
@@ -341,7 +358,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
     started = _start_or_rows(initialise, graph, init, impl, plan, unimplemented)
     if isinstance(started, list):
         return _with_repairs(started, graph)
-    graph, init_seconds = started
+    graph, init_seconds, init_called = started
 
     def problem():
         try:
@@ -368,7 +385,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
         kwargs = {"impl": impl} if backend == "ceres" else {}  # Ceres' edge cost is the implementation's
         return _run_peer("posegraph", backend, graph, method, max_iterations, **kwargs)
 
-    results = _run_pairs(plan, ours, peer, repeat, unimplemented, progress)
+    results = _run_pairs(plan, ours, peer, repeat, unimplemented, progress, impl=impl, started=init_called)
     for result in results:
         if graph.ground_truth is not None and not result.not_run:
             result.ate = absolute_trajectory_error(result.params, graph.ground_truth)
@@ -453,7 +470,7 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
                                          "(the factor graph leaves the gauge free: it fixes whole variables only)")
         return _run_peer("bal", backend, problem, method, max_iterations)
 
-    return _run_pairs(plan, ours, peer, repeat, unimplemented, progress, failures=SingularSystemError)
+    return _run_pairs(plan, ours, peer, repeat, unimplemented, progress, failures=SingularSystemError, impl=impl)
 
 
 def is_bal_name(name: str) -> bool:
@@ -507,7 +524,7 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
     started = _start_or_rows(initialise, graph, init, impl, plan, unimplemented)
     if isinstance(started, list):
         return _with_repairs(started, graph)
-    graph, init_seconds = started
+    graph, init_seconds, init_called = started
 
     def ours(method, callback):
         return minimize(PoseGraph3DProblem(graph, impl), method, impl=impl, options=options, callback=callback)
@@ -521,7 +538,7 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
         kwargs = {"impl": impl} if backend == "ceres" else {}  # Ceres' edge error is the implementation's
         return _run_peer("posegraph3d", backend, graph, method, max_iterations, **kwargs)
 
-    results = _run_pairs(plan, ours, peer, repeat, unimplemented, progress)
+    results = _run_pairs(plan, ours, peer, repeat, unimplemented, progress, impl=impl, started=init_called)
     for result in results:
         result.init, result.init_seconds = init, init_seconds
     return _with_repairs(results, graph)
@@ -718,25 +735,60 @@ def _family(method: str) -> str:
     return FAMILIES.get(method, "levenberg-marquardt")
 
 
+def runs_students_code(run) -> bool:
+    """True for a row that ran the implementation's code: one that recorded calling it (``called``;
+    ours, and a peer that runs the implementation's cost, as Ceres does), or, where nothing was
+    recorded, one of ours."""
+    return bool(run.called) if run.called is not None else run.backend == OURS
+
+
+def named_functions(names) -> str:
+    """``pose_graph_fast (edge_errors_and_jacobians, SparseAssembler.assemble), sparse_solve (...)``:
+    the functions of ``names`` (``module.qualname``) by module, in their order."""
+    by_module: dict = {}
+    for name in names:
+        module, _, rest = name.partition(".")
+        by_module.setdefault(module, []).append(rest)
+    return ", ".join(f"{module} ({', '.join(rest)})" for module, rest in by_module.items())
+
+
+def _look_at(run, shared=()) -> str:
+    """What to look at for a run that went wrong: the functions of the implementation it called and
+    not among ``shared`` (named once for every flagged run); where nothing was recorded, the
+    exercise its method stands on (``METHOD_EXERCISES``)."""
+    if run.called is None:
+        return METHOD_EXERCISES.get(run.method, run.method)
+    own = [name for name in run.called if name not in shared]
+    return named_functions(own) if own else "what every run flagged here ran (below)"
+
+
 def advice(runs, kind: str, impl) -> list:
-    """Lines for under the table when one of the student's runs looks wrong: ours ending above the
-    best chi2 of the peers' runs of the same kind of method (``_family``; of every peer when none
-    ran) by more than ``ABOVE_PEERS`` (relative), or at the iteration
-    limit. Each names the exercise to look at (``METHOD_EXERCISES``), and the problem's model
-    (``MODEL_EXERCISES``) when every method of ours is off; none for the reference (``solutions``).
+    """Lines for under the table when one of the rows that ran the student's code looks wrong
+    (``runs_students_code``: ours, and a peer that runs the implementation's cost): one ending above
+    the best chi2 of the other peers' runs of the same kind of method (``_family``; of every such
+    peer when none ran; of the peers that ran the student's model too when every peer did, as the
+    curve's do) by more than ``ABOVE_PEERS`` (relative), or at the iteration limit, or
+    failed. Each names what to look at: the implementation's functions the run called
+    (``RunResult.called``, recorded while it ran: a function never called is never named), those
+    that every flagged run called once, in a last line; where nothing was recorded, the exercise its
+    method stands on (``METHOD_EXERCISES``) and the problem's model (``MODEL_EXERCISES``) when every
+    method of ours is off. None for the reference (``solutions``).
     Before them, whatever the implementation, the whole message of every other back end's failed row."""
     lines = []
-    others = [r for r in runs if r.backend != "ours" and r.not_run.startswith("failed:")]
+    students = [r for r in runs if runs_students_code(r)]
+    others = [r for r in runs if not runs_students_code(r) and r.backend != OURS and r.not_run.startswith("failed:")]
     for backend in dict.fromkeys(r.backend for r in others):
         for reason in dict.fromkeys(r.not_run for r in others if r.backend == backend):
             methods = [r.method for r in others if r.backend == backend and r.not_run == reason]
             lines.append(f"{backend} {', '.join(methods)} {reason}")
     if str(impl) == "solutions":
         return lines
-    ours = [r for r in runs if r.backend == "ours" and not r.not_run]
-    peers = [r for r in runs if r.backend != "ours" and not r.not_run and np.isfinite(r.final_chi2)]
+    ran = [r for r in students if not r.not_run]
+    peers = [r for r in runs if not runs_students_code(r) and not r.not_run and np.isfinite(r.final_chi2)]
+    if not peers:  # every peer ran the student's model (the curve's): they still judge our strategies
+        peers = [r for r in runs if r.backend != OURS and not r.not_run and np.isfinite(r.final_chi2)]
     flagged = []
-    for r in ours:
+    for r in ran:
         reasons = []
         family = [p.final_chi2 for p in peers if _family(p.method) == _family(r.method)]
         best, whose = (min(family), f"the peers' best {_family(r.method)}") if family else \
@@ -750,25 +802,32 @@ def advice(runs, kind: str, impl) -> list:
             reasons.append(f"stopped at the iteration limit ({r.iterations} step attempts)")
         if reasons:
             flagged.append((r, reasons))
-    failed = [r for r in runs if r.backend == "ours" and r.not_run.startswith("failed:")]
+    failed = [r for r in students if r.not_run.startswith("failed:")]
     if not flagged and not failed:
         return lines
-    for reason in dict.fromkeys(r.not_run for r in failed):  # each failure once, with every method it stopped
-        methods = [r.method for r in failed if r.not_run == reason]
-        look = _failed_exercise(reason, impl) or METHOD_EXERCISES.get(methods[0], methods[0])
-        lines.append(f"check: ours {', '.join(methods)} {reason}\n  look at {look}")
-    model = MODEL_EXERCISES.get(kind)
-    everyone = len(flagged) == len(ours) > 1
+    for backend in dict.fromkeys(r.backend for r in failed):  # each failure once, with every method it stopped
+        for reason in dict.fromkeys(r.not_run for r in failed if r.backend == backend):
+            stopped = [r for r in failed if r.backend == backend and r.not_run == reason]
+            look = _failed_exercise(reason, impl) or _look_at(stopped[0])
+            lines.append(f"check: {backend} {', '.join(r.method for r in stopped)} {reason}\n  look at {look}")
+    recorded = [r for r, _ in flagged if r.called is not None]
+    shared = [name for name in recorded[0].called if all(name in r.called for r in recorded)] \
+        if len(recorded) > 1 else []
     for r, reasons in flagged:
-        look = METHOD_EXERCISES.get(r.method, r.method)
+        look = _look_at(r, shared)
         if reasons[-1].startswith("stopped at the iteration limit"):  # it may only be slow: more iterations first
-            lines.append(f"check: ours {r.method} {' and '.join(reasons)} without converging: if more iterations "
-                         f"(--max-iterations) do not end it at the peers' chi2, look at {look}")
+            lines.append(f"check: {r.backend} {r.method} {' and '.join(reasons)} without converging: if more "
+                         f"iterations (--max-iterations) do not end it at the peers' chi2, look at {look}")
         else:
-            lines.append(f"check: ours {r.method} {' and '.join(reasons)}: look at {look}")
-    if model and everyone:
-        lines.append(f"check: every method of ours is off: look first at {model}, which every method uses "
-                     "on this problem")
+            lines.append(f"check: {r.backend} {r.method} {' and '.join(reasons)}: look at {look}")
+    ours = [r for r in ran if r.backend == OURS]
+    everyone = len(ours) > 1 and all(any(r is f for f, _ in flagged) for r in ours)
+    if shared:
+        who = "every method of ours is off" if everyone else f"the {len(recorded)} runs above are off"
+        lines.append(f"check: {who}: look first at {named_functions(shared)}, which every one of them ran")
+    elif everyone and not recorded and MODEL_EXERCISES.get(kind):
+        lines.append(f"check: every method of ours is off: look first at {MODEL_EXERCISES[kind]}, which every "
+                     "method uses on this problem")
     lines.append("(`python -m autograder --only NAME` grades one exercise)")
     return lines
 

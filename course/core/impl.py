@@ -12,6 +12,8 @@ import importlib.util
 import sys
 from pathlib import Path
 
+from course.core import calls
+
 REPO_ROOT = Path(__file__).resolve().parents[2]
 BUILTIN = ("solutions", "exercises")
 
@@ -27,12 +29,19 @@ class Implementation:
         """The module ``name`` of this implementation. One it does not hold (an assignment's tree has no
         file of a later assignment) is an unwritten TODO: a ``NotImplementedError`` naming it."""
         try:
-            return importlib.import_module(f"{self.package}.{name}")
+            module = importlib.import_module(f"{self.package}.{name}")
         except ModuleNotFoundError as exc:
             if exc.name != f"{self.package}.{name}":
                 raise
             raise NotImplementedError(f"TODO {name}: no {name}.py in this implementation "
                                       "(not handed out yet)") from None
+        calls.instrument(self.package)
+        return module
+
+    def recording(self) -> calls.Recording:
+        """A context that records which of this implementation's functions run while it is open
+        (``course.core.calls``): ``with impl.recording() as run: ...; run.names``."""
+        return calls.Recording(self.package)
 
     def __repr__(self):
         return f"Implementation({self.name!r})"

@@ -49,6 +49,9 @@ class RunResult:
     ``information_repair`` how; ``note`` says it in words.
     ``compile_seconds``: a back end's compilation before its first linearisation (JAX's ``jit``),
     not in ``seconds`` (0.0 where nothing is compiled).
+    ``called``: the implementation's functions the run called (``module.qualname``, in the order
+    first called; ``course.core.calls``), the code to blame when it ends wrong; ``None`` where nobody
+    recorded them.
     """
 
     backend: str
@@ -68,6 +71,7 @@ class RunResult:
     repaired_edges: int = 0
     information_repair: str = ""
     compile_seconds: float = 0.0
+    called: tuple | None = None
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
@@ -116,6 +120,8 @@ class RunResult:
         if self.repaired_edges:
             out.update(repaired_edges=int(self.repaired_edges), information_repair=self.information_repair,
                        note=self.note)
+        if self.called is not None:
+            out["called"] = list(self.called)
         if self.not_run:  # JSON has no NaN
             out.update(not_run=self.not_run, initial_chi2=None, final_chi2=None)
         if with_params:

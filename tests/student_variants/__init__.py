@@ -313,15 +313,6 @@ BUGS_CHAPTERS_2_3 = {
         "        return -self.make(H_upper, upper=True).solve(np.asarray(b, dtype=float))\n        # END SOLUTION\n"
         "\n    from qdldl import Solver as make  # a class attribute, bound at import; a new analysis per call\n",
         {SPARSE + "one symbolic analysis for the pattern"}, "qdldl.Solver objects were made for 3 solves"),
-    # wrong only where theta_j - theta_i - theta_ij is exactly pi: atan2 gives +pi, outside [-pi, pi)
-    "edge_wrap_by_arctan2": V(
-        "pose_graph_edge.py", [], "e[2] = (x_j[2] - x_i[2] - z_ij[2] + np.pi) % (2.0 * np.pi) - np.pi",
-        "e[2] = np.arctan2(np.sin(x_j[2] - x_i[2] - z_ij[2]), np.cos(x_j[2] - x_i[2] - z_ij[2]))",
-        {EDGE + "e_theta wrapped to [-pi, pi)"}, "so pi wraps to -pi"),
-    "ceres_wrap_by_atan2": V(
-        "ceres_edge_cost.py", ["def _wrap"], "return (angle + math.pi) % (2.0 * math.pi) - math.pi",
-        "return math.atan2(math.sin(angle), math.cos(angle))",
-        {CERES + "residuals r = U e"}, "so pi wraps to -pi"),
     # wrong only where U is not upper triangular: the entries below its diagonal are skipped as zeros
     "ceres_upper_triangle_only": V(
         "ceres_edge_cost.py", ["def Evaluate"],
@@ -374,20 +365,61 @@ BUGS_CHAPTERS_2_3 = {
         "xi, xj = np.squeeze(poses[edges_i]), np.squeeze(poses[edges_j])",
         {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges"},
         "on the single edge of a 2-pose graph (M = 1)"),
-    "fast_edges_wrap_by_arctan2": V(
-        "pose_graph_fast.py", [],
-        "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
-        "e[:, 2] = np.arctan2(np.sin(xj[:, 2] - xi[:, 2] - measurements[:, 2]), "
-        "np.cos(xj[:, 2] - xi[:, 2] - measurements[:, 2]))",
-        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges"},
-        "so pi wraps to -pi"),
     "fast_edges_angle_not_wrapped": V(
         "pose_graph_fast.py", [],
         "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
         "e[:, 2] = xj[:, 2] - xi[:, 2] - measurements[:, 2]",
         {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges", DL_E2E + "pose graph"},
         "exactly the one whose theta_j - theta_i - theta_ij leaves [-pi, pi)"),
+    # the sum by fancy index the lesson warns of: data[slots] += values keeps one of the repeated slots
+    "fast_assembler_fancy_index_sum": V(
+        "pose_graph_fast.py", ["def assemble"],
+        "data = np.bincount(self._positions, weights=H_edges.ravel(), minlength=self.nnz)",
+        "data = np.zeros(self.nnz)\n        data[self._positions] += H_edges.ravel()",
+        {"pose_graph_fast.SparseAssembler: H (upper, CSC), b, chi2", DL_E2E + "pose graph"},
+        "does not accumulate repeated indices"),
 }
+
+#: correct wraps into the other half-open range, (-pi, pi] (GTSAM's Rot2): where the raw angle error is
+#: exactly pi they give +pi, the reference -pi, the same angle with the same cost and Jacobians
+ALTERNATIVES_WRAP = {
+    "edge_wrap_by_arctan2": V(
+        "pose_graph_edge.py", [], "e[2] = (x_j[2] - x_i[2] - z_ij[2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[2] = np.arctan2(np.sin(x_j[2] - x_i[2] - z_ij[2]), np.cos(x_j[2] - x_i[2] - z_ij[2]))",
+        set()),
+    "ceres_wrap_by_atan2": V(
+        "ceres_edge_cost.py", ["def _wrap"], "return (angle + math.pi) % (2.0 * math.pi) - math.pi",
+        "return math.atan2(math.sin(angle), math.cos(angle))",
+        set()),
+    "fast_edges_wrap_by_arctan2": V(
+        "pose_graph_fast.py", [],
+        "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[:, 2] = np.arctan2(np.sin(xj[:, 2] - xi[:, 2] - measurements[:, 2]), "
+        "np.cos(xj[:, 2] - xi[:, 2] - measurements[:, 2]))",
+        set()),
+}
+
+#: wraps that are really wrong, beside the right ones above: none, or into [0, 2 pi) (off by 2 pi on half
+#: the range); the angle at exactly pi, which both right wraps pass, must not hide them
+BUGS_WRAP = {
+    "edge_wrapped_to_0_2pi": V(
+        "pose_graph_edge.py", [], "e[2] = (x_j[2] - x_i[2] - z_ij[2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[2] = (x_j[2] - x_i[2] - z_ij[2]) % (2.0 * np.pi)",
+        {EDGE + "e_theta wrapped to [-pi, pi)", "pose_graph.end_to_end: gauss-newton"}, "e_theta is not wrapped"),
+    "ceres_angle_not_wrapped": V(
+        "ceres_edge_cost.py", ["def _wrap"], "return (angle + math.pi) % (2.0 * math.pi) - math.pi", "return angle",
+        {CERES + "residuals r = U e"}, "the angle error is not wrapped"),
+    "ceres_wrapped_to_0_2pi": V(
+        "ceres_edge_cost.py", ["def _wrap"], "return (angle + math.pi) % (2.0 * math.pi) - math.pi",
+        "return angle % (2.0 * math.pi)", {CERES + "residuals r = U e"}, "not wrapped to [-pi, pi)"),
+    "fast_edges_wrapped_to_0_2pi": V(
+        "pose_graph_fast.py", [],
+        "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2] + np.pi) % (2.0 * np.pi) - np.pi",
+        "e[:, 2] = (xj[:, 2] - xi[:, 2] - measurements[:, 2]) % (2.0 * np.pi)",
+        {"pose_graph_fast.edge_errors_and_jacobians: e, A, B of all edges", DL_E2E + "pose graph"},
+        "e[1, 2] = "),
+}
+
 
 TREE = "initialisation.spanning_tree_poses: poses along the breadth-first tree"
 ROTATIONS = "initialisation.chordal_rotations: theta by the chordal relaxation"
@@ -1449,7 +1481,26 @@ DENSE_THEN_TRIANGLE = """        n = self._shape[0]
         b[self._fixed_dof] = 0.0
         return sp.csc_matrix(np.triu(dense)), b, chi2"""
 
+#: one seed of all k directions, sliced per variable (the real Jet's container slices)
+ONE_SEED_SLICED = """    k = int(sum(dims))
+    offsets = np.concatenate([[0], np.cumsum(dims)]).astype(int)
+    steps = jet.seed(np.zeros((len(xs[0]), k)), 0, k)
+    moved = [retract(x, steps[:, o:o + d]) for retract, d, o, x in zip(retractions, dims, offsets, xs)]
+    r = residual(*moved)
+    grad = np.asarray(r.grad, dtype=float)
+    return (np.asarray(r.value, dtype=float),
+            [grad[..., offsets[a]:offsets[a + 1]] for a in range(len(dims))])
+    k = int(sum(dims))"""
+
+#: each step a constant Jet whose derivative is set by hand (``jet.constant``)
+SEEDS_BY_CONSTANT = """delta = jet.constant(np.zeros((len(x), d)), k)
+        delta.grad[:, np.arange(d), int(offset) + np.arange(d)] = 1.0"""
+
 ALTERNATIVES_FACTOR_GRAPH = {
+    "autodiff_one_seed_sliced": V("autodiff_factor.py", [], "    k = int(sum(dims))", ONE_SEED_SLICED, set()),
+    "autodiff_seeds_by_constant": V(
+        "autodiff_factor.py", [], "delta = jet.seed(np.zeros((len(x), d)), int(offset), k)", SEEDS_BY_CONSTANT,
+        set()),
     "jets_sqrt_by_power": V(
         "jets.py", ["def sqrt"], "grad = _times(0.5 / root, x.grad)", "grad = _times(0.5 * root ** -1.0, x.grad)",
         set()),
@@ -1462,7 +1513,7 @@ ALTERNATIVES_FACTOR_GRAPH = {
 
 
 VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION,
-            **ALTERNATIVES_INITIALISATION,
+            **ALTERNATIVES_INITIALISATION, **ALTERNATIVES_WRAP, **BUGS_WRAP,
             **BUGS_BUNDLE_ADJUSTMENT, **ALTERNATIVES_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS,
             **ALTERNATIVES_ROBUST_KERNELS,
             **BUGS_GAUGE, **ALTERNATIVES_GAUGE, **BUGS_PARALLEL_ASSEMBLY, **ALTERNATIVES_PARALLEL_ASSEMBLY,
