@@ -28,6 +28,7 @@ import numpy as np
 from autograder import expected as expected_data
 from autograder import sandbox
 from autograder.checks import all_checks, module_of, select
+from autograder.checks import modules as check_modules
 from autograder.records import Check, Context, Verdict
 from course.core import peers
 
@@ -295,16 +296,56 @@ def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sand
         checks = assignment.checks() if assignment is not None else all_checks()
     checks = select(checks, only)
     with tempfile.TemporaryDirectory(prefix="autograder-compose-") as scratch:
+        shown = [_display(impl) for impl in impls]
         if assignment is not None and assignment.solved:
             impls = [compose(impl, assignment.solved, Path(scratch) / str(index))
                      for index, impl in enumerate(impls)]
+        impls, refused = screen(impls, shown, Path(scratch) / "screened")
         return _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notices, on_done, on_check,
-                           catalogue, assignment)
+                           catalogue, assignment, refused)
+
+
+def _display(impl: str) -> str:
+    """How a refusal names the folder of ``impl``: ``exercises`` or the folder's name."""
+    from course.core.impl import BUILTIN
+
+    return impl if impl in BUILTIN else Path(impl).name
+
+
+def screen(impls, shown, scratch: Path) -> tuple:
+    """Check each implementation's imports against the exercises' contracts
+    (:mod:`autograder.allowed_imports`) before anything of it runs. Returns the implementations to
+    grade (a copy with each refused file made an unwritten TODO, where one is) and, per
+    implementation, ``{module: the refusal's line}``."""
+    from autograder import allowed_imports
+    from course.core.impl import BUILTIN, REPO_ROOT
+
+    contracts = allowed_imports.load_contracts()
+    out, refused = [], []
+    for index, (impl, name) in enumerate(zip(impls, shown)):
+        folder = REPO_ROOT / impl if impl in BUILTIN else Path(impl)
+        found = allowed_imports.refusals(folder, name, contracts)
+        if found:
+            copy = scratch / str(index)
+            shutil.copytree(folder, copy, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"), symlinks=True)
+            allowed_imports.neutralise(copy, found)
+            impl = str(copy)
+        out.append(impl)
+        refused.append(found)
+    return out, refused
+
+
+def refusal(task: Task, why: str) -> CheckResult:
+    """A check of an exercise file the grader refused for its imports: 0 points, and the refusal."""
+    return CheckResult(task.name, task.check.exercise, 0.0, float(task.check.points), why, hidden=task.hidden,
+                       status="refused")
 
 
 def _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notices, on_done, on_check, catalogue,
-                assignment) -> list:
+                assignment, refused) -> list:
     tasks = plan(checks, which or default_set())
+    graded_files = {name: getattr(module, "MODULES", ()) for name, module in check_modules()}
+    owner = module_of()
     if not catalogue:
         tasks = [replace(task, expected=task.expected.without_catalogue()) if task.expected else task
                  for task in tasks]
@@ -323,15 +364,19 @@ def _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notic
 
         def one(job):
             index, number, task = job
-            if task.ungradable:
+            why = next((refused[index][m] for m in graded_files.get(owner.get(task.check.name, ""), ())
+                        if m in refused[index]), "")
+            if why:
+                result = refusal(task, why)
+            elif task.ungradable:
                 result = not_gradable(task)
             elif task.missing:
                 result = not_run(task)
             else:
                 assert task.expected is not None
-                why = hung[index].blocked(task.expected.calls)
-                if why:
-                    result = skipped(task, why)
+                blocked = hung[index].blocked(task.expected.calls)
+                if blocked:
+                    result = skipped(task, blocked)
                 else:
                     child = session.run(task.expected.calls, timeout=task.check.timeout or timeout,
                                         impl=staged[index])
