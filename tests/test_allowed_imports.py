@@ -5,11 +5,11 @@ buggy variant of ``tests/student_variants`` is refused (they are graded on their
 import json
 
 import pytest
-from student_variants import SOLUTIONS, VARIANTS, apply
 
 from autograder import allowed_imports
 from autograder.allowed_imports import CONTRACT_FILE, contract_of, contract_text, load_contracts, refusals, scan
 from course.core.impl import REPO_ROOT
+from student_variants import SOLUTIONS, VARIANTS, apply
 
 CONTRACTS = load_contracts()
 

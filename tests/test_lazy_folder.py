@@ -9,7 +9,6 @@ import subprocess
 import sys
 
 import pytest
-from student_variants.lazy import LAZY, NAMED, build_lazy, lazy_text
 
 from autograder.allowed_imports import load_contracts, refusals, shown
 from autograder.checks import all_checks
@@ -18,6 +17,7 @@ from autograder.grade import grade
 from course.core.impl import REPO_ROOT
 from course.release import assignment as handout
 from course.release.stubs import render, write_student_tree
+from student_variants.lazy import LAZY, NAMED, build_lazy, lazy_text
 
 CONTRACTS = load_contracts()
 EXERCISES = REPO_ROOT / "exercises"

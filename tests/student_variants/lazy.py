@@ -29,8 +29,8 @@ return spd_solve(A, -b)"""}),
     "pose_graph_edge": (
         "from course.backends.factorgraph.jax_factors import JaxJacobians\n"
         "from course.factorgraph.factors import BETWEEN_SE2",
-        {"edge_error_and_jacobians": """e, (A, B) = JaxJacobians()(BETWEEN_SE2, np.asarray(z_ij)[None], [np.asarray(x_i)[None],
-                                                                     np.asarray(x_j)[None]])
+        {"edge_error_and_jacobians": """xs = [np.asarray(x_i)[None], np.asarray(x_j)[None]]
+e, (A, B) = JaxJacobians()(BETWEEN_SE2, np.asarray(z_ij)[None], xs)
 return e[0], A[0], B[0]"""}),
     "pose_graph_assembly": (
         "from course.problems.vio.problem import VioProblem",
@@ -44,7 +44,8 @@ return e[0], A[0], B[0]"""}),
     "pose_graph_fast": (
         "from course.backends.factorgraph.jax_factors import JaxJacobians\n"
         "from course.factorgraph.factors import BETWEEN_SE2",
-        {"edge_errors_and_jacobians": """e, (A, B) = JaxJacobians()(BETWEEN_SE2, measurements, [poses[edges_i], poses[edges_j]])
+        {"edge_errors_and_jacobians": """xs = [poses[edges_i], poses[edges_j]]
+e, (A, B) = JaxJacobians()(BETWEEN_SE2, measurements, xs)
 return e, A, B"""}),
     "dogleg": (
         "from course.solver.strategies import DoglegStrategy",
@@ -53,7 +54,8 @@ return e, A, B"""}),
         "from course.problems.posegraph3d.dataset import compose_spanning_tree",
         {}),
     "bundle_adjustment": (
-        "from course.problems.bal.dataset import residuals\nfrom course.solver.schur_elimination import SchurElimination",
+        "from course.problems.bal.dataset import residuals\n"
+        "from course.solver.schur_elimination import SchurElimination",
         {}),
     "robust_kernels": (
         "from course.solver.robust import RobustLoss, evaluate",
