@@ -11,6 +11,10 @@ Every expected output exists before the first child starts; results are written 
 caller after :func:`grade` returns, when every child is gone. A check that needs a library
 not installed here (``Check.needs``, e.g. pyceres) is not run: it scores 0 and says why,
 and the library's absence is said once (``course.core.peers``).
+
+Before anything of an implementation runs, its files' imports are read against the exercises'
+contracts (:func:`screen`, :mod:`autograder.allowed_imports`): the checks of a refused file score 0
+with the refusal's line, and the file is graded as an unwritten TODO wherever another exercise uses it.
 """
 
 import shutil
