@@ -155,12 +155,12 @@ def _from_import(node: ast.ImportFrom, entries) -> list:
     out = []
     for name in names:
         full = f"{module}.{name}"
-        if framework and name.startswith("_"):
-            out.append(Refused(node.lineno, full, "a private name"))
-        elif name != "*" and full in entries:
+        if name != "*" and full in entries:
             continue  # ``from course.solver import unique``: the module itself is allowed
-        elif not _allows(entries, module) and not (name != "*" and _allows(entries, full)):
+        if not _allows(entries, module) and not (name != "*" and _allows(entries, full)):
             out.append(Refused(node.lineno, module if name == "*" else full))
+        elif framework and name.startswith("_"):
+            out.append(Refused(node.lineno, full, "a private name"))
         elif framework and name != "*" and _is_module(full):
             out.append(Refused(node.lineno, full, "a module the contract does not name"))
     return out

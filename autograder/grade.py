@@ -331,7 +331,10 @@ def screen(impls, shown, scratch: Path) -> tuple:
         found = allowed_imports.refusals(folder, name, contracts)
         if found:
             copy = scratch / str(index)
-            shutil.copytree(folder, copy, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"), symlinks=True)
+            copy.mkdir(parents=True)
+            for path in sorted(folder.glob("*.py")):  # as compose: the package's own files, no symlink
+                if path.is_file() and not path.is_symlink():
+                    shutil.copyfile(path, copy / path.name)
             allowed_imports.neutralise(copy, found)
             impl = str(copy)
         out.append(impl)
