@@ -128,8 +128,11 @@ def test_pytest_never_imports_the_implementation(pytester, tmp_path):
     marks = tmp_path / "imported"
     marks.mkdir(mode=0o777)
     marks.chmod(0o777)
-    # no import statement (the grader refuses os in an exercise package): the pid from /proc
-    side_effect = (f'open({str(marks)!r} + "/{{name}}-" + open("/proc/self/stat").read().split()[0], "w").close()\n')
+    # no import statement (the grader refuses os in an exercise package): the pid from /proc; a child running
+    # as another user may not write there, and need not: only the pytest process's pid counts
+    side_effect = ('try:\n'
+                   f'    open({str(marks)!r} + "/{{name}}-" + open("/proc/self/stat").read().split()[0], "w").close()\n'
+                   'except OSError:\n    pass\n')
     (folder / "__init__.py").write_text(side_effect.format(name="init"))
     (folder / "damping.py").write_text(side_effect.format(name="damping") + 'raise RuntimeError("imported!")\n'
                                        + (folder / "damping.py").read_text())
