@@ -53,8 +53,12 @@ def test_the_lazy_folder_scores_nothing_every_check_refused(lazy):
     results = grade(str(lazy), which="public")
     assert len(results) == len(all_checks())
     assert sum(r.score for r in results) == 0
+    # an exercise file's checks are not run; a run of several files (end_to_end) meets them unwritten
     refused = {r.name for r in results if r.status == "refused" and "refused before running" in r.message}
-    assert refused == {r.name for r in results}, sorted({r.name for r in results} - refused)[:5]
+    runs = {r.name for r in results if r.name not in refused}
+    assert {r.name.split(":")[0].split(".")[0] for r in results if r.name in runs} <= {"end_to_end", "pose_graph"}
+    assert all("refused before running" in r.message for r in results if r.name in runs), \
+        [r.message for r in results if r.name in runs and "refused before" not in r.message][:2]
     edge = next(r for r in results if r.exercise == "pose_graph_edge.edge_error_and_jacobians")
     assert edge.message.startswith("lazy/pose_graph_edge.py:") and "Allowed: numpy, scipy;" in edge.message
 
