@@ -323,7 +323,10 @@ def screen(impls, shown, scratch: Path) -> tuple:
     from autograder import allowed_imports
     from course.core.impl import BUILTIN, REPO_ROOT
 
-    contracts = allowed_imports.load_contracts()
+    try:
+        contracts = allowed_imports.load_contracts()
+    except allowed_imports.ContractError as exc:  # shipped data, as the expected outputs: the same report
+        raise expected_data.ExpectedDataError(str(exc)) from None
     out, refused = [], []
     for index, (impl, name) in enumerate(zip(impls, shown)):
         folder = REPO_ROOT / impl if impl in BUILTIN else Path(impl)
