@@ -228,10 +228,14 @@ def message(display: str, module: str, refused: list, entries) -> str:
         rest = refused[1:]
         more = (f"; and {len(rest)} more: " + ", ".join(f"line {r.line} {r.what}" for r in rest[:4])
                 + (", ..." if len(rest) > 4 else ""))
-    owner = f"{module}'s contract" if module != "__init__" else "the package's __init__.py"
+    if module == "__init__":
+        owner, outcome = "the package's __init__.py", "It is not run: the package is graded without it"
+    else:
+        owner = f"{module}'s contract"
+        outcome = ("Its checks score 0 until the file imports only these (derive the answer; do not call the "
+                   "framework's)")
     return (f"{display}:{first.line}: refused before running: imports {first.what}{why}, which {owner} does not "
-            f"allow{more}. Allowed: {shown(entries)}. Its checks score 0 until the file imports only these "
-            "(derive the answer; do not call the framework's)")
+            f"allow{more}. Allowed: {shown(entries)}. {outcome}")
 
 
 def refusals(folder, display: str = "", contracts_by_module: dict | None = None) -> dict:

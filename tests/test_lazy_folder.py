@@ -116,3 +116,17 @@ def test_an_assignment_tree_scores_nothing(tmp_path, python, name):
     for module in course.assignment(name).modules:
         if module not in course.assignment(name).solved:
             assert f"exercises/{module}.py:" in out.stdout, module
+
+
+def test_a_refused_package_init_is_said_once_and_the_package_graded_without_it(tmp_path):
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "__init__.py").write_text("import sys\n")
+    (folder / "curve_model.py").write_text((REPO_ROOT / "solutions" / "curve_model.py").read_text())
+    notices: list = []
+    results = grade(str(folder), only=["curve_model"], which="public", notices=notices)
+    assert all(r.full for r in results), [r.message for r in results if not r.full]
+    assert notices == ["mine/__init__.py:1: refused before running: imports sys, which the package's __init__.py "
+                       "does not allow. Allowed: numpy, scipy; from the standard library abc, bisect, cmath, "
+                       "collections, contextlib, copy, dataclasses, enum, functools, heapq, itertools, math, numbers, "
+                       "operator, typing, warnings. It is not run: the package is graded without it"]
