@@ -231,6 +231,20 @@ def test_hostile_submission_gets_what_it_deserves(bundle, stub_runs):
             assert (root / "source" / name).read_bytes() == archive.read(name), name
 
 
+@pytest.mark.slow
+def test_a_lazy_submission_is_refused_file_by_file(bundle):
+    """The lazy folder (every exercise calling the framework's code, tests/student_variants/lazy.py) scores 0."""
+    from student_variants.lazy import LAZY, lazy_text
+
+    files = {f"{m}.py": lazy_text((REPO_ROOT / "exercises" / f"{m}.py").read_text(), m) for m in LAZY}
+    _, results, _ = run_autograder(bundle, "lazy", files)
+    assert results["tests"] and results["score"] == 0
+    assert all("refused before running" in t["output"] for t in results["tests"]), \
+        [t["name"] for t in results["tests"] if "refused before running" not in t["output"]][:5]
+    edge = next(t for t in results["tests"] if t["name"].startswith("pose_graph_edge."))
+    assert "pose_graph_edge.py:" in edge["output"] and "Allowed: numpy, scipy;" in edge["output"]
+
+
 def test_no_exercise_files_gives_a_message(bundle):
     _, results, _ = run_autograder(bundle, "empty", {"notes/readme.txt": "hello", "main.py": "print(1)"})
     assert results["score"] == 0 and results["tests"] == []
