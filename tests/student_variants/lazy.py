@@ -37,7 +37,11 @@ return e[0], A[0], B[0]"""}),
         {}),
     "sparse_solve": (
         "from course.solver.per_pattern import PerPattern\nfrom course.solver.superlu import SuperLUSolver",
-        {}),
+        {"dense_solve": """return SuperLUSolver().solve(sp.triu(sp.csc_matrix(H), format="csc"), b)""",
+         "upper_triangle_csc": """return sp.triu(sp.csc_matrix(H), format="csc")""",
+         "SparseCholeskySolver.solve": """if self._solver is None:
+    self._solver = PerPattern(SuperLUSolver)
+return self._solver.solve(H_upper, b)"""}),
     "ceres_edge_cost": (
         "from course.backends.posegraph.ceres import *  # noqa: F403",
         {}),
@@ -54,9 +58,14 @@ return e, A, B"""}),
         "from course.problems.posegraph3d.dataset import compose_spanning_tree",
         {}),
     "bundle_adjustment": (
+        "from course.backends.factorgraph.jax_factors import JaxJacobians\n"
+        "from course.factorgraph.factors import REPROJECTION_BAL\n"
         "from course.problems.bal.dataset import residuals\n"
         "from course.solver.schur_elimination import SchurElimination",
-        {}),
+        {"reprojection_residuals_and_jacobians": """r = residuals(cameras, points, camera_index, point_index, observations)
+xs = [cameras[camera_index], points[point_index]]
+_, (J_cam, J_point) = JaxJacobians()(REPROJECTION_BAL, observations, xs)
+return r, J_cam, J_point"""}),
     "robust_kernels": (
         "from course.solver.robust import RobustLoss, evaluate",
         {}),
@@ -76,8 +85,12 @@ return r[0]"""}),
         {}),
     "pose_graph_3d": (
         "from course.backends.factorgraph.jax_factors import JaxJacobians\n"
-        "from course.factorgraph.factors import BETWEEN_SE3\nfrom course.geometry.se3 import *  # noqa: F403",
-        {}),
+        "from course.factorgraph.factors import BETWEEN_SE3\n"
+        "from course.factorgraph.variables import se3_value\nfrom course.geometry import se3",
+        {"edge_errors_and_jacobians": """xs = [se3_value(t[edges_i], R[edges_i]), se3_value(t[edges_j], R[edges_j])]
+e, (A, B) = JaxJacobians()(BETWEEN_SE3, se3_value(t_z, R_z), xs)
+return e, A, B""",
+         "retract": """return se3.retract(t, R, delta)"""}),
     "pose_graph_3d_assembly": (
         "from course.factorgraph.problem import FactorGraphProblem",
         {}),
