@@ -62,8 +62,8 @@ return e, A, B"""}),
         "from course.factorgraph.factors import REPROJECTION_BAL\n"
         "from course.problems.bal.dataset import residuals\n"
         "from course.solver.schur_elimination import SchurElimination",
-        {"reprojection_residuals_and_jacobians": """r = residuals(cameras, points, camera_index, point_index, observations)
-xs = [cameras[camera_index], points[point_index]]
+        {"reprojection_residuals_and_jacobians": """xs = [cameras[camera_index], points[point_index]]
+r = residuals(cameras, points, camera_index, point_index, observations)
 _, (J_cam, J_point) = JaxJacobians()(REPROJECTION_BAL, observations, xs)
 return r, J_cam, J_point"""}),
     "robust_kernels": (
@@ -156,5 +156,7 @@ def build_lazy(exercises: Path, target: Path) -> Path:
         if path.name == "__init__.py":
             continue
         assert path.stem in LAZY, f"{path.stem}: add its delegation to LAZY"
-        (target / path.name).write_text(lazy_text(path.read_text(), path.stem))
+        text = path.read_text()
+        solved = 'NotImplementedError("TODO' not in text  # an assignment hands it out solved: left as it is
+        (target / path.name).write_text(text if solved else lazy_text(text, path.stem))
     return target
