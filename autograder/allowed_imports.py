@@ -12,8 +12,9 @@ Entries are module names (a package allows its submodules: ``scipy`` allows ``sc
 and sibling exercise files, written as they are imported, relatively (``.pose_graph_edge``).
 Besides them every file may import the harmless part of the standard library,
 :data:`STANDARD`; nothing else: not the rest of ``course``, nor ``autograder``, ``solutions``,
-``exercises``, the peers (pyceres, pycolmap, g2o, gtsam) or JAX, nor ``importlib``, ``os``,
-``sys``, ``subprocess``, ``ctypes``, ``inspect`` (they reach every loaded module).
+``exercises``, the peers (pyceres, pycolmap, g2o, gtsam; ``ceres_edge_cost``, a Ceres cost, names
+pyceres) or JAX, nor ``importlib``, ``os``, ``sys``, ``subprocess``, ``ctypes``, ``inspect`` (they
+reach every loaded module). A framework module the contract names gives its public names only.
 
 :func:`scan` reads a file's syntax tree, never runs it: ``import`` and ``from ... import``
 statements (relative ones too), and ``__import__("x")`` / ``importlib.import_module("x")``
