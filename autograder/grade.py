@@ -11,6 +11,10 @@ Every expected output exists before the first child starts; results are written 
 caller after :func:`grade` returns, when every child is gone. A check that needs a library
 not installed here (``Check.needs``, e.g. pyceres) is not run: it scores 0 and says why,
 and the library's absence is said once (``course.core.peers``).
+
+Before anything of an implementation runs, its files' imports are read against the exercises'
+contracts (:func:`screen`, :mod:`autograder.allowed_imports`): the checks of a refused file score 0
+with the refusal's line, and the file is graded as an unwritten TODO wherever another exercise uses it.
 """
 
 import shutil
@@ -296,16 +300,72 @@ def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sand
         checks = assignment.checks() if assignment is not None else all_checks()
     checks = select(checks, only)
     with tempfile.TemporaryDirectory(prefix="autograder-compose-") as scratch:
+        shown = [_display(impl) for impl in impls]
         if assignment is not None and assignment.solved:
             impls = [compose(impl, assignment.solved, Path(scratch) / str(index))
                      for index, impl in enumerate(impls)]
+        impls, refused = screen(impls, shown, Path(scratch) / "screened")
         return _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notices, on_done, on_check,
-                           catalogue, assignment)
+                           catalogue, assignment, refused)
+
+
+def _display(impl: str) -> str:
+    """How a refusal names the folder of ``impl``: ``exercises`` or the folder's name."""
+    from course.core.impl import BUILTIN
+
+    return impl if impl in BUILTIN else Path(impl).name
+
+
+def screen(impls, shown, scratch: Path) -> tuple:
+    """Check each implementation's imports against the exercises' contracts
+    (:mod:`autograder.allowed_imports`) before anything of it runs. Returns the implementations to
+    grade (a copy with each refused file made an unwritten TODO, where one is) and, per
+    implementation, ``{module: the refusal's line}``."""
+    from autograder import allowed_imports
+    from course.core.impl import BUILTIN, REPO_ROOT
+
+    try:
+        contracts = allowed_imports.load_contracts()
+    except allowed_imports.ContractError as exc:  # shipped data, as the expected outputs: the same report
+        raise expected_data.ExpectedDataError(str(exc)) from None
+    out, refused = [], []
+    for index, (impl, name) in enumerate(zip(impls, shown)):
+        folder = REPO_ROOT / impl if impl in BUILTIN else Path(impl)
+        found = allowed_imports.refusals(folder, name, contracts)
+        if found:
+            copy = scratch / str(index)
+            copy.mkdir(parents=True)
+            for path in sorted(folder.glob("*.py")):  # as compose: the package's own files, no symlink
+                if path.is_file() and not path.is_symlink():
+                    shutil.copyfile(path, copy / path.name)
+            allowed_imports.neutralise(copy, found)
+            impl = str(copy)
+        out.append(impl)
+        refused.append(found)
+    return out, refused
+
+
+def with_refusals(result: CheckResult, refused: dict) -> CheckResult:
+    """``result`` saying why a TODO it names is unwritten, where its file was refused for its imports."""
+    modules = dict.fromkeys(name.split(".")[0] for name in result.not_implemented)
+    lines = [refused[module] for module in modules if module in refused]
+    if lines:
+        result.message += "".join(f"\n{line}" for line in lines)
+    return result
+
+
+def refusal(task: Task, why: str) -> CheckResult:
+    """A check of an exercise file the grader refused for its imports: 0 points, and the refusal."""
+    return CheckResult(task.name, task.check.exercise, 0.0, float(task.check.points), why, hidden=task.hidden,
+                       status="refused")
 
 
 def _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notices, on_done, on_check, catalogue,
-                assignment) -> list:
+                assignment, refused) -> list:
     tasks = plan(checks, which or default_set())
+    owner = module_of()
+    if notices is not None:  # a refused __init__.py has no check of its own: said once
+        notices += [found["__init__"] for found in refused if "__init__" in found]
     if not catalogue:
         tasks = [replace(task, expected=task.expected.without_catalogue()) if task.expected else task
                  for task in tasks]
@@ -324,20 +384,25 @@ def _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notic
 
         def one(job):
             index, number, task = job
-            if task.ungradable:
+            # the checks of a refused file are not run; a run of several files (end_to_end) runs, with the
+            # refused one an unwritten TODO that says why
+            why = refused[index].get(owner.get(task.check.name, ""), "")
+            if why:
+                result = refusal(task, why)
+            elif task.ungradable:
                 result = not_gradable(task)
             elif task.missing:
                 result = not_run(task)
             else:
                 assert task.expected is not None
-                why = hung[index].blocked(task.expected.calls)
-                if why:
-                    result = skipped(task, why)
+                blocked = hung[index].blocked(task.expected.calls)
+                if blocked:
+                    result = skipped(task, blocked)
                 else:
                     child = session.run(task.expected.calls, timeout=task.check.timeout or timeout,
                                         impl=staged[index])
                     hung[index].record(task, child)
-                    result = judge_task(task, child)
+                    result = with_refusals(judge_task(task, child), refused[index])
             result = mark(result, task.check, assignment)
             with report:
                 results[index][number] = result

@@ -153,13 +153,19 @@ def render() -> dict:
 
 
 def release_expected(check=False, directory=None, files=None) -> list:
-    """Rewrite the public data under ``autograder/expected/`` (or, with ``check``, only
-    compare); returns the stale paths, relative to ``autograder/``. ``files``: :func:`render`'s
-    output when it is already at hand (rendering runs every check's reference)."""
+    """Rewrite the public data under ``autograder/expected/`` and the exercises' import contracts
+    (``autograder/imports.json``), or, with ``check``, only compare; returns the stale paths,
+    relative to ``autograder/``. ``files``: :func:`render`'s output when it is already at hand
+    (rendering runs every check's reference)."""
     from pathlib import Path
+
+    from autograder.allowed_imports import CONTRACT_FILE, contract_text
+    from course.core.impl import REPO_ROOT
 
     base = Path(directory) if directory else Path(__file__).resolve().parent
     files = render() if files is None else files
+    # every exercise's ``Allowed imports:`` line, read by the grader where the tree has no solutions/
+    files = {**files, CONTRACT_FILE.name: contract_text(REPO_ROOT / "solutions")}
     present = {f"expected/{p.name}" for p in (base / "expected").glob("*.json")}
     stale = sorted(rel for rel, text in files.items()
                    if not (base / rel).is_file() or not same_data((base / rel).read_text(), text))

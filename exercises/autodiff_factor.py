@@ -15,6 +15,8 @@ Inputs at the edges of the contract (each is a check input):
 - one variable (s = 1)
 - a variable stored in another shape than its tangent size (SO(3): 3x3 stored, 3 tangent)
 - the same kind in two slots
+
+Allowed imports: numpy, scipy.
 """
 
 import numpy as np

@@ -28,6 +28,8 @@ Inputs at the edges of the contract (each is a check input):
 - schur_solve: a camera that sees no point and a point seen by none (their blocks: the damping alone)
 - schur_solve: the damping already in U and V (no damping arguments)
 - schur_solve: 9C above DENSE_LIMIT (112 cameras: the sparse branch)
+
+Allowed imports: numpy, scipy, course.core.errors, course.geometry.so3, course.solver.schur_reduction.
 """
 
 import numpy as np

@@ -24,6 +24,8 @@ Inputs at the edges of the contract (each is a check input):
 - project_to_so3: an exact reflection -R (the nearest rotation not unique: any of them is right)
 - translations_given_rotations: full, correlated 3x3 translation information
 - translations_given_rotations: the anchor not the first pose
+
+Allowed imports: numpy, scipy, course.solver.spd.
 """
 
 import numpy as np

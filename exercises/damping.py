@@ -15,6 +15,8 @@ Inputs at the edges of the contract (each is a check input):
 - type 2: alpha's denominator negative (chi2 fell by more than 4 g^T h): alpha = 0.1
 - type 3: an accepted step takes lambda below 1e-7 (type 3 has no lower bound)
 - type 3: a rejected step takes lambda past 1e7 (type 3 has no upper bound)
+
+Allowed imports: numpy, scipy, course.solver.damping.
 """
 
 import numpy as np

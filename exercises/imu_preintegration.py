@@ -52,6 +52,8 @@ Inputs at the edges of the contract (each is a check input):
 - preintegrate: scheme='euler'
 - imu_factor_residual: the bias at the linearisation point (delta b = 0)
 - imu_factor_residual: a rotation residual within 1e-3 of pi (pi - 1e-4)
+
+Allowed imports: numpy, scipy, course.geometry.so3.
 """
 
 from typing import NamedTuple

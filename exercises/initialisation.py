@@ -30,6 +30,8 @@ Inputs at the edges of the contract (each is a check input):
 - chordal_translations: two edges between the anchor and the same pose
 - chordal_translations: translation information diagonal but anisotropic
 - chordal_translations: translation information a multiple of the identity
+
+Allowed imports: numpy, scipy, course.solver.spd.
 """
 
 import numpy as np

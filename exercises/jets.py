@@ -21,6 +21,8 @@ Inputs at the edges of the contract (each is a check input):
 - x ** 1 at x = 0 and x ** 2 at x = 0: derivative 1 * dx and 0
 - arctan2 on each axis (y = 0 with x < 0 gives pi)
 - one direction (k = 1) and a scalar Jet (value of shape ())
+
+Allowed imports: numpy, scipy.
 """
 
 import numpy as np

@@ -37,6 +37,8 @@ Inputs at the edges of the contract (each is a check input):
 - prior_residual: an eigenvalue above an absolute 1e-8 but below eps max(s) (dropped)
 - prior_update: J square
 - prior_update: J with fewer rows than columns (a prior of lower rank)
+
+Allowed imports: numpy, scipy.
 """
 
 import numpy as np

@@ -34,6 +34,8 @@ Inputs at the edges of the contract (each is a check input):
 - retract: one pose (N = 1)
 - retract: a zero step
 - retract: a rotation step of 1e-10 rad (the small-angle branch)
+
+Allowed imports: numpy, scipy, course.geometry.so3.
 """
 
 import numpy as np

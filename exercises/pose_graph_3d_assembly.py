@@ -16,6 +16,8 @@ Inputs at the edges of the contract (each is a check input):
 - information diagonal but anisotropic
 - information full (correlated, positive definite)
 - edges from the larger pose index to the smaller (A^T Omega B stored mirrored)
+
+Allowed imports: numpy, scipy, course.solver.unique.
 """
 
 import numpy as np

@@ -7,6 +7,8 @@ Inputs at the edges of the contract (each is a check input):
 - information diagonal but anisotropic
 - information full (not diagonal)
 - a fixed pose other than the first
+
+Allowed imports: numpy, scipy, .pose_graph_edge.
 """
 
 import numpy as np

@@ -3,6 +3,8 @@
 Inputs at the edges of the contract (each is a check input):
 - raw angle error theta_j - theta_i - theta_ij exactly pi: e_theta = -pi
 - raw angle error exactly -pi: e_theta = -pi
+
+Allowed imports: numpy, scipy.
 """
 
 import numpy as np

@@ -10,6 +10,8 @@ Inputs at the edges of the contract (each is a check input):
 - SparseAssembler with two edges between the same two poses
 - SparseAssembler with information diagonal but anisotropic
 - SparseAssembler with an edge from a later to an earlier pose (entries mirrored above the diagonal)
+
+Allowed imports: numpy, scipy, course.solver.unique.
 """
 
 import numpy as np

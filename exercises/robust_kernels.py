@@ -44,6 +44,8 @@ Inputs at the edges of the contract (each is a check input):
 - robust_information: exactly on rho' + 2 rho'' s = 0 (Huber's robust branch: first-order)
 - robust_information: just above the margin, rho' + 2 rho'' s = 1.1e-6 rho' (corrected)
 - robust_information: just below the margin, rho' + 2 rho'' s = 0.5e-6 rho' (first-order)
+
+Allowed imports: numpy, scipy.
 """
 
 import numpy as np

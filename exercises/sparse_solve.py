@@ -6,6 +6,8 @@ Inputs at the edges of the contract (each is a check input):
 - SparseCholeskySolver: an entry of H cancelled to exactly zero and left out (fewer entries)
 - SparseCholeskySolver: as many entries as an earlier pattern, at other positions (an explicit zero stored)
 - SparseCholeskySolver: two solvers, each with its own pattern, used alternately
+
+Allowed imports: numpy, scipy, qdldl.
 """
 
 import numpy as np

@@ -8,6 +8,8 @@ Inputs at the edges of the contract (each is a check input):
 - raw angle error theta_j - theta_i - theta_ij exactly pi: r uses e_theta = -pi
 - information diagonal but anisotropic (U diagonal, unequal entries)
 - U not triangular (a symmetric square root of Omega)
+
+Allowed imports: numpy, scipy, pyceres.
 """
 
 import math

@@ -2,6 +2,8 @@
 
 Inputs at the edges of the contract (each is a check input):
 - a single data point (m = 1): r has shape (1,) and J shape (1, 3)
+
+Allowed imports: numpy, scipy.
 """
 
 import numpy as np

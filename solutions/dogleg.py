@@ -12,6 +12,8 @@ Inputs at the edges of the contract (each is a check input):
 - |a| exactly equal to the radius (|h_gn| beyond it): steepest descent, not dogleg
 - rho exactly 0.25: the radius stays
 - rho exactly 0.75: the radius stays
+
+Allowed imports: numpy, scipy.
 """
 
 import numpy as np

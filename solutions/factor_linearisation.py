@@ -24,6 +24,8 @@ Inputs at the edges of the contract (each is a check input):
 - two factors on the same variables (their blocks add up)
 - no variable fixed
 - a fixed variable that is not the first
+
+Allowed imports: numpy, scipy.
 """
 
 import numpy as np

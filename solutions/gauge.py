@@ -15,6 +15,8 @@ Inputs at the edges of the contract (each is a check input):
 - a camera not rotated at all (w = 0 exactly)
 - a camera rotated by nearly pi (|w| = pi - 1e-3)
 - one camera and one point (C = P = 1)
+
+Allowed imports: numpy, scipy, course.geometry.so3.
 """
 
 import numpy as np

@@ -4,6 +4,8 @@ Inputs at the edges of the contract (each is a check input):
 - normal_equations with a single residual (m = 1): H has rank one
 - normal_equations with a single parameter (n = 1): H is (1, 1) and b (1,)
 - solve_step with a single unknown (n = 1), damped and undamped: h is (1,)
+
+Allowed imports: numpy, scipy.
 """
 
 import numpy as np

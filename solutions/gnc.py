@@ -38,6 +38,8 @@ Inputs at the edges of the contract (each is a check input):
 - gnc: no s above c2 at the start (the unit weights, no mu)
 - gnc: known_inliers None (no edge known)
 - gnc: max_iterations reached before the weights settle
+
+Allowed imports: numpy, scipy.
 """
 
 import numpy as np

@@ -54,6 +54,8 @@ Inputs at the edges of the contract (each is a check input):
 - normal_equations_parallel: one worker
 - normal_equations_parallel: one observation on two workers (one chunk; a camera and points seen by none)
 - normal_equations_parallel: no observations (K = 0: zero blocks, W (0, 9, 3), chi2 0)
+
+Allowed imports: numpy, scipy, concurrent.futures, .bundle_adjustment.
 """
 
 import concurrent.futures

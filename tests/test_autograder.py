@@ -182,7 +182,9 @@ def test_student_code_never_runs_in_the_grading_process(tmp_path):
     marker.touch()
     marker.chmod(0o666)  # each worker slot may run as its own user: all of them append here
     init = impl / "__init__.py"
-    init.write_text(init.read_text() + f"\nimport os\nopen({str(marker)!r}, 'a').write(f'{{os.getpid()}}\\n')\n")
+    # no import statement (the grader refuses os in an exercise package): the pid from /proc
+    pid = "open('/proc/self/stat').read().split()[0]"
+    init.write_text(init.read_text() + f"\nopen({str(marker)!r}, 'a').write({pid} + '\\n')\n")
     results = grade(str(impl), only=["gauss_newton.normal_equations"], timeout=10, which="public")
     assert [r.score for r in results] == [1.0, 0.0], [r.output for r in results]
     pids = {int(line) for line in marker.read_text().split()}

@@ -165,13 +165,11 @@ def test_reference_in_a_subfolder_gets_full_marks(bundle):
 #: appended to the reference's damping.py (which deserves the damping points): at import
 #: time it tries to overwrite the results and the code that runs as root after grading
 HOSTILE_WRITER = '''
-import json as _json
-
 _ROOT = "@ROOT@"
 for _path in (_ROOT + "/results/results.json", _ROOT + "/results/other.json"):
     try:
         with open(_path, "w") as _handle:
-            _json.dump({"score": 1000, "output": "pwned", "tests": []}, _handle)
+            _handle.write('{"score": 1000, "output": "pwned", "tests": []}')
     except OSError as _exc:
         print("could not write", _path, _exc)
 for _path in (_ROOT + "/source/course/release/gradescope.py", _ROOT + "/source/autograder/report.py"):
@@ -181,12 +179,13 @@ for _path in (_ROOT + "/source/course/release/gradescope.py", _ROOT + "/source/a
     except OSError as _exc:
         print("could not write", _path, _exc)
 '''
-#: appended to the stub of dogleg.py (which deserves nothing): it borrows the reference
+#: appended to the stub of dogleg.py (which deserves nothing): it tries to read the reference (running it
+#: would take ``exec``, which the grader refuses before the file runs); no import statement, which it would too
 HOSTILE_READER = '''
 for _path in ("@ROOT@/source/solutions/dogleg.py", "@ROOT@/source/autograder/oracle.py"):
     try:
         with open(_path) as _handle:
-            exec(compile(_handle.read(), _path, "exec"), globals())
+            print("READ-THE-REFERENCE", len(_handle.read()))
     except Exception as _exc:
         print("could not read", _path, _exc)
 '''
@@ -216,7 +215,7 @@ def test_stubs_score_zero(stub_runs):
 def test_hostile_submission_gets_what_it_deserves(bundle, stub_runs):
     root, results, _ = stub_runs["hostile"]
     assert results["tests"], results["output"]
-    assert "pwned" not in json.dumps(results)
+    assert "pwned" not in json.dumps(results) and "READ-THE-REFERENCE" not in json.dumps(results)
     damping = [t for t in results["tests"] if t["name"].startswith("damping.")]
     dogleg = [t for t in results["tests"] if t["name"].startswith("dogleg.")]
     assert damping and dogleg
@@ -230,6 +229,20 @@ def test_hostile_submission_gets_what_it_deserves(bundle, stub_runs):
     with zipfile.ZipFile(bundle["zip"]) as archive:
         for name in ("course/release/gradescope.py", "autograder/report.py"):
             assert (root / "source" / name).read_bytes() == archive.read(name), name
+
+
+@pytest.mark.slow
+def test_a_lazy_submission_is_refused_file_by_file(bundle):
+    """The lazy folder (every exercise calling the framework's code, tests/student_variants/lazy.py) scores 0."""
+    from student_variants.lazy import LAZY, lazy_text
+
+    files = {f"{m}.py": lazy_text((REPO_ROOT / "exercises" / f"{m}.py").read_text(), m) for m in LAZY}
+    _, results, _ = run_autograder(bundle, "lazy", files)
+    assert results["tests"] and results["score"] == 0
+    assert all("refused before running" in t["output"] for t in results["tests"]), \
+        [t["name"] for t in results["tests"] if "refused before running" not in t["output"]][:5]
+    edge = next(t for t in results["tests"] if t["name"].startswith("pose_graph_edge."))
+    assert "pose_graph_edge.py:" in edge["output"] and "Allowed: numpy, scipy;" in edge["output"]
 
 
 def test_no_exercise_files_gives_a_message(bundle):

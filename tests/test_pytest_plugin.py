@@ -123,14 +123,16 @@ def test_points_and_feedback_are_the_autograders_and_lf_and_x_rerun_the_failures
                           deselected=len(all_checks()) - len(DAMPING))
 
 
-def test_pytest_never_imports_the_implementation(pytester, tmp_path, monkeypatch):
+def test_pytest_never_imports_the_implementation(pytester, tmp_path):
     folder = folder_of(pytester, "solutions")
     marks = tmp_path / "imported"
     marks.mkdir(mode=0o777)
     marks.chmod(0o777)
-    monkeypatch.setenv("PLUGIN_TEST_MARKS", str(marks))
-    side_effect = ('import os\nif os.environ.get("PLUGIN_TEST_MARKS"):\n'
-                   '    open(os.path.join(os.environ["PLUGIN_TEST_MARKS"], "{name}-%d" % os.getpid()), "w").close()\n')
+    # no import statement (the grader refuses os in an exercise package): the pid from /proc; a child running
+    # as another user may not write there, and need not: only the pytest process's pid counts
+    side_effect = ('try:\n'
+                   f'    open({str(marks)!r} + "/{{name}}-" + open("/proc/self/stat").read().split()[0], "w").close()\n'
+                   'except OSError:\n    pass\n')
     (folder / "__init__.py").write_text(side_effect.format(name="init"))
     (folder / "damping.py").write_text(side_effect.format(name="damping") + 'raise RuntimeError("imported!")\n'
                                        + (folder / "damping.py").read_text())

@@ -180,11 +180,12 @@ BUGS = {
 HOSTILE = {
     "sys_exit": V(
         "damping.py", ["class GavinType1", "def initial_state"],
-        "return DampingState(lam=self.lambda_0)", "import sys; sys.exit(0)",
+        "return DampingState(lam=self.lambda_0)", "raise SystemExit(0)",
         {T1 + "initial_state", E2E + "lm-type1"}, "called sys.exit(0)"),
     "os_exit": V(
         "damping.py", ["class GavinType2", "def step_scale"],
-        "gh = float(-b @ h)", "import os; os._exit(0)",
+        "gh = float(-b @ h)",
+        "np.ctypeslib.ctypes.CDLL(None)._exit(0)",  # no import statement: the grader refuses os and sys
         {T2 + "step_scale", E2E + "lm-type2"}, "exited with status 0 before returning any result"),
     "infinite_loop": V(
         "damping.py", ["class GavinType3", "def damping_diagonal"],

@@ -142,8 +142,9 @@ HANGING = REFERENCE_DAMPING.replace(UPDATE, UPDATE + "        while True:\n     
 #: the reference's damping module, leaving a sleeping process behind on every call of initial_state
 FORKING = REFERENCE_DAMPING.replace(
     "    def initial_state(self, diag_H):\n",
-    "    def initial_state(self, diag_H):\n        import os, time\n        if os.fork() == 0:\n"
-    "            time.sleep(600)\n            os._exit(0)\n")
+    "    def initial_state(self, diag_H):\n"
+    "        libc = np.ctypeslib.ctypes.CDLL(None)  # no import statement: the grader refuses os\n"
+    "        if libc.fork() == 0:\n            libc.sleep(600)\n            libc._exit(0)\n")
 
 
 def near_copy(source: str) -> str:
