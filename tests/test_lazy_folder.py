@@ -61,6 +61,10 @@ def test_the_lazy_folder_scores_nothing_every_check_refused(lazy):
         [r.message for r in results if r.name in runs and "refused before" not in r.message][:2]
     edge = next(r for r in results if r.exercise == "pose_graph_edge.edge_error_and_jacobians")
     assert edge.message.startswith("lazy/pose_graph_edge.py:") and "Allowed: numpy, scipy;" in edge.message
+    from autograder.classroom.gradebook import status_of
+
+    assert status_of(results) == "refused imports"  # what the class's grades.csv says of it
+    assert status_of([r for r in results if r.status != "refused"]) == "ok"
 
 
 def test_pytest_reports_the_refusal(lazy):

@@ -32,7 +32,7 @@ from pathlib import Path
 from autograder import point_grid, report
 from course.core import jsonio
 
-STATUSES = ("ok", "timed out", "crashed", "no files", "no submission")
+STATUSES = ("ok", "refused imports", "timed out", "crashed", "no files", "no submission")
 NO_SUBMISSION = "no submission"
 #: what a record keeps of each roster row of its student(s)
 ROSTER_FIELDS = ("name", "sid", "email", "login", "canvas_id", "section")
@@ -51,11 +51,15 @@ def cell(value) -> str:
 
 
 def status_of(results) -> str:
-    """The submission's status from its check results (:class:`autograder.grade.CheckResult`)."""
+    """The submission's status from its check results (:class:`autograder.grade.CheckResult`): a file
+    refused for its imports (:mod:`autograder.allowed_imports`) is "refused imports", for the instructor
+    to see in ``grades.csv`` beside the 0 of its checks."""
     kinds = {r.status for r in results}
     if "timeout" in kinds or any(r.status == "not run" and "timed out" in r.message for r in results):
         return "timed out"
-    return "crashed" if "crashed" in kinds else "ok"
+    if "crashed" in kinds:
+        return "crashed"
+    return "refused imports" if "refused" in kinds else "ok"
 
 
 def record(sub, results, seconds: float, graded: str, grading: dict) -> dict:

@@ -776,7 +776,8 @@ def advice(runs, kind: str, impl) -> list:
     Before them, whatever the implementation, the whole message of every other back end's failed row."""
     lines = []
     students = [r for r in runs if runs_students_code(r)]
-    others = [r for r in runs if not runs_students_code(r) and r.backend != OURS and r.not_run.startswith("failed:")]
+    others = [r for r in runs if r.backend != OURS and r.not_run.startswith("failed:")
+              and (not runs_students_code(r) or str(impl) == "solutions")]  # the reference's rows are never judged
     for backend in dict.fromkeys(r.backend for r in others):
         for reason in dict.fromkeys(r.not_run for r in others if r.backend == backend):
             methods = [r.method for r in others if r.backend == backend and r.not_run == reason]

@@ -237,7 +237,7 @@ class FactorGraphProblem:
                                 self.graph.name, "variable")
         except SingularSystemError as exc:
             free = self.free_gauges()
-            if not free:
+            if not free or "gauge is free" in str(exc):
                 raise
             parts = "; ".join(f"the {n} variable(s) joined to {key!r}" for n, key in free[:3])
             raise SingularSystemError(
