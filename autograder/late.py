@@ -54,7 +54,7 @@ class Lateness:
 
 #: where a student's due date comes from
 ASSIGNMENT_DUE = "the assignment's due date"
-CONFIGURED = "an extension in the course configuration"
+CONFIGURED = "an extension in the course configuration or the roster"
 GRANTED = "an extension on Gradescope"
 BASES = (ASSIGNMENT_DUE, CONFIGURED, GRANTED)
 

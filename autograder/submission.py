@@ -42,10 +42,11 @@ def _regular(path: Path) -> bool:
         return False
 
 
-def locate_submission(submission, modules) -> Located:
+def locate_submission(submission, modules, graded=None) -> Located:
     """The folder under ``submission`` (itself included) holding the most files named like
     an exercise module (regular files, not symlinks); ties go to the shallowest, then to
-    the first by name. ``message`` says what was found, or that nothing was."""
+    the first by name. ``message`` says what was found, or that nothing was, and which of
+    ``graded`` (the files an assignment grades; default every module) are missing."""
     submission = Path(submission)
     wanted = set(modules)
     best = None
@@ -68,7 +69,7 @@ def locate_submission(submission, modules) -> Located:
     _, where, found = best
     shown = where.relative_to(submission).as_posix()
     shown = "the top level of the submission" if shown == "." else f"{shown}/"
-    missing = sorted(wanted - set(found))
+    missing = sorted((wanted if graded is None else set(graded)) - set(found))
     message = f"Graded the exercise files in {shown}: {', '.join(found)}."
     if missing:
         message += (f"\nNot in the submission, graded as the unwritten stubs (0 points): {', '.join(missing)}.")

@@ -313,7 +313,9 @@ def main(argv=None) -> int:
     results_dir = out / "results"
     results_dir.mkdir(exist_ok=True)
     modules = submission.exercise_modules(REPO_ROOT)
-    where = {sub.id: submission.locate_submission(sub.path, modules) for sub in mine}
+    graded_files = None if assignment_of(args.assignment, args.config) is None else \
+        [f"{m}.py" for m in assignment_of(args.assignment, args.config).modules]
+    where = {sub.id: submission.locate_submission(sub.path, modules, graded_files) for sub in mine}
     hashes = {sub.id: submission.content_hash(where[sub.id]) for sub in mine}
 
     def asked(sub) -> bool:

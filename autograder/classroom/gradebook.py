@@ -30,6 +30,7 @@ import json
 from pathlib import Path
 
 from autograder import point_grid, report
+from autograder.late import ASSIGNMENT_DUE
 from course.core import jsonio
 
 STATUSES = ("ok", "refused imports", "timed out", "crashed", "no files", "no submission")
@@ -159,13 +160,20 @@ def adjust(data: dict, overrides=(), lateness=None, due=None, submitted=None, so
     score = before
     if lateness is not None:
         score = point_grid.scaled(before, lateness.fraction)
-        extra["late"] = {"due": due.isoformat() if due is not None else None,
+        applied = lateness.due if getattr(lateness, "due", None) is not None else due
+        extended = getattr(lateness, "basis", "") not in ("", ASSIGNMENT_DUE)
+        extra["late"] = {"due": applied.isoformat() if applied is not None else None,
+                         "basis": getattr(lateness, "basis", ""),
                          "days": round(lateness.late.total_seconds() / 86400.0, 4),
                          "fraction": lateness.fraction, "penalty": point_grid.total((before, -score)),
                          "note": lateness.note}
+        whose = f" ({lateness.basis})" if extended else ""
         if lateness.late.total_seconds() > 0:
-            notes.insert(0, f"Late: submitted {extra['submitted_at']}, due {extra['late']['due']}: {lateness.note}; "
-                            f"{number(before)} points before the penalty, {number(score)} after.")
+            notes.insert(0, f"Late: submitted {extra['submitted_at']}, due {extra['late']['due']}{whose}: "
+                            f"{lateness.note}; {number(before)} points before the penalty, {number(score)} after.")
+        elif extended:
+            notes.insert(0, f"Submitted: on time (submitted {extra['submitted_at']}, "
+                            f"due {extra['late']['due']}{whose}).")
     else:
         extra["late"] = None
     for item in whole[-1:]:  # the instructor's total replaces what the checks and the penalty give
