@@ -147,6 +147,8 @@ def test_the_ch2_trees_readme_commands_work(ch2_tree, python, tmp_path):
     assert "Curve fit" in demo.stdout and "w10000" in demo.stdout
     assert "chapter 4 (bundle adjustment) is not handed out yet: skipped" in demo.stdout
     assert "chapter 6 (3D pose graphs) is not handed out yet: skipped" in demo.stdout
+    todo_line = next(line for line in demo.stdout.splitlines() if "stopped at a TODO" in line)
+    assert "dogleg" not in todo_line  # chapter 3's: nothing to write in this tree yet
     maximum = COURSE.assignment("ch2").maximum("public")
     stubs = _run(python, ch2_tree, "-m", "autograder")
     assert stubs.returncode == 0 and _total(stubs.stdout) == (0, maximum), stubs.stdout

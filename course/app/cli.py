@@ -208,8 +208,9 @@ def _ran(runs) -> list:
 
 
 def _todo(runs) -> list:
-    """The runs that stopped at an unwritten TODO (not those of a peer missing here)."""
-    return [r for r in runs if r.not_run.startswith("not implemented")]
+    """The runs that stopped at an unwritten TODO (not those of a peer missing here, nor of an exercise not
+    handed out yet in an assignment's tree: nothing for the student to write now)."""
+    return [r for r in runs if r.not_run.startswith("not implemented") and "not handed out yet" not in r.not_run]
 
 
 def cmd_demo(args) -> int:
