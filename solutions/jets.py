@@ -628,10 +628,12 @@ HINTS = {
         (``__rtruediv__``): ``Jet(c / b, _times(-c / b^2, db))``.""",
     ),
     "Jet.__pow__": (
-        """Expand ``(x + dx eps)^p`` to first order; then look at ``p = 0`` and ``p = 1`` at ``x = 0``,
-        where the general formula meets ``0 * inf``.""",
-        """``(x + dx eps)^p = x^p + p x^(p-1) dx eps``; ``x^0`` is the constant 1 and ``x^1`` is ``x``.""",
-        """``p == 0``: value 1, grad 0; ``p == 1``: a copy; else ``Jet(x**p, _times(p * x**(p - 1), dx))``.""",
+        """Expand ``(x + dx eps)^p`` to first order; then look at ``p = 0``, ``p = 1`` and ``0 < p < 1`` at
+        ``x = 0``, where the general formula meets ``0 * inf``.""",
+        """``(x + dx eps)^p = x^p + p x^(p-1) dx eps``; ``x^0`` is the constant 1 and ``x^1`` is ``x``; for
+        ``0 < p < 1`` at 0, as for sqrt, set the derivative to 0 where ``dx = 0``.""",
+        """``p == 0``: value 1, grad 0; ``p == 1``: a copy; else ``grad = _times(p * x**(p - 1), dx)`` (numpy's
+        divide warnings off), then ``Jet(x**p, np.where(dx == 0, 0, grad))``.""",
     ),
     "sqrt": (
         """The chain rule with ``f = sqrt``; then decide the value at ``x = 0``, where ``f'`` is infinite.""",
@@ -652,8 +654,10 @@ HINTS = {
         """``arctan2(y, x)`` is the angle of (x, y); differentiate it by y and by x (either may be a
         constant) and add the two terms.""",
         """``d atan2(y, x) / dy = x / (x^2 + y^2)``, ``d / dx = -y / (x^2 + y^2)``; the value is numpy's
-        ``arctan2`` (the quadrant matters).""",
-        """``Jet(np.arctan2(y, x), _times(x / r2, dy) - _times(y / r2, dx))`` with ``r2 = x^2 + y^2``.""",
+        ``arctan2`` (the quadrant matters). ``x^2 + y^2`` overflows beyond 1e154: scale x and y by
+        ``s = max(|x|, |y|)`` first.""",
+        """``Jet(np.arctan2(y, x), _times(xs / r, dy) - _times(ys / r, dx))`` with ``xs, ys = x / s, y / s``
+        and ``r = s (xs^2 + ys^2)`` (``= (x^2 + y^2) / s``), ``s = max(|x|, |y|)``.""",
     ),
     "matmul": (
         """The product rule for matrices, with the k directions as a last axis of the derivative;

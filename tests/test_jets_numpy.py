@@ -225,3 +225,33 @@ def test_a_residual_written_with_them_is_solved_alike_with_automatic_and_numeric
     a, n = minimize(auto, "lm-type3"), minimize(numeric, "lm-type3")
     assert a.final_chi2 == pytest.approx(n.final_chi2, rel=1e-6) and a.final_chi2 < 1e-2
     np.testing.assert_allclose(a.params, n.params, atol=1e-6)
+
+
+def test_the_graders_stand_in_jet_has_what_the_given_part_has_without_a_rule():
+    """``TracingJet`` (the autodiff_factor checks' Jet) gives what the real Jet gives for each operation
+    of the given part that needs no derivative rule of the exercise."""
+    from autograder.tasks.jets import TracingJet
+
+    X, Y = RNG.normal(size=(2, 3)), RNG.normal(size=(2, 3))
+    operations = [
+        lambda a, b: a.T, lambda a, b: a.transpose(1, 0), lambda a, b: np.transpose(a), lambda a, b: a.sum(axis=(0, 1)),
+        lambda a, b: np.sum(a, axis=0, keepdims=True), lambda a, b: np.mean(b, axis=-1), lambda a, b: a.mean(),
+        lambda a, b: abs(a), lambda a, b: np.abs(b), lambda a, b: np.where(a < b, a, b), lambda a, b: np.where(
+            a > 0, a, 0.5), lambda a, b: np.minimum(a, b), lambda a, b: np.maximum(a, 0.0),
+        lambda a, b: np.stack([a, b, np.ones((2, 3))], axis=1), lambda a, b: np.concatenate([a, X], axis=-1),
+        lambda a, b: np.concatenate([a, b], axis=None), lambda a, b: a - 2.0 * b + X, lambda a, b: X - a,
+        lambda a, b: np.float64(3.0) * a, lambda a, b: a[:, 1:] + b[..., :2], lambda a, b: a.reshape(3, 2).mT,
+        lambda a, b: -a,
+    ]
+    real, stand_in = seeded(X, Y), [TracingJet(j.value, j.grad) for j in seeded(X, Y)]
+    for index, f in enumerate(operations):
+        want, got = f(*real), f(*stand_in)
+        assert isinstance(got, TracingJet), index
+        np.testing.assert_array_equal(got.value, want.value, err_msg=str(index))
+        np.testing.assert_allclose(got.grad, want.grad, rtol=1e-15, atol=0, err_msg=str(index))
+    for f in (lambda a, b: (a < b, a >= 0.1, X > a, a == b, a != b), lambda a, b: (np.shape(a), np.ndim(a))):
+        for g, w in zip(f(*stand_in), f(*real)):
+            np.testing.assert_array_equal(g, w)
+    for rule in (lambda a, b: a * b, lambda a, b: a * X, lambda a, b: np.sin(a), lambda a, b: np.einsum("ij->i", a)):
+        with pytest.raises(TypeError, match="stand-in Jet"):
+            rule(*stand_in)
