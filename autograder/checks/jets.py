@@ -210,7 +210,8 @@ CHECKS = [
     check("jets.Jet", "product and quotient", 3, arithmetic, judge(f"the product and quotient rules ({RULES})")),
     check("jets.Jet", "powers", 2, powers, judge(
         "d(x^p) = p x^(p-1) dx", "at x = 0, p x^(p-1) dx meets 0 * inf = nan: x ** 0 is the constant 1 and x ** 1 "
-        "is x; for 0 < p < 1 the derivative is 0 where dx is 0 (as sqrt's), +-inf where it is not")),
+        "is x; for 0 < p < 1, where dx is 0 nothing depends on the seeds there, so the derivative is 0 (as "
+        "sqrt's); keep +-inf where dx is not 0")),
     check("jets.sqrt", "sqrt, also at 0", 2, roots, judge(
         "d sqrt(x) = dx / (2 sqrt(x)); at 0 see the docstring",
         "at x = 0 with a zero derivative, dx / (2 sqrt(x)) is 0 * inf = nan: nothing depends on the seeds there, "

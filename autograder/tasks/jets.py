@@ -260,7 +260,11 @@ def _multiply(a, b):
     return a * b if isinstance(a, TracingJet) else b * a
 
 
-_TRACING_UFUNCS = {
+def _compare(ufunc):
+    return lambda a, b: ufunc(_value(a), _value(b))
+
+
+_TRACING_UFUNCS: dict = {
     np.add: lambda a, b: a + b if isinstance(a, TracingJet) else b + a,
     np.subtract: lambda a, b: a - b if isinstance(a, TracingJet) else -(b - a),
     np.multiply: _multiply,
@@ -269,10 +273,9 @@ _TRACING_UFUNCS = {
     np.absolute: abs,
     np.minimum: lambda a, b: _where(~(_value(b) < _value(a)), a, b),
     np.maximum: lambda a, b: _where(~(_value(a) < _value(b)), a, b),
-    **{f: (lambda f: lambda a, b: f(_value(a), _value(b)))(f)
-       for f in (np.less, np.less_equal, np.greater, np.greater_equal, np.equal, np.not_equal)},
+    **{f: _compare(f) for f in (np.less, np.less_equal, np.greater, np.greater_equal, np.equal, np.not_equal)},
 }
-_TRACING_FUNCTIONS = {
+_TRACING_FUNCTIONS: dict = {
     np.stack: _stack, np.concatenate: _concatenate, np.where: _where,
     np.sum: lambda x, axis=None, keepdims=False: x.sum(axis, keepdims),
     np.mean: lambda x, axis=None, keepdims=False: x.mean(axis, keepdims),
