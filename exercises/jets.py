@@ -177,13 +177,13 @@ class Jet:
     def __ge__(self, other):
         return self.value >= _value(other)
 
-    def __eq__(self, other):  # type: ignore[override]
+    def __eq__(self, other):
         return self.value == _value(other)
 
-    def __ne__(self, other):  # type: ignore[override]
+    def __ne__(self, other):
         return self.value != _value(other)
 
-    __hash__ = None  # type: ignore[assignment]
+    __hash__ = None  # comparisons give arrays, as numpy's: no hash
 
     # --------------------------------------------------------------- yours: the derivative rules
 
