@@ -8,6 +8,16 @@ unchanged: numpy's functions (``np.sin(x)``, ``np.sqrt(x)``, ``x @ y``) call :me
 which sends them to the rules of this module; an array of Jets is one Jet with ``value`` of
 that shape (a batch of M rotation matrices is ``value`` (M, 3, 3), ``grad`` (M, 3, 3, k)).
 
+Given with the Jet, built from your rules (so they are right when your rules are): ``abs`` and
+``np.abs`` (the sign decided by the value: at 0 the derivative is ``+dx``, as Ceres' ``abs``),
+comparisons (``x < 0`` compares the values and gives a boolean array), ``np.where``,
+``np.minimum`` and ``np.maximum`` (at a tie the first operand's derivative), ``np.sum``,
+``np.mean``, ``np.stack``, ``np.concatenate``, ``.T`` and ``np.transpose``, ``np.linalg.norm``
+(scaled; at 0 the derivative is 0, as ``np.sqrt(x * x)``'s), ``np.dot``, ``np.einsum``, ``@`` with a
+1-D operand on either side, ``np.arctan`` (``arctan2(x, 1)``), ``np.tanh`` (by ``exp(-2|x|)``) and
+``np.hypot`` (scaled; at (0, 0) the derivative is 0). Their values are numpy's. Any other numpy
+function on a Jet fails with one line naming it and what to write instead.
+
 What you write: the derivative rules of the arithmetic (``__mul__``, ``__truediv__``, ``__pow__``),
 of ``sqrt``, ``sin``, ``cos``, ``exp``, ``log``, ``arctan2`` and of the matrix product ``matmul``. Each
 returns a new Jet; the operands broadcast as numpy arrays do, on ``value``'s axes (``grad`` has one
@@ -19,7 +29,9 @@ Inputs at the edges of the contract (each is a check input):
 - sqrt at 0 with a nonzero derivative: value 0, derivative +-inf in the sign of the derivative
 - x ** 0: value 1, derivative 0 (also at x = 0)
 - x ** 1 at x = 0 and x ** 2 at x = 0: derivative 1 * dx and 0
+- x ** p with 0 < p < 1 at x = 0: value 0, derivative 0 where x's derivative is 0, else +-inf in its sign
 - arctan2 on each axis (y = 0 with x < 0 gives pi)
+- arctan2 at magnitudes whose squares overflow or underflow (x, y ~ 1e200 and ~ 1e-200): finite derivatives
 - one direction (k = 1) and a scalar Jet (value of shape ())
 
 Allowed imports: numpy, scipy.
@@ -106,10 +118,26 @@ class Jet:
         """The matrix transpose of the last two axes (as ``ndarray.mT``)."""
         return self.swapaxes(-1, -2)
 
-    def sum(self, axis=None) -> "Jet":
-        """The sum over ``value``'s ``axis`` (an int, or all of them)."""
-        axes = tuple(range(self.ndim)) if axis is None else (axis % self.ndim,)
-        return Jet(self.value.sum(axis=axes), self.grad.sum(axis=axes))
+    @property
+    def T(self) -> "Jet":  # noqa: N802 (numpy's name)
+        """All of ``value``'s axes reversed (as ``ndarray.T``)."""
+        return self.transpose()
+
+    def transpose(self, *axes) -> "Jet":
+        """``value``'s axes permuted (as ``ndarray.transpose``; none given: reversed)."""
+        axes = tuple(axes[0]) if len(axes) == 1 and isinstance(axes[0], (tuple, list)) else axes
+        axes = tuple(range(self.ndim))[::-1] if not axes else tuple(a % self.ndim for a in axes)
+        return Jet(np.transpose(self.value, axes), np.transpose(self.grad, axes + (self.ndim,)))
+
+    def sum(self, axis=None, keepdims=False) -> "Jet":
+        """The sum over ``value``'s ``axis`` (an int, a tuple of them, or all of them)."""
+        axes = _axes(axis, self.ndim)
+        return Jet(self.value.sum(axis=axes, keepdims=keepdims), self.grad.sum(axis=axes, keepdims=keepdims))
+
+    def mean(self, axis=None, keepdims=False) -> "Jet":
+        """The mean over ``value``'s ``axis`` (an int, a tuple of them, or all of them)."""
+        total = self.sum(axis, keepdims)
+        return total * (float(total.value.size) / float(max(self.value.size, 1)))
 
     def __repr__(self):
         return f"Jet(value={self.value!r}, grad={self.grad!r})"
@@ -133,6 +161,30 @@ class Jet:
     def __rsub__(self, other):
         return (-self) + other
 
+    def __abs__(self):
+        return _abs(self)
+
+    # comparisons compare the values: a boolean array, as numpy's (no derivative)
+    def __lt__(self, other):
+        return self.value < _value(other)
+
+    def __le__(self, other):
+        return self.value <= _value(other)
+
+    def __gt__(self, other):
+        return self.value > _value(other)
+
+    def __ge__(self, other):
+        return self.value >= _value(other)
+
+    def __eq__(self, other):
+        return self.value == _value(other)
+
+    def __ne__(self, other):
+        return self.value != _value(other)
+
+    __hash__ = None  # comparisons give arrays, as numpy's: no hash
+
     # --------------------------------------------------------------- yours: the derivative rules
 
     def __mul__(self, other):
@@ -154,23 +206,29 @@ class Jet:
         raise NotImplementedError("TODO jets.Jet.__pow__: not implemented yet")
 
     def __matmul__(self, other):
-        return matmul(self, other)
+        return _matmul(self, other)
 
     def __rmatmul__(self, other):
-        return matmul(other, self)
+        return _matmul(other, self)
 
     # --------------------------------------------------------------- given: numpy's functions call the rules
 
     def __array_ufunc__(self, ufunc, method, *inputs, **kwargs):
+        name = f"np.{ufunc.__name__}"
+        if method != "__call__":
+            raise TypeError(f"{name}.{method} is not supported on Jets: {_ALTERNATIVES.get(name + '.' + method, _ANY)}")
+        if kwargs:
+            raise TypeError(f"{name}(..., {', '.join(kwargs)}=...) is not supported on Jets: call {name} without "
+                            f"keyword arguments")
         rule = _UFUNCS.get(ufunc)
-        if method != "__call__" or rule is None or kwargs:
-            return NotImplemented
+        if rule is None:
+            raise TypeError(_unsupported(name))
         return rule(*inputs)
 
     def __array_function__(self, func, types, args, kwargs):
         rule = _FUNCTIONS.get(func)
         if rule is None:
-            return NotImplemented
+            raise TypeError(_unsupported("np" + func.__module__[len("numpy"):] + "." + func.__name__))
         return rule(*args, **kwargs)
 
 
@@ -210,14 +268,234 @@ def matmul(a, b) -> Jet:
     raise NotImplementedError("TODO jets.matmul: not implemented yet")
 
 
+# --------------------------------------------------------------- given: more of numpy, from your rules
+
+
+def _value(x):
+    """The value of a Jet, or the constant as an array."""
+    return x.value if isinstance(x, Jet) else np.asarray(x, dtype=float)
+
+
+def _axes(axis, ndim: int) -> tuple:
+    """``axis`` (None, an int or a tuple) as a tuple of non-negative axes of ``ndim``."""
+    if axis is None:
+        return tuple(range(ndim))
+    return tuple(a % ndim for a in (axis if isinstance(axis, (tuple, list)) else (axis,)))
+
+
+def _k(operands) -> int:
+    """The number of directions of the Jets among ``operands`` (all alike)."""
+    ks = {a.k for a in operands if isinstance(a, Jet)}
+    if len(ks) != 1:
+        raise ValueError(f"Jets with different numbers of directions combined: k = {sorted(ks)}")
+    return ks.pop()
+
+
+def _jets(operands) -> list:
+    """Each operand as a Jet (a constant with a zero derivative)."""
+    k = _k(operands)
+    return [a if isinstance(a, Jet) else Jet.constant(a, k) for a in operands]
+
+
 def _stack(arrays, axis=0):
     """``np.stack`` of Jets and constants: the derivatives stacked alike."""
-    ks = {a.k for a in arrays if isinstance(a, Jet)}
-    (k,) = ks
-    jets = [a if isinstance(a, Jet) else Jet.constant(a, k) for a in arrays]
-    ndim = jets[0].ndim + 1
-    axis = axis % ndim
+    jets = _jets(arrays)
+    axis = axis % (jets[0].ndim + 1)
     return Jet(np.stack([j.value for j in jets], axis=axis), np.stack([j.grad for j in jets], axis=axis))
+
+
+def _concatenate(arrays, axis=0):
+    """``np.concatenate`` of Jets and constants along ``axis`` (None: flattened)."""
+    jets = _jets(arrays)
+    if axis is None:
+        jets, axis = [j.reshape(-1) for j in jets], 0
+    axis = axis % jets[0].ndim
+    return Jet(np.concatenate([j.value for j in jets], axis=axis),
+               np.concatenate([j.grad for j in jets], axis=axis))
+
+
+def _where(mask, a, b):
+    """``np.where(mask, a, b)``: the value and the derivative of the operand the mask picks."""
+    k = _k((a, b))
+    mask = np.asarray(mask, dtype=bool)
+    (av, ag), (bv, bg) = _parts(a), _parts(b)
+    ag = np.zeros(av.shape + (k,)) if ag is None else ag
+    bg = np.zeros(bv.shape + (k,)) if bg is None else bg
+    return Jet(np.where(mask, av, bv), np.where(mask[..., None], ag, bg))
+
+
+def _abs(x):
+    """``|x|`` as ``x`` times its sign, decided by the value; at 0 the sign is + (derivative ``dx``)."""
+    signed = x * np.where(x.value < 0.0, -1.0, 1.0)
+    return Jet(np.abs(x.value), signed.grad)
+
+
+def _minimum(a, b):
+    """``np.minimum(a, b)``: the smaller operand; at a tie the first."""
+    return _where(~(_value(b) < _value(a)), a, b)
+
+
+def _maximum(a, b):
+    """``np.maximum(a, b)``: the larger operand; at a tie the first."""
+    return _where(~(_value(a) < _value(b)), a, b)
+
+
+def _sum(x, axis=None, keepdims=False):
+    return x.sum(axis, keepdims)
+
+
+def _mean(x, axis=None, keepdims=False):
+    return x.mean(axis, keepdims)
+
+
+def _transpose(x, axes=None):
+    return x.transpose() if axes is None else x.transpose(axes)
+
+
+def _matmul(a, b):
+    """``a @ b`` by your ``matmul``, a 1-D ``a`` (n,) taken as a row (1, n) and the axis dropped after."""
+    if np.ndim(_value(a)) != 1:
+        return matmul(a, b)
+    out = matmul(a[None, :], b)
+    return out[0] if np.ndim(_value(b)) == 1 else out[..., 0, :]
+
+
+def _dot(a, b):
+    """``np.dot(a, b)`` of 0-, 1- and 2-D operands: a product, ``a @ b`` or the scalar ``sum(a * b)``."""
+    na, nb = np.ndim(_value(a)), np.ndim(_value(b))
+    if na == 0 or nb == 0:
+        return a * b if isinstance(a, Jet) else b * a
+    if na > 2 or nb > 2:
+        raise TypeError("np.dot of arrays beyond 2-D is not supported on Jets: use @ (a stack of matrices) or "
+                        "np.einsum")
+    return _matmul(a, b)
+
+
+def _einsum(subscripts, *operands, **kwargs):
+    """``np.einsum`` of Jets and constants (explicit or implicit output, ``...`` broadcast): each operand
+    laid out on all the subscripts' letters, multiplied by your ``*`` and summed over the letters the
+    output drops. A letter repeated in one operand takes its diagonal first."""
+    if kwargs or not isinstance(subscripts, str):
+        raise TypeError("np.einsum on Jets takes the subscripts as a string and no keyword arguments")
+    spec = subscripts.replace(" ", "")
+    inputs, _, output = spec.partition("->")
+    terms = inputs.split(",")
+    if len(terms) != len(operands):
+        raise ValueError(f"np.einsum: {len(terms)} operands in {subscripts!r}, {len(operands)} given")
+    ranks = [np.ndim(_value(x)) - len(s.replace("...", "")) for s, x in zip(terms, operands)]
+    spare = [c for c in "ABCDEFGHIJKLMNOPQRSTUVWXYZ" if c not in spec]
+    wide = max(ranks) if any("..." in s for s in terms) else 0
+    ellipsis = "".join(spare[:wide])
+    terms = [s.replace("...", ellipsis[wide - n:] if n else "") for s, n in zip(terms, ranks)]
+    if "->" not in spec:
+        letters = "".join(terms)
+        output = ellipsis + "".join(sorted(c for c in set(letters) if letters.count(c) == 1 and c not in ellipsis))
+    else:
+        output = output.replace("...", ellipsis)
+    k_letter = spare[wide]
+    order = "".join(dict.fromkeys("".join(terms) + output))  # every letter once, output's last
+    laid = []
+    for s, x in zip(terms, operands):
+        unique = "".join(dict.fromkeys(s))
+        if unique != s:  # a repeated letter: its diagonal (a linear selection, no derivative rule)
+            if isinstance(x, Jet):
+                x = Jet(np.einsum(f"{s}->{unique}", x.value),
+                        np.einsum(f"{s}{k_letter}->{unique}{k_letter}", x.grad))
+            else:
+                x = np.einsum(f"{s}->{unique}", _value(x))
+        present = [c for c in order if c in unique]
+        x = x.transpose([unique.index(c) for c in present]) if isinstance(x, Jet) else \
+            np.transpose(_value(x), [unique.index(c) for c in present])
+        shape = tuple(x.shape[present.index(c)] if c in present else 1 for c in order)
+        laid.append(x.reshape(shape))
+    product = laid[0]
+    for x in laid[1:]:
+        product = product * x if isinstance(product, Jet) else x * product
+    dropped = tuple(i for i, c in enumerate(order) if c not in output)
+    total = product.sum(axis=dropped) if dropped else product
+    kept = [c for c in order if c in output]
+    return total.transpose([kept.index(c) for c in output]) if output else total
+
+
+def _norm(x, ord=None, axis=None, keepdims=False):
+    """``np.linalg.norm`` (the 2-norm, or Frobenius over two axes): ``s sqrt(sum((x / s)^2))`` with ``s``
+    the largest ``|x|`` (no overflow); at 0 the derivative is 0, as ``np.sqrt(x * x)``'s."""
+    if ord not in (None, 2, "fro"):
+        raise TypeError(f"np.linalg.norm(..., ord={ord!r}) is not supported on Jets: the 2-norm only; write "
+                        f"other norms with abs, np.sum and np.maximum")
+    axes = _axes(axis, x.ndim)
+    scale = np.max(np.abs(x.value), axis=axes, keepdims=True) if x.value.size else np.ones(())
+    scale = np.where(scale == 0.0, 1.0, scale)
+    scaled = x * (1.0 / scale)
+    root = sqrt((scaled * scaled).sum(axes, keepdims)) * (scale if keepdims else np.squeeze(scale, axes))
+    return Jet(np.linalg.norm(x.value, axis=axis, keepdims=keepdims), root.grad)
+
+
+def _hypot(a, b):
+    """``np.hypot(a, b)`` as ``s sqrt((a / s)^2 + (b / s)^2)``, ``s = max(|a|, |b|)``: no overflow; at (0, 0)
+    the derivative is 0."""
+    value = np.hypot(_value(a), _value(b))
+    scale = np.maximum(np.abs(_value(a)), np.abs(_value(b)))
+    scale = np.where(scale == 0.0, 1.0, scale)
+    a, b = a * (1.0 / scale), b * (1.0 / scale)
+    return Jet(value, (sqrt(a * a + b * b) * scale).grad)
+
+
+def _arctan(x):
+    """``arctan(x) = arctan2(x, 1)``."""
+    return Jet(np.arctan(x.value), arctan2(x, 1.0).grad)
+
+
+def _tanh(x):
+    """``tanh(x) = s (1 - e) / (1 + e)`` with ``e = exp(-2 |x|)`` (in (0, 1]: no overflow) and ``s`` the sign."""
+    sign = np.where(x.value < 0.0, -1.0, 1.0)
+    e = exp(x * (-2.0 * sign))
+    return Jet(np.tanh(x.value), ((1.0 - e) / (1.0 + e) * sign).grad)
+
+
+def _compare(ufunc):
+    return lambda a, b: ufunc(_value(a), _value(b))
+
+
+#: what to write for a numpy function Jets do not have (the rest: :data:`_ANY`)
+_ALTERNATIVES = {
+    "np.tan": "write np.sin(x) / np.cos(x)",
+    "np.arcsin": "write np.arctan2(x, np.sqrt(1 - x * x))",
+    "np.arccos": "write np.arctan2(np.sqrt(1 - x * x), x)",
+    "np.sinh": "write (np.exp(x) - np.exp(-x)) / 2",
+    "np.cosh": "write (np.exp(x) + np.exp(-x)) / 2",
+    "np.square": "write x * x (or x ** 2)",
+    "np.log1p": "write np.log(1 + x)",
+    "np.expm1": "write np.exp(x) - 1",
+    "np.log10": "write np.log(x) / np.log(10)",
+    "np.log2": "write np.log(x) / np.log(2)",
+    "np.cbrt": "write np.where(x < 0, -1.0, 1.0) * abs(x) ** (1 / 3)",
+    "np.sign": "write np.where(x < 0, -1.0, 1.0) (a constant)",
+    "np.fmin": "write np.minimum(a, b)",
+    "np.fmax": "write np.maximum(a, b)",
+    "np.floor": "a step has no derivative: decide it on the value, np.floor(x.value)",
+    "np.round": "a step has no derivative: decide it on the value, np.round(x.value)",
+    "np.clip": "write np.minimum(np.maximum(x, low), high)",
+    "np.max": "write np.maximum of the entries, or pick with np.where",
+    "np.min": "write np.minimum of the entries, or pick with np.where",
+    "np.prod": "write the product of the entries with *",
+    "np.cross": "write the components with * and -, then np.stack",
+    "np.outer": "write a[:, None] * b[None, :]",
+    "np.inner": "write np.sum(a * b, axis=-1)",
+    "np.vdot": "write np.sum(a * b)",
+    "np.trace": "write np.einsum('...ii->...', A)",
+    "np.zeros_like": "write np.zeros(x.shape) (a constant)",
+    "np.ones_like": "write np.ones(x.shape) (a constant)",
+    "np.linalg.inv": "write the inverse of a small matrix by its cofactors over its determinant",
+    "np.linalg.det": "write the determinant of a small matrix by its cofactors",
+    "np.linalg.solve": "write the inverse of a small matrix by its cofactors, then @",
+    "np.add.reduce": "write np.sum(x, axis)",
+}
+
+
+def _unsupported(name: str) -> str:
+    """One line: ``name`` is not supported on Jets, and what to write instead."""
+    return f"{name} is not supported on Jets: {_ALTERNATIVES.get(name, _ANY)}"
 
 
 #: numpy's functions, sent to the rules (``np.sin(jet)`` is ``sin(jet)``)
@@ -234,6 +512,29 @@ _UFUNCS = {
     np.exp: exp,
     np.log: log,
     np.arctan2: arctan2,
-    np.matmul: matmul,
+    np.matmul: _matmul,
+    np.absolute: _abs,
+    np.positive: lambda a: a,
+    np.arctan: _arctan,
+    np.tanh: _tanh,
+    np.hypot: _hypot,
+    np.minimum: _minimum,
+    np.maximum: _maximum,
+    np.less: _compare(np.less),
+    np.less_equal: _compare(np.less_equal),
+    np.greater: _compare(np.greater),
+    np.greater_equal: _compare(np.greater_equal),
+    np.equal: _compare(np.equal),
+    np.not_equal: _compare(np.not_equal),
 }
-_FUNCTIONS = {np.stack: _stack}
+_FUNCTIONS = {np.stack: _stack, np.concatenate: _concatenate, np.where: _where, np.sum: _sum, np.mean: _mean,
+              np.transpose: _transpose, np.dot: _dot, np.einsum: _einsum, np.linalg.norm: _norm,
+              np.shape: lambda x: np.shape(_value(x)), np.ndim: lambda x: np.ndim(_value(x))}
+#: what Jets support, for the message of the rest
+_ANY = "write it with what Jets support: +, -, *, /, **, @, abs, comparisons, .T, " + ", ".join(sorted(
+    {f"np.{f.__name__}" for f in _UFUNCS if f not in (np.add, np.subtract, np.multiply, np.true_divide, np.negative,
+                                                       np.positive, np.power, np.matmul, np.absolute, np.less,
+                                                       np.less_equal, np.greater, np.greater_equal, np.equal,
+                                                       np.not_equal)}
+    | {"np.sum", "np.mean", "np.stack", "np.concatenate", "np.where", "np.transpose", "np.dot", "np.einsum",
+       "np.linalg.norm"}))

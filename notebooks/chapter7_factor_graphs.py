@@ -113,9 +113,15 @@ print(f"implementation: {IMPL}; graphs: {', '.join(GRAPHS)}")
 # $f(a + da\,\varepsilon) = f(a) + f'(a)\,da\,\varepsilon$ where $da$ is the operand's `grad`. Mind three
 # things: a value must meet the extra last axis of a `grad`; an operand that is a plain number or array
 # is a constant, its derivative zero; and the points where $f'$ is infinite or the general formula meets
-# $0 \cdot \infty$ ($\sqrt{x}$ at 0; $x^0$ and $x^1$ at $x = 0$), where the contract says what to return.
+# $0 \cdot \infty$ ($\sqrt{x}$ at 0; $x^0$, $x^1$ and $x^p$ with $0 < p < 1$ at $x = 0$), where the contract
+# says what to return, or where $x^2 + y^2$ overflows ($\operatorname{arctan2}$ at $10^{200}$: scale first).
 # numpy sends its functions to your rules (`np.sin(jet)` calls `jets.sin`, given), so a residual written
 # once for arrays runs on Jets unchanged: the factors of `course.factorgraph.factors` are written so.
+# The rest of the numpy a residual is written with is given, built from your rules: `abs` (at 0 the
+# derivative of the right side), comparisons (`x < 0` compares the values) with `np.where`, `np.minimum` and
+# `np.maximum`, `np.sum`, `np.stack`, `np.concatenate`, `.T`, `np.linalg.norm`, `np.dot`, `np.einsum`, `@`
+# with a vector on either side, `np.arctan`, `np.tanh` and `np.hypot`; any other function fails with one
+# line naming it and what to write instead (`np.tan`: `np.sin(x) / np.cos(x)`).
 
 # %% id="figure-dual"
 print(f"f(2 + eps) = {chapter7.cubic(chapter7.Dual(2.0, 1.0))!r}")

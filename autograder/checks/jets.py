@@ -35,6 +35,11 @@ def _jet(rng, shape, k, low=-2.0, high=2.0):
     return ("jet", rng.uniform(low, high, shape), rng.normal(0.0, 1.0, tuple(shape) + (k,)))
 
 
+def _scaled(rng, scale):
+    """A Jet (4,) in 2 directions whose values and derivatives are ``scale`` times O(1) numbers."""
+    return ("jet", scale * rng.uniform(0.5, 2.0, 4) * rng.choice([-1.0, 1.0], 4), scale * rng.normal(0.0, 1.0, (4, 2)))
+
+
 def _describe(spec) -> str:
     if spec[0] == "jet":
         return f"a Jet of shape {np.shape(spec[1])} in k = {np.shape(spec[2])[-1]} directions"
@@ -77,6 +82,11 @@ def powers(seed=None):
     calls = [_call("pow", [x, ("number", p)]) for p in (2.0, 3.0, 0.5, -1.0, -2.5)]
     zero = ("jet", np.array([0.0, 0.0, 1.5]), rng.normal(0.0, 1.0, (3, 2)))
     calls += [_call("pow", [zero, ("number", p)], f"x ** {p:g} with x = 0 in two entries") for p in (0.0, 1.0, 2.0)]
+    at_zero = rng.normal(0.0, 1.0, (4, 2))
+    at_zero[0] = 0.0  # value 0, derivative 0
+    at_zero[1, 0], at_zero[2, :] = 0.0, (-1.0, 2.0)
+    calls.append(_call("pow", [("jet", np.array([0.0, 0.0, 0.0, 2.25]), at_zero), ("number", 0.5)],
+                       "x ** 0.5 at x = 0: the first entry with a zero derivative, the next two with nonzero ones"))
     return calls
 
 
@@ -112,6 +122,10 @@ def angles(seed=None):
     quadrants = ("jet", np.array([0.7, 0.7, -0.7, -0.7, 0.0, 0.0, 1.2, -1.2]), rng.normal(0.0, 1.0, (8, 3)))
     xs = ("jet", np.array([0.9, -0.9, -0.9, 0.9, -1.1, 1.1, 0.0, 0.0]), rng.normal(0.0, 1.0, (8, 3)))
     return [_call("arctan2", [quadrants, xs], "a point in each quadrant and on each axis: (0, -1.1) gives pi"),
+            _call("arctan2", [_scaled(rng, 1e200), _scaled(rng, 1e200)],
+                  "values and derivatives ~ 1e200: x^2 + y^2 overflows"),
+            _call("arctan2", [_scaled(rng, 1e-200), _scaled(rng, 1e-200)],
+                  "values and derivatives ~ 1e-200: x^2 + y^2 underflows to 0"),
             _call("arctan2", [_jet(rng, (5,), 2), ("array", rng.uniform(-2, 2, 5))], "x a constant"),
             _call("arctan2", [("array", rng.uniform(-2, 2, 5)), _jet(rng, (5,), 2)], "y a constant")]
 
@@ -195,8 +209,9 @@ RULES = "d f(a) = f'(a) da, with da the operand's grad (value's shape + (k,))"
 CHECKS = [
     check("jets.Jet", "product and quotient", 3, arithmetic, judge(f"the product and quotient rules ({RULES})")),
     check("jets.Jet", "powers", 2, powers, judge(
-        "d(x^p) = p x^(p-1) dx", "x ** 0 is the constant 1 (and x ** 1 is x): p x^(p-1) at x = 0 gives "
-        "0 * inf = nan for p = 0; treat these powers as what they are")),
+        "d(x^p) = p x^(p-1) dx", "at x = 0, p x^(p-1) dx meets 0 * inf = nan: x ** 0 is the constant 1 and x ** 1 "
+        "is x; for 0 < p < 1, where dx is 0 nothing depends on the seeds there, so the derivative is 0 (as "
+        "sqrt's); keep +-inf where dx is not 0")),
     check("jets.sqrt", "sqrt, also at 0", 2, roots, judge(
         "d sqrt(x) = dx / (2 sqrt(x)); at 0 see the docstring",
         "at x = 0 with a zero derivative, dx / (2 sqrt(x)) is 0 * inf = nan: nothing depends on the seeds there, "
@@ -205,7 +220,9 @@ CHECKS = [
     check("jets.cos", "cos", 1, elementary("cos"), judge("d cos(x) = -sin(x) dx")),
     check("jets.exp", "exp", 1, elementary("exp"), judge("d exp(x) = exp(x) dx")),
     check("jets.log", "log", 1, elementary("log"), judge("d log(x) = dx / x")),
-    check("jets.arctan2", "arctan2", 2, angles, judge("d atan2(y, x) = (x dy - y dx) / (x^2 + y^2)")),
+    check("jets.arctan2", "arctan2", 2, angles, judge(
+        "d atan2(y, x) = (x dy - y dx) / (x^2 + y^2); at large or tiny magnitudes x^2 + y^2 overflows or "
+        "underflows: divide x and y by max(|x|, |y|) first")),
     check("jets.matmul", "matrix products", 2, products, judge("d(A B) = dA B + A dB")),
     check("jets.Jet", "a residual written for arrays runs on Jets", 2, residuals,
           judge("every rule together through numpy's functions: if the checks above pass, look at how the "
@@ -229,6 +246,16 @@ EDGES = (
     Edge("x ** 1 at x = 0 and x ** 2 at x = 0: derivative 1 * dx and 0", TASK,
          lambda c: bool(c.args[0] == "pow" and c.args[1][1][1] in (1.0, 2.0)
                         and np.any(np.asarray(c.args[1][0][1]) == 0))),
+    Edge("x ** p with 0 < p < 1 at x = 0: value 0, derivative 0 where x's derivative is 0, else +-inf in its sign",
+         TASK, lambda c: bool(c.args[0] == "pow" and 0.0 < c.args[1][1][1] < 1.0
+                              and np.any((np.asarray(c.args[1][0][1]) == 0)
+                                         & np.all(np.asarray(c.args[1][0][2]) == 0, axis=-1))
+                              and np.any((np.asarray(c.args[1][0][1]) == 0)
+                                         & np.any(np.asarray(c.args[1][0][2]) != 0, axis=-1)))),
+    Edge("arctan2 at magnitudes whose squares overflow or underflow (x, y ~ 1e200 and ~ 1e-200): finite derivatives",
+         TASK, lambda c: bool(c.args[0] == "arctan2" and all(s[0] == "jet" for s in c.args[1])
+                              and (np.max(np.abs(c.args[1][0][1])) > 1e155
+                                   or 0 < np.max(np.abs(c.args[1][0][1])) < 1e-155))),
     Edge("arctan2 on each axis (y = 0 with x < 0 gives pi)", TASK,
          lambda c: bool(c.args[0] == "arctan2" and c.args[1][0][0] == "jet" and c.args[1][1][0] == "jet"
          and np.any((np.asarray(c.args[1][0][1]) == 0) & (np.asarray(c.args[1][1][1]) < 0)))),

@@ -1414,8 +1414,14 @@ BUGS_FACTOR_GRAPH = {
         "jets.py", ["def sin"], "_times(np.cos(x.value), x.grad)", "_times(-np.cos(x.value), x.grad)", {J_SIN, J_RES},
         "d sin(x) = +cos(x) dx"),
     "jets_arctan2_dx_added": V(
-        "jets.py", ["def arctan2"], "grad = grad - _times(yv / r2, xg)", "grad = grad + _times(yv / r2, xg)",
+        "jets.py", ["def arctan2"], "grad = grad - _times(ys / r, xg)", "grad = grad + _times(ys / r, xg)",
         {J_ATAN, J_RES}, "the dx term is subtracted"),
+    "jets_arctan2_unscaled": V(
+        "jets.py", ["def arctan2"], "xs, ys = xv / scale, yv / scale\n    r = scale * (xs * xs + ys * ys)",
+        "xs, ys, r = xv, yv, xv * xv + yv * yv", {J_ATAN}, "divide x and y by max(|x|, |y|)"),
+    "jets_power_unguarded_at_zero": V(
+        "jets.py", ["def __pow__"], "grad = np.where(self.grad == 0.0, 0.0, grad)", "pass", {J_POW},
+        "nothing depends on the seeds there"),
     "jets_matmul_one_term": V(
         "jets.py", ["def matmul"], '        grad = grad + np.einsum("...ij,...jlk->...ilk", av, bg)', "        pass",
         {J_MATMUL, J_RES}, "both factors vary"),
@@ -1506,7 +1512,11 @@ ALTERNATIVES_FACTOR_GRAPH = {
         "jets.py", ["def sqrt"], "grad = _times(0.5 / root, x.grad)", "grad = _times(0.5 * root ** -1.0, x.grad)",
         set()),
     "jets_arctan2_by_hypot": V(
-        "jets.py", ["def arctan2"], "r2 = xv * xv + yv * yv", "r2 = np.hypot(xv, yv) ** 2", set()),
+        "jets.py", ["def arctan2"], "xs, ys = xv / scale, yv / scale\n    r = scale * (xs * xs + ys * ys)",
+        "h = np.hypot(xv, yv)\n    xs, ys, r = xv / h, yv / h, h", set()),
+    "jets_power_guarded_by_value": V(
+        "jets.py", ["def __pow__"], "grad = np.where(self.grad == 0.0, 0.0, grad)",
+        "grad = np.where((self.value[..., None] == 0.0) & (self.grad == 0.0), 0.0, grad)", set()),
     "autodiff_one_evaluation_per_variable": V("autodiff_factor.py", [], "    k = int(sum(dims))", PER_VARIABLE, set()),
     "linearisation_dense_then_triangle": V(
         "factor_linearisation.py", ["def assemble"], "        n = self._shape[0]", DENSE_THEN_TRIANGLE, set()),
