@@ -47,7 +47,7 @@ class FactorGroup:
 
 
 class FactorGraph:
-    """Variables (``add_variable``), factors (``add``, ``add_many``) and fixed variables (``fix``)."""
+    """Variables (``add_variable``), factors (``add``, ``add_many``) and fixed variables or dofs (``fix``)."""
 
     def __init__(self, name: str = "factor graph"):
         self.name = name
@@ -56,7 +56,8 @@ class FactorGraph:
         self.values: list = []
         self.index: dict = {}
         self.groups: dict = {}
-        self.fixed: list = []
+        self.fixed: list = []  # the variables held whole
+        self.fixed_dofs: dict = {}  # variable index -> the tangent indices held (some, not all)
 
     @property
     def num_variables(self) -> int:
@@ -77,9 +78,32 @@ class FactorGraph:
         self.values.append(value)
         return self.index[key]
 
-    def fix(self, key) -> None:
-        """Hold variable ``key`` at its value (its step is 0)."""
-        self.fixed.append(self._variable(key, "fix"))
+    def fix(self, key, dofs=None) -> None:
+        """Hold variable ``key`` at its value (its step is 0); with ``dofs`` (indices into its tangent
+        step, ``0 .. dim - 1``), hold those alone and let the others move (Ceres' ``SubsetManifold``):
+        ``graph.fix("c0", dofs=[0, 1, 2])`` holds an SE(3) pose's translation (ours is translation
+        first). Fixing every dof is fixing the variable; fixing again adds to what is held."""
+        v = self._variable(key, "fix")
+        if dofs is None:
+            self.fixed_dofs.pop(v, None)
+            if v not in self.fixed:
+                self.fixed.append(v)
+            return
+        dim = self.kinds[v].dim
+        where = f"{self.name}: fix({key!r}, dofs={dofs!r})"
+        held = np.asarray(dofs)
+        if held.ndim != 1 or not len(held) or not np.issubdtype(held.dtype, np.integer):
+            raise ValueError(f"{where}: dofs must be a non-empty list of integers (tangent indices)")
+        if held.min() < 0 or held.max() >= dim:
+            raise ValueError(f"{where}: a {self.kinds[v].name} variable has tangent indices 0 to {dim - 1}")
+        if v in self.fixed:
+            return
+        held = tuple(sorted(set(self.fixed_dofs.get(v, ())) | {int(d) for d in held}))
+        if len(held) == dim:
+            self.fixed_dofs.pop(v, None)
+            self.fixed.append(v)
+        else:
+            self.fixed_dofs[v] = held
 
     def add(self, factor_type: FactorType, keys, measurement, information=None, loss=None) -> None:
         """One factor of ``factor_type`` on the variables ``keys`` (one per slot)."""
