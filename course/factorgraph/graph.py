@@ -105,17 +105,23 @@ class FactorGraph:
         else:
             self.fixed_dofs[v] = held
 
-    def add(self, factor_type: FactorType, keys, measurement, information=None, loss=None) -> None:
-        """One factor of ``factor_type`` on the variables ``keys`` (one per slot)."""
+    def add(self, factor_type: FactorType, keys, measurement, information=None, loss=None, noise=None) -> None:
+        """One factor of ``factor_type`` on the variables ``keys`` (one per slot); its noise by
+        ``information`` and ``loss``, or by a ``noise`` model (``course.factorgraph.noise``: ``sigmas``,
+        ``isotropic``, ``covariance``, ``information``, each ``.robust(kernel, scale)``)."""
+        information, loss = _noise(factor_type, information, loss, noise, self.name)
         z = np.asarray(measurement, dtype=float)[None]
         info = None if information is None else np.asarray(information, dtype=float)[None]
         self.add_many(factor_type, [keys], z, info, loss)
 
-    def add_many(self, factor_type: FactorType, keys, measurements, information=None, loss=None) -> None:
+    def add_many(self, factor_type: FactorType, keys, measurements, information=None, loss=None,
+                 noise=None) -> None:
         """M factors of ``factor_type``: ``keys`` (M, s) registered variable keys, or an integer array of
         variable indices (the order of ``add_variable``), ``measurements``
         (M, ...), ``information`` (M, dim, dim), (dim, dim) or None (unit); ``loss`` None or a robust
-        loss such as ``("huber", 2.0)`` (chapter 4's kernels, on the whitened ``|r|^2`` of each factor)."""
+        loss such as ``("huber", 2.0)`` (chapter 4's kernels, on the whitened ``|r|^2`` of each factor);
+        or ``noise``, a noise model in place of both (as in ``add``)."""
+        information, loss = _noise(factor_type, information, loss, noise, self.name)
         where = f"{self.name}: {factor_type.name}"
         loss = RobustLoss.of(loss)
         indices = np.array([[self._variable(k, where) for k in row] for row in keys], dtype=np.int64) \
@@ -161,3 +167,18 @@ class FactorGraph:
 
 def _function_name(function) -> str:
     return f"{getattr(function, '__module__', '?')}.{getattr(function, '__qualname__', repr(function))}"
+
+
+def _noise(factor_type, information, loss, noise, name):
+    """``(information, loss)`` of a factor given either or a ``noise`` model."""
+    if noise is None:
+        return information, loss
+    if information is not None or loss is not None:
+        raise ValueError(f"{name}: {factor_type.name}: give noise= or information= and loss=, not both")
+    if not hasattr(noise, "information") or not hasattr(noise, "loss"):
+        raise ValueError(f"{name}: {factor_type.name}: noise must be a course.factorgraph.noise model "
+                         f"(sigmas, isotropic, covariance, information), got {type(noise).__name__}")
+    if noise.information.shape[-1] != factor_type.dim:
+        raise ValueError(f"{name}: {factor_type.name}: a noise model of size {noise.information.shape[-1]} for "
+                         f"a residual of size {factor_type.dim}")
+    return noise.information, noise.loss

@@ -195,8 +195,9 @@ class FactorGraphProblem:
         return check_array(value, shape, where, what)
 
     def free_gauges(self) -> list:
-        """The connected parts of the graph (by its factors) that hold no fixed variable and no factor on
-        one variable alone (a prior): ``[(number of variables, first key)]``. Their global pose is free."""
+        """The connected parts of the graph (by its factors) that hold no fixed variable (whole or partly)
+        and no factor on one variable alone (a prior): ``[(number of variables, first key)]``. Their
+        global pose is free."""
         parent = list(range(self.graph.num_variables))
 
         def root(v):
@@ -205,7 +206,7 @@ class FactorGraphProblem:
                 v = parent[v]
             return v
 
-        anchored = set(int(v) for v in self._fixed)
+        anchored = set(int(v) for v in self._fixed) | set(self.graph.fixed_dofs)  # partly fixed: said held
         for _, keys, _, _ in self._groups:
             if keys.shape[1] == 1:
                 anchored.update(int(v) for v in keys[:, 0])
@@ -223,7 +224,8 @@ class FactorGraphProblem:
         robust_correction = 0.0  # a robust group's chi2 is sum rho, not the reweighted residuals' sum r~^T r~
         for group, (W, loss) in enumerate(zip(self._whitening, self._losses)):
             r, J = self.factor_jacobians(x, group)
-            J = [block if mask is None else block * mask[:, None, :] for block, mask in zip(J, self._column_masks[group])]
+            J = [block if mask is None else block * mask[:, None, :]
+                 for block, mask in zip(J, self._column_masks[group])]
             r, J = noise.whiten(W, r, J)
             if loss is not None:  # r~, J~ with J~^T J~ = J^T W_rho J and J~^T r~ = rho' J^T r (chapter 4)
                 r, J, rho = robust.reweight(self._kernels, loss, r, J)
