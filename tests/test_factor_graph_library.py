@@ -346,3 +346,12 @@ def test_compare_runs_the_factor_graphs_gauss_newton_row_on_bundle_adjustment():
     rows = compare.run_bal(bal, methods=["gauss-newton"], backends=["ours", "ours-autodiff"])
     chi2 = {row.backend: row.final_chi2 for row in rows}
     assert chi2["ours-autodiff"] == pytest.approx(chi2["ours"], rel=1e-6)
+
+
+def test_with_the_gauge_left_free_the_factor_graphs_gauss_newton_row_says_so():
+    from course.app import compare
+    from course.problems.bal.dataset import load_bal
+
+    rows = compare.run_bal(load_bal("bal-synthetic:4:40"), methods=["gauss-newton"], backends=["ours-autodiff"],
+                           fix_gauge=False)
+    assert "with no variable fixed the gauge is free" in rows[0].not_run
