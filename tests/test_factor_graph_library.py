@@ -63,7 +63,8 @@ def _graph_2d():
             d = m - p[:2]
             rng_, brg = np.hypot(*d), np.arctan2(d[1], d[0]) - p[2]
             if (k + j) % 3 == 0:
-                g.add(RANGE_BEARING, [f"x{k}", f"l{j}"], _noisy(rng, [rng_, brg], 0.01), noise=noise.sigmas([0.05, 0.01]))
+                g.add(RANGE_BEARING, [f"x{k}", f"l{j}"], _noisy(rng, [rng_, brg], 0.01),
+                      noise=noise.sigmas([0.05, 0.01]))
             elif (k + j) % 3 == 1:
                 g.add(RANGE_2D, [f"x{k}", f"l{j}"], _noisy(rng, [rng_], 0.01), noise=noise.isotropic(1, 0.05))
             else:
@@ -112,7 +113,7 @@ def _graph_3d():
         g.add(GPS, [f"x{k}"], _noisy(rng, t, 0.05), noise=noise.isotropic(3, 0.1))
         g.add(RANGE_3D, [f"x{k}", f"p{k}"], [np.linalg.norm(points[k] - t) + 0.01], noise=noise.isotropic(1, 0.05))
     R1, t1 = truth[1][3:].reshape(3, 3), truth[1][:3]
-    for j in range(12):  # the scan of pose x1 against planes of the world
+    for _ in range(12):  # the scan of pose x1 against planes of the world
         n = rng.standard_normal(3)
         n /= np.linalg.norm(n)
         p = rng.standard_normal(3) * 2.0
@@ -303,8 +304,8 @@ def test_a_partly_fixed_eliminated_variable_is_held():
     for k in range(2):
         g.add(BETWEEN_SE2, [f"x{k}", f"x{k + 1}"], [1.0, 0.0, 0.0])
     planar = FactorType("planar_range_bearing", (SE2, Vector(3)), 3,
-                        lambda z, x, l: jetmath.concatenate([RB.residual(z[..., :2], x, l[..., :2]),
-                                                             l[..., 2:] - z[..., 2:]]))
+                        lambda z, x, mark: jetmath.concatenate([RB.residual(z[..., :2], x, mark[..., :2]),
+                                                                mark[..., 2:] - z[..., 2:]]))
     for k in range(3):
         for j in range(4):
             g.add(planar, [f"x{k}", f"l{j}"], [2.0 + 0.1 * j, 0.3 * j - 0.2 * k, 0.4])
@@ -330,7 +331,8 @@ def test_bundle_adjustments_factor_graph_fixes_the_gauge_as_chapter_4_and_gauss_
     held = gauge_parameters(bal)
     assert graph.fixed_dofs == {k: tuple(np.flatnonzero(row).tolist()) for k, row in enumerate(held) if row.any()}
     fg = minimize(FactorGraphProblem(graph), "gauss-newton", options=SolverOptions(max_iterations=50))
-    ch4 = minimize(BundleAdjustmentProblem(bal, fix_gauge=True), "gauss-newton", options=SolverOptions(max_iterations=50))
+    ch4 = minimize(BundleAdjustmentProblem(bal, fix_gauge=True), "gauss-newton",
+                   options=SolverOptions(max_iterations=50))
     assert fg.final_chi2 == pytest.approx(ch4.final_chi2, rel=1e-6)
     x0 = FactorGraphProblem(graph).x0
     cameras = fg.params[:9 * bal.num_cameras].reshape(-1, 9)

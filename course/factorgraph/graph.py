@@ -98,12 +98,12 @@ class FactorGraph:
             raise ValueError(f"{where}: a {self.kinds[v].name} variable has tangent indices 0 to {dim - 1}")
         if v in self.fixed:
             return
-        held = tuple(sorted(set(self.fixed_dofs.get(v, ())) | {int(d) for d in held}))
-        if len(held) == dim:
+        merged = tuple(sorted(set(self.fixed_dofs.get(v, ())) | {int(d) for d in held}))
+        if len(merged) == dim:
             self.fixed_dofs.pop(v, None)
             self.fixed.append(v)
         else:
-            self.fixed_dofs[v] = held
+            self.fixed_dofs[v] = merged
 
     def add(self, factor_type: FactorType, keys, measurement, information=None, loss=None, noise=None) -> None:
         """One factor of ``factor_type`` on the variables ``keys`` (one per slot); its noise by
