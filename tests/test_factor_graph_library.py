@@ -357,3 +357,16 @@ def test_with_the_gauge_left_free_the_factor_graphs_gauss_newton_row_says_so():
     rows = compare.run_bal(load_bal("bal-synthetic:4:40"), methods=["gauss-newton"], backends=["ours-autodiff"],
                            fix_gauge=False)
     assert "with no variable fixed the gauge is free" in rows[0].not_run
+
+
+def _robust_graph():
+    """The 2D graph with its range-bearing factors under each robust kernel, and one outlier each."""
+    g = _graph_2d()
+    for k, kernel in enumerate(("huber", "cauchy", "tukey")):
+        g.add(RANGE_BEARING, [f"x{k}", f"l{k}"], [4.0, 1.0], noise=noise.sigmas([0.05, 0.01]).robust(kernel, 2.0))
+    return g
+
+
+@needs("jax", "gtsam")
+def test_robust_noise_models_solve_to_one_minimum_on_ours_jax_and_gtsam_custom():
+    _same_minimum(_robust_graph())
