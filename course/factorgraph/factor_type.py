@@ -7,7 +7,7 @@ with ``course.factorgraph.jetmath``'s functions (``jetmath.sqrt``, ``jetmath.sta
 the ``jax`` back end's; ``gtsam-custom`` calls it on Jets too. numpy's own functions (``np.sqrt``) run
 on arrays and Jets but not under JAX, which then says so, naming the factor type. Nothing else is
 needed to add a factor to the course: no Jacobian is written by hand, nothing is registered.
-A factor type is known by identity: two types of one name in a graph are an error.
+Two different factor types of one name in a graph are an error.
 """
 
 from collections.abc import Callable

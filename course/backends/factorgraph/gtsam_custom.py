@@ -25,7 +25,8 @@ on the solution, ``FactorGraphProblem.chi2``). A group's robust loss is GTSAM's 
 same kernel (:func:`robust_estimator`; GTSAM reweights, ours adds the curvature term: the iterates
 differ, not the minimum). A partly fixed variable (``graph.fix(key, dofs)``) is a
 GTSAM variable whose Jacobians have the held dofs' columns zeroed: Levenberg-Marquardt's damping then
-gives them a zero step. The noise model is ``noiseModel.Gaussian.Information``
+gives them a zero step (exactly held for vectors and SE(2); a ``Pose3``'s retraction mixes rotation into
+translation beyond first order, so there the held dofs drift at second order of the others' steps). The noise model is ``noiseModel.Gaussian.Information``
 of the factor's information, so that GTSAM's error is exactly half our chi2 (plus those constants).
 """
 
