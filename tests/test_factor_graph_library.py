@@ -370,3 +370,21 @@ def _robust_graph():
 @needs("jax", "gtsam")
 def test_robust_noise_models_solve_to_one_minimum_on_ours_jax_and_gtsam_custom():
     _same_minimum(_robust_graph())
+
+
+@pytest.mark.slow
+def test_ladybug_49s_factor_graph_with_the_gauge_fixed_steps_as_chapter_4s_gauss_newton(data_folder):
+    """Undamped Gauss-Newton goes uphill from ladybug-49's start in both (chi2 1.7e6 to 7.2e9, then 4e18;
+    chapter 4's row fails too, at its third solve): the factor graph's first step is chapter 4's, no
+    longer stopped by a free gauge."""
+    from course.problems.bal.dataset import load_bal
+    from course.problems.bal.factor_graph import as_factor_graph
+    from course.problems.bal.problem import BundleAdjustmentProblem
+
+    bal = load_bal("ladybug-49")
+    chi2 = {}
+    for name, problem in (("ch4", BundleAdjustmentProblem(bal, fix_gauge=True)),
+                          ("fg", FactorGraphProblem(as_factor_graph(bal, fix_gauge=True)))):
+        x = problem.x0
+        chi2[name] = problem.chi2(problem.retract(x, problem.solve(problem.linearize(x), None)))
+    assert chi2["fg"] == pytest.approx(chi2["ch4"], rel=1e-6)
