@@ -271,6 +271,11 @@ def test_a_partial_fix_holds_exactly_the_given_dofs():
     x = result.params
     np.testing.assert_array_equal(x[held], problem.x0[held])
     assert np.all(np.abs(x[moving] - problem.x0[moving]) > 1e-4)
+    # a minimum in the free dofs: the gradient of the graph without the partial fix is 0 along them
+    free = FactorGraphProblem(_user_graph())
+    b = free.linearize(x).b
+    assert np.abs(b[moving]).max() <= 1e-9 * np.abs(free.linearize(free.x0).b).max()
+    assert np.abs(b[held]).max() > 1e-3
 
 
 @needs("jax", "gtsam")
