@@ -21,13 +21,15 @@ The variables are those GTSAM retracts as we do, to first order (the order that 
 Fixed variables are not variables for GTSAM (as ``course.backends.posegraph.gtsam`` does): a factor
 holds a fixed variable's value as a constant and has keys for its free ones only; a factor of fixed
 variables alone is a constant of the error and is left out (``final_chi2`` counts it: it is our error
-on the solution, ``FactorGraphProblem.chi2``). A group's robust loss is GTSAM's ``noiseModel.Robust`` of the
-same kernel (:func:`robust_estimator`; GTSAM reweights, ours adds the curvature term: the iterates
-differ, not the minimum). A partly fixed variable (``graph.fix(key, dofs)``) is a
-GTSAM variable whose Jacobians have the held dofs' columns zeroed: Levenberg-Marquardt's damping then
-gives them a zero step (exactly held for vectors and SE(2); a ``Pose3``'s retraction mixes rotation into
-translation beyond first order, so there the held dofs drift at second order of the others' steps). The noise model is ``noiseModel.Gaussian.Information``
-of the factor's information, so that GTSAM's error is exactly half our chi2 (plus those constants).
+on the solution, ``FactorGraphProblem.chi2``). The noise model is ``noiseModel.Gaussian.Information`` of
+the factor's information, so that GTSAM's error is exactly half our chi2 (plus those constants).
+
+A group's robust loss is GTSAM's ``noiseModel.Robust`` of the same kernel (:func:`robust_estimator`;
+GTSAM reweights, ours adds the curvature term: the iterates differ, not the minimum). A partly fixed
+variable (``graph.fix(key, dofs)``) is a GTSAM variable whose Jacobians have the held dofs' columns
+zeroed: Levenberg-Marquardt's damping then gives them a zero step (exactly held for vectors and
+SE(2); a ``Pose3``'s retraction mixes rotation into translation beyond first order, so there the
+held dofs drift at second order of the others' steps).
 """
 
 import time
