@@ -1,5 +1,5 @@
 """Chapter 7's peers on the same residual: GTSAM's ``CustomFactor`` (our residual, our Jets' Jacobians per
-Python callback: ``gtsam-custom``) and JAX (the residual in ``jax.numpy``, ``jacfwd`` under ``vmap`` and
+Python callback: ``gtsam-custom``) and JAX (the same residual traced, ``jacfwd`` under ``vmap`` and
 ``jit``, for our minimizer: ``jax``). Each ends at our minimum; each is a row, not a traceback, where its
 library is missing."""
 

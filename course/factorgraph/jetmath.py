@@ -97,12 +97,6 @@ def concatenate(arrays):
     return np.stack([a[..., i] for a in arrays for i in range(a.shape[-1])], axis=-1)
 
 
-def zeros_like_value(x, shape=None):
-    """A constant zero array of ``shape`` (default ``x``'s) in ``x``'s namespace (a numpy array for a Jet)."""
-    return np.zeros(np.shape(value_of(x)) if shape is None else shape) if not is_jax(x) else \
-        namespace(x).zeros(x.shape if shape is None else shape)
-
-
 def where(mask, a, b):
     """``np.where(mask, a, b)`` for arrays, Jets and JAX alike (``mask`` a boolean array of the values'
     shape): the derivative of the branch taken."""
