@@ -8,6 +8,7 @@ from conftest import needs
 
 from course.factorgraph import (
     BEARING_2D,
+    BEARING_3D,
     GPS,
     PINHOLE,
     POINT_TO_PLANE,
@@ -81,7 +82,7 @@ def _pose(rng, t, phi):
 
 def _graph_3d():
     """Three SE(3) camera poses, six points and two rotations: prior and between on SE3, SO3 and Vector3,
-    GPS, range, pinhole projections and point-to-plane errors."""
+    GPS, range, 3D bearing, pinhole projections and point-to-plane errors."""
     rng = np.random.default_rng(5)
     truth = [_pose(rng, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]), _pose(rng, [1.0, 0.1, 0.0], [0.05, -0.1, 0.08]),
              _pose(rng, [2.0, -0.1, 0.2], [-0.05, 0.1, 0.15])]
@@ -111,6 +112,8 @@ def _graph_3d():
             uv = K[:2] * P[:2] / P[2] + K[2:]
             g.add(PINHOLE, [f"x{k}", f"p{j}"], np.concatenate([_noisy(rng, uv, 0.5), K]), noise=noise.isotropic(2, 1.0))
         g.add(GPS, [f"x{k}"], _noisy(rng, t, 0.05), noise=noise.isotropic(3, 0.1))
+        direction = _noisy(rng, R.T @ (points[k + 3] - t), 0.01)
+        g.add(BEARING_3D, [f"x{k}", f"p{k + 3}"], direction / np.linalg.norm(direction), noise=noise.isotropic(2, 0.01))
         g.add(RANGE_3D, [f"x{k}", f"p{k}"], [np.linalg.norm(points[k] - t) + 0.01], noise=noise.isotropic(1, 0.05))
     R1, t1 = truth[1][3:].reshape(3, 3), truth[1][:3]
     for _ in range(12):  # the scan of pose x1 against planes of the world

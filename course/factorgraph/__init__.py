@@ -13,6 +13,7 @@ H and b from its ``factor_linearisation``.
 from course.factorgraph.factor_type import FactorType
 from course.factorgraph.factors import (
     BEARING_2D,
+    BEARING_3D,
     BETWEEN_SE2,
     BETWEEN_SE3,
     BETWEEN_SO3,
@@ -34,7 +35,7 @@ from course.factorgraph.problem import FactorGraphProblem
 from course.factorgraph.values import Values
 from course.factorgraph.variables import SE2, SE3, SO3, Pose3, Vector, se3_parts, se3_value
 
-__all__ = ["BEARING_2D", "BETWEEN_SE2", "BETWEEN_SE3", "BETWEEN_SO3", "GPS", "PINHOLE", "POINT_TO_PLANE",
+__all__ = ["BEARING_2D", "BEARING_3D", "BETWEEN_SE2", "BETWEEN_SE3", "BETWEEN_SO3", "GPS", "PINHOLE", "POINT_TO_PLANE",
            "POSITION_2D", "PRIOR_SE2", "PRIOR_SE3", "PRIOR_SO3", "RANGE_2D", "RANGE_3D", "RANGE_BEARING", "SE2", "SE3",
            "SO3", "FactorGraph", "FactorGraphProblem", "FactorType", "Pose3", "Values", "Vector", "between", "prior",
            "se3_parts", "se3_value", "symbol"]

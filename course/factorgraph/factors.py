@@ -21,6 +21,9 @@ Measurements of a landmark ``l`` from a pose ``x`` (``d = t_l - t_x``):
 
 - ``RANGE_2D`` (SE2, Vector2), ``RANGE_3D`` (SE3, Vector3): ``|d| - z``, ``z`` (1,);
 - ``BEARING_2D`` (SE2, Vector2): ``wrap(atan2(d_y, d_x) - theta - z)``, ``z`` (1,);
+- ``BEARING_3D`` (SE3, Vector3): the direction ``u = R^T d / |d|`` in the pose's frame against the measured
+  unit vector ``z`` (3,), in a basis ``(b1, b2)`` of the plane orthogonal to ``z`` (made from ``z`` alone):
+  ``r = (b1 . u, b2 . u)`` (2,), 0 where ``u = z`` (GTSAM's ``BearingFactor3D``: a ``Unit3`` error in its own basis);
 - ``RANGE_BEARING`` (SE2, Vector2): both, ``z = (range, bearing)``;
 - ``POSITION_2D`` (SE2), ``GPS`` (SE3): the pose's position ``t - z``, ``z`` (2,) or (3,) (GTSAM's
   ``GPSFactor``: the body's origin, no lever arm);
@@ -113,6 +116,19 @@ def bearing_2d(z, x, landmark):
     return jm.stack([jm.wrap_angle(jm.arctan2(dy, dx) - x[..., 2] - z[..., 0])], axis=-1)
 
 
+def bearing_3d(z, x, landmark):
+    t, R = se3_parts(x)
+    P = jm.matvec(jm.transpose(R), landmark - t)
+    u = P / jm.sqrt(jm.squared_norm3(P))[..., None]
+    # a basis (b1, b2) of the plane orthogonal to the measured direction z, from z alone
+    helper = jm.where((jm.value_of(z[..., 0]) ** 2 < 0.5)[..., None], np.array([1.0, 0.0, 0.0]),
+                      np.array([0.0, 1.0, 0.0]))
+    b1 = jm.cross(z, helper)
+    b1 = b1 / jm.sqrt(jm.squared_norm3(b1))[..., None]
+    b2 = jm.cross(z, b1)
+    return jm.stack([jm.dot3(b1, u), jm.dot3(b2, u)], axis=-1)
+
+
 def range_bearing(z, x, landmark):
     dx, dy = landmark[..., 0] - x[..., 0], landmark[..., 1] - x[..., 1]
     return jm.stack([jm.sqrt(dx * dx + dy * dy) - z[..., 0],
@@ -161,6 +177,7 @@ PRIOR_SE3 = FactorType("prior_se3", (SE3,), 6, prior_se3)
 RANGE_2D = FactorType("range_2d", (SE2, Vector(2)), 1, range_2d)
 RANGE_3D = FactorType("range_3d", (SE3, Vector(3)), 1, range_3d)
 BEARING_2D = FactorType("bearing_2d", (SE2, Vector(2)), 1, bearing_2d)
+BEARING_3D = FactorType("bearing_3d", (SE3, Vector(3)), 2, bearing_3d)
 RANGE_BEARING = FactorType("range_bearing", (SE2, Vector(2)), 2, range_bearing)
 POSITION_2D = FactorType("position_2d", (SE2,), 2, position_2d)
 GPS = FactorType("gps", (SE3,), 3, gps)
