@@ -1,5 +1,5 @@
 """Chapter 7's peers on the same residual: GTSAM's ``CustomFactor`` (our residual, our Jets' Jacobians per
-Python callback: ``gtsam-custom``) and JAX (the residual in ``jax.numpy``, ``jacfwd`` under ``vmap`` and
+Python callback: ``gtsam-custom``) and JAX (the same residual traced, ``jacfwd`` under ``vmap`` and
 ``jit``, for our minimizer: ``jax``). Each ends at our minimum; each is a row, not a traceback, where its
 library is missing."""
 
@@ -92,15 +92,23 @@ def test_jax_ends_at_our_minimum_on_intel(data_folder):
 
 
 @needs("jax")
-def test_a_factor_type_without_a_jax_residual_is_named():
+def test_a_users_factor_type_reaches_jax_by_itself_and_an_untraceable_one_is_named():
     from course.backends.factorgraph import jax_factors
     from course.factorgraph import SE2, FactorGraph, FactorType
 
     graph = FactorGraph("odd")
     graph.add_variable("x0", SE2, [0, 0, 0])
     graph.add(FactorType("odd", (SE2,), 1, lambda z, x: x[..., :1] - z), ["x0"], [1.0])
-    with pytest.raises(ValueError, match="no JAX residual for factor type 'odd'"):
+    r, J = jax_factors.problem(graph).factor_jacobians(np.zeros(3), 0)
+    np.testing.assert_array_equal(r, [[-1.0]])
+    np.testing.assert_array_equal(J[0], [[[1.0, 0.0, 0.0]]])
+
+    graph = FactorGraph("numpy")
+    graph.add_variable("x0", SE2, [0, 0, 0])
+    graph.add(FactorType("numpy_norm", (SE2,), 1, lambda z, x: np.asarray(x)[..., :1] - z), ["x0"], [1.0])
+    with pytest.raises(ValueError, match="factor type 'numpy_norm' cannot be traced by JAX") as error:
         jax_factors.problem(graph)
+    assert "\n" not in str(error.value)
 
 
 # ---------------------------------------------------------------- gtsam-custom

@@ -438,7 +438,7 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
     the gauge is fixed (camera 0's pose and one coordinate of camera 1), as every peer fixes it
     (pycolmap by itself, GTSAM with priors); ``fix_gauge=False`` shows what the free gauge does
     (Gauss-Newton then fails, and LM with lambda I converges slowly); the factor-graph back ends
-    (chapter 7, run when named) solve its factor graph with the gauge free;
+    (chapter 7, run when named) solve its factor graph with the same gauge fixed (``graph.fix(key, dofs)``);
     the peers: ``course.backends.bal.colmap`` (Ceres), ``gtsam_bal``, ``scipy_bal``. Returns
     ``list[BALRunResult]`` (``course.backends.bal.common``: ``params`` the flat state,
     ``final_chi2`` our ``sum |r|^2`` over all observations, and each peer's own cost beside
@@ -465,9 +465,8 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
             chapters.require("ch7", f"back end {backend}")
             from course.problems.bal.factor_graph import as_factor_graph
 
-            result = factor_graph_run(as_factor_graph(problem), backend, method, impl, options)
-            return BALRunResult.from_run(result, problem, peer_cost="ours: 0.5 sum |r|^2 over all observations "
-                                         "(the factor graph leaves the gauge free: it fixes whole variables only)")
+            result = factor_graph_run(as_factor_graph(problem, fix_gauge=fix_gauge), backend, method, impl, options)
+            return BALRunResult.from_run(result, problem, peer_cost="ours: 0.5 sum |r|^2 over all observations")
         return _run_peer("bal", backend, problem, method, max_iterations)
 
     return _run_pairs(plan, ours, peer, repeat, unimplemented, progress, failures=SingularSystemError, impl=impl)

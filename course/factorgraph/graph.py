@@ -47,7 +47,7 @@ class FactorGroup:
 
 
 class FactorGraph:
-    """Variables (``add_variable``), factors (``add``, ``add_many``) and fixed variables (``fix``)."""
+    """Variables (``add_variable``), factors (``add``, ``add_many``) and fixed variables or dofs (``fix``)."""
 
     def __init__(self, name: str = "factor graph"):
         self.name = name
@@ -56,7 +56,8 @@ class FactorGraph:
         self.values: list = []
         self.index: dict = {}
         self.groups: dict = {}
-        self.fixed: list = []
+        self.fixed: list = []  # the variables held whole
+        self.fixed_dofs: dict = {}  # variable index -> the tangent indices held (some, not all)
 
     @property
     def num_variables(self) -> int:
@@ -77,21 +78,50 @@ class FactorGraph:
         self.values.append(value)
         return self.index[key]
 
-    def fix(self, key) -> None:
-        """Hold variable ``key`` at its value (its step is 0)."""
-        self.fixed.append(self._variable(key, "fix"))
+    def fix(self, key, dofs=None) -> None:
+        """Hold variable ``key`` at its value (its step is 0); with ``dofs`` (indices into its tangent
+        step, ``0 .. dim - 1``), hold those alone and let the others move (Ceres' ``SubsetManifold``):
+        ``graph.fix("c0", dofs=[0, 1, 2])`` holds an SE(3) pose's translation (ours is translation
+        first). Fixing every dof is fixing the variable; fixing again adds to what is held."""
+        v = self._variable(key, "fix")
+        if dofs is None:
+            self.fixed_dofs.pop(v, None)
+            if v not in self.fixed:
+                self.fixed.append(v)
+            return
+        dim = self.kinds[v].dim
+        where = f"{self.name}: fix({key!r}, dofs={dofs!r})"
+        held = np.asarray(dofs)
+        if held.ndim != 1 or not len(held) or not np.issubdtype(held.dtype, np.integer):
+            raise ValueError(f"{where}: dofs must be a non-empty list of integers (tangent indices)")
+        if held.min() < 0 or held.max() >= dim:
+            raise ValueError(f"{where}: a {self.kinds[v].name} variable has tangent indices 0 to {dim - 1}")
+        if v in self.fixed:
+            return
+        merged = tuple(sorted(set(self.fixed_dofs.get(v, ())) | {int(d) for d in held}))
+        if len(merged) == dim:
+            self.fixed_dofs.pop(v, None)
+            self.fixed.append(v)
+        else:
+            self.fixed_dofs[v] = merged
 
-    def add(self, factor_type: FactorType, keys, measurement, information=None, loss=None) -> None:
-        """One factor of ``factor_type`` on the variables ``keys`` (one per slot)."""
+    def add(self, factor_type: FactorType, keys, measurement, information=None, loss=None, noise=None) -> None:
+        """One factor of ``factor_type`` on the variables ``keys`` (one per slot); its noise by
+        ``information`` and ``loss``, or by a ``noise`` model (``course.factorgraph.noise``: ``sigmas``,
+        ``isotropic``, ``covariance``, ``information``, each ``.robust(kernel, scale)``)."""
+        information, loss = _noise(factor_type, information, loss, noise, self.name)
         z = np.asarray(measurement, dtype=float)[None]
         info = None if information is None else np.asarray(information, dtype=float)[None]
         self.add_many(factor_type, [keys], z, info, loss)
 
-    def add_many(self, factor_type: FactorType, keys, measurements, information=None, loss=None) -> None:
+    def add_many(self, factor_type: FactorType, keys, measurements, information=None, loss=None,
+                 noise=None) -> None:
         """M factors of ``factor_type``: ``keys`` (M, s) registered variable keys, or an integer array of
         variable indices (the order of ``add_variable``), ``measurements``
         (M, ...), ``information`` (M, dim, dim), (dim, dim) or None (unit); ``loss`` None or a robust
-        loss such as ``("huber", 2.0)`` (chapter 4's kernels, on the whitened ``|r|^2`` of each factor)."""
+        loss such as ``("huber", 2.0)`` (chapter 4's kernels, on the whitened ``|r|^2`` of each factor);
+        or ``noise``, a noise model in place of both (as in ``add``)."""
+        information, loss = _noise(factor_type, information, loss, noise, self.name)
         where = f"{self.name}: {factor_type.name}"
         loss = RobustLoss.of(loss)
         indices = np.array([[self._variable(k, where) for k in row] for row in keys], dtype=np.int64) \
@@ -137,3 +167,18 @@ class FactorGraph:
 
 def _function_name(function) -> str:
     return f"{getattr(function, '__module__', '?')}.{getattr(function, '__qualname__', repr(function))}"
+
+
+def _noise(factor_type, information, loss, noise, name):
+    """``(information, loss)`` of a factor given either or a ``noise`` model."""
+    if noise is None:
+        return information, loss
+    if information is not None or loss is not None:
+        raise ValueError(f"{name}: {factor_type.name}: give noise= or information= and loss=, not both")
+    if not hasattr(noise, "information") or not hasattr(noise, "loss"):
+        raise ValueError(f"{name}: {factor_type.name}: noise must be a course.factorgraph.noise model "
+                         f"(sigmas, isotropic, covariance, information), got {type(noise).__name__}")
+    if noise.information.shape[-1] != factor_type.dim:
+        raise ValueError(f"{name}: {factor_type.name}: a noise model of size {noise.information.shape[-1]} for "
+                         f"a residual of size {factor_type.dim}")
+    return noise.information, noise.loss

@@ -1,12 +1,22 @@
-"""The geometry a residual needs, written once for numpy arrays and for Jets.
+"""The geometry a residual needs, written once for numpy arrays, Jets and JAX.
 
-Every function here takes arrays or Jets (any class with ``value`` (...,), ``grad`` (..., k), the
+Every function here takes numpy arrays, Jets (any class with ``value`` (...,), ``grad`` (..., k), the
 constructor ``type(x)(value, grad)``, indexing and ``reshape``, and the arithmetic and numpy
-functions of chapter 7's ``jets`` exercise) and returns the same kind. The branches that a value
-decides (the small-angle series, the angle wrap) are chosen on the value alone, and the
-derivative follows the branch taken: that is how Ceres' Jets treat ``if``, and why ``Exp`` at
-``delta = 0`` uses its series (the closed form divides 0 by 0 there).
+functions of chapter 7's ``jets`` exercise) or JAX arrays (traced by ``jax.jit``, ``jax.vmap`` and
+``jax.jacfwd``), and returns the same kind: each function picks its array namespace from its
+inputs (:func:`namespace`: ``jax.numpy`` for a JAX array, numpy otherwise, whose functions reach a
+Jet's rules). A residual written with these functions (``jetmath.cos``, ``jetmath.stack``, ...) for
+everything that touches a variable's value is one source for the three: our values, our Jets'
+derivatives and JAX's (``course.backends.factorgraph.jax_factors``).
+
+The branches that a value decides (the small-angle series, the angle wrap) are chosen on the value
+alone, and the derivative follows the branch taken: that is how Ceres' Jets treat ``if``, and why
+``Exp`` at ``delta = 0`` uses its series (the closed form divides 0 by 0 there). On arrays and Jets
+a branch that no entry takes is not computed; under JAX, which cannot look at a traced value, both
+are, each at safe values where it is not taken (``where``), so that neither divides by 0.
 """
+
+import sys
 
 import numpy as np
 
@@ -18,14 +28,80 @@ def is_jet(x) -> bool:
     return hasattr(x, "grad") and hasattr(x, "value") and not isinstance(x, np.ndarray)
 
 
-def value_of(x) -> np.ndarray:
-    """The value of a Jet, or the array itself."""
+def is_jax(x) -> bool:
+    """Whether ``x`` is a JAX array or tracer (without importing JAX: it is loaded if ``x`` is one)."""
+    jax = sys.modules.get("jax")
+    return jax is not None and isinstance(x, jax.Array)
+
+
+def namespace(*xs):
+    """The array namespace of ``xs``: ``jax.numpy`` if one is a JAX array, else ``numpy`` (whose
+    functions send a Jet to its rules)."""
+    return sys.modules["jax.numpy"] if any(is_jax(x) for x in xs) else np
+
+
+def value_of(x):
+    """The value of a Jet, the array itself, or a JAX array without its derivative."""
+    if is_jax(x):
+        return sys.modules["jax"].lax.stop_gradient(x)
     return np.asarray(x.value if is_jet(x) else x, dtype=float)
 
 
+def some(mask) -> bool:
+    """Whether some entry of the boolean ``mask`` is set; always True under JAX (it cannot look)."""
+    return True if is_jax(mask) else bool(np.any(mask))
+
+
+def every(mask) -> bool:
+    """Whether every entry of ``mask`` is set; always False under JAX (it cannot look)."""
+    return False if is_jax(mask) else bool(np.all(mask))
+
+
+# ---------------------------------------------------------------- numpy's functions, for the three
+
+
+def sin(x):
+    return namespace(x).sin(x)
+
+
+def cos(x):
+    return namespace(x).cos(x)
+
+
+def sqrt(x):
+    return namespace(x).sqrt(x)
+
+
+def exp(x):
+    return namespace(x).exp(x)
+
+
+def log(x):
+    return namespace(x).log(x)
+
+
+def arctan2(y, x):
+    return namespace(y, x).arctan2(y, x)
+
+
+def stack(arrays, axis=-1):
+    """``np.stack(arrays, axis)`` of arrays, Jets (and constants) or JAX arrays."""
+    return namespace(*arrays).stack(arrays, axis=axis)
+
+
+def concatenate(arrays):
+    """``np.concatenate(arrays, axis=-1)``: on Jets column by column (the Jet has ``stack`` only)."""
+    xp = namespace(*arrays)
+    if xp is not np:
+        return xp.concatenate(arrays, axis=-1)
+    return np.stack([a[..., i] for a in arrays for i in range(a.shape[-1])], axis=-1)
+
+
 def where(mask, a, b):
-    """``np.where(mask, a, b)`` for arrays and Jets alike (``mask`` a boolean array of the values'
+    """``np.where(mask, a, b)`` for arrays, Jets and JAX alike (``mask`` a boolean array of the values'
     shape): the derivative of the branch taken."""
+    if is_jax(mask) or is_jax(a) or is_jax(b):
+        return namespace(mask, a, b).where(mask, a, b)
     jets = [x for x in (a, b) if is_jet(x)]
     if not jets:
         return np.where(mask, a, b)
@@ -40,19 +116,19 @@ def where(mask, a, b):
 
 def branches(small, series, closed):
     """``where(small, series(), closed())`` for arrays and Jets, each branch computed only if some entry
-    takes it: ``series`` and ``closed`` return a tuple of values each, ``small`` is a boolean array.
-    A batch of rotations rarely holds both kinds, and each branch is a dozen Jet operations."""
-    small = np.asarray(small)
-    if not small.any():
+    takes it (under JAX both, always): ``series`` and ``closed`` return a tuple of values each, ``small``
+    is a boolean array. A batch of rotations rarely holds both kinds, and each branch is a dozen Jet
+    operations."""
+    if not some(small):
         return closed()
-    if small.all():
+    if every(small):
         return series()
     return tuple(where(small, s, c) for s, c in zip(series(), closed()))
 
 
 def wrap_angle(theta):
     """``theta`` wrapped to ``[-pi, pi)``: a constant multiple of 2 pi subtracted (derivative 1)."""
-    turns = np.floor((value_of(theta) + np.pi) / (2.0 * np.pi))
+    turns = namespace(theta).floor((value_of(theta) + np.pi) / (2.0 * np.pi))
     return theta - 2.0 * np.pi * turns
 
 
@@ -70,13 +146,13 @@ def skew(v):
     """``[v]_x`` (..., 3, 3) of ``v`` (..., 3): ``[v]_x u = v x u``."""
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
     zero = 0.0 * x
-    return np.stack([np.stack([zero, -z, y], axis=-1), np.stack([z, zero, -x], axis=-1),
-                     np.stack([-y, x, zero], axis=-1)], axis=-2)
+    return stack([stack([zero, -z, y], axis=-1), stack([z, zero, -x], axis=-1),
+                  stack([-y, x, zero], axis=-1)], axis=-2)
 
 
 def vee(W):
     """The vector (..., 3) of the antisymmetric part of ``W`` (..., 3, 3): ``vee((W - W^T) / 2)``."""
-    return 0.5 * np.stack([W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0],
+    return 0.5 * stack([W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0],
                            W[..., 1, 0] - W[..., 0, 1]], axis=-1)
 
 
@@ -87,20 +163,20 @@ def matvec(A, v):
 
 def transpose(A):
     """The transpose of the last two axes."""
-    return A.mT if is_jet(A) else np.swapaxes(A, -1, -2)
+    return A.mT if is_jet(A) else namespace(A).swapaxes(A, -1, -2)
 
 
 def rotation2d(theta):
     """``R(theta)`` (..., 2, 2)."""
-    c, s = np.cos(theta), np.sin(theta)
-    return np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
+    c, s = cos(theta), sin(theta)
+    return stack([stack([c, -s], axis=-1), stack([s, c], axis=-1)], axis=-2)
 
 
 def cross(a, b):
     """``a x b`` (..., 3) of two (..., 3) vectors."""
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
     bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
+    return stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
 
 
 def rodrigues_coefficients(phi):
@@ -110,9 +186,9 @@ def rodrigues_coefficients(phi):
     small = value_of(t2) < SMALL_ANGLE_SQUARED
 
     def closed():
-        safe = where(small, 1.0, t2) if small.any() else t2
-        t = np.sqrt(safe)
-        return np.sin(t) / t, (1.0 - np.cos(t)) / safe
+        safe = where(small, 1.0, t2) if some(small) else t2
+        t = sqrt(safe)
+        return sin(t) / t, (1.0 - cos(t)) / safe
 
     return branches(small, lambda: (1.0 - t2 / 6.0, 0.5 - t2 / 24.0), closed)
 
@@ -130,7 +206,7 @@ def so3_exp(phi):
     ``SMALL_ANGLE_SQUARED``, where the closed forms divide 0 by 0."""
     a, b = rodrigues_coefficients(phi)
     W = skew(phi)
-    return np.eye(3) + a[..., None, None] * W + b[..., None, None] * (W @ W)
+    return a[..., None, None] * W + b[..., None, None] * (W @ W) + np.eye(3)
 
 
 def so3_log(R):
@@ -148,15 +224,16 @@ def so3_log(R):
     small = (value_of(s2) < SMALL_ANGLE_SQUARED) & ~wide
 
     def closed():
-        sin_t = np.sqrt(where(small, 1.0, s2) if small.any() else s2)
+        unsafe = small | wide  # 0 / 0 in the series' entries, and at pi in the wide ones
+        sin_t = sqrt(where(unsafe, 1.0, s2) if some(unsafe) else s2)
         cos_t = 0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0)
-        return (np.arctan2(sin_t, cos_t) / sin_t,)
+        return (arctan2(sin_t, cos_t) / sin_t,)
 
-    if wide.all():
+    if every(wide):
         return so3_log_wide(R, w)
     scale, = branches(small, lambda: (1.0 + s2 / 6.0,), closed)
     narrow = w * scale[..., None]
-    if not wide.any():
+    if not some(wide):
         return narrow
     return where(wide[..., None], so3_log_wide(R, w, wide), narrow)
 
@@ -171,23 +248,24 @@ def so3_log_wide(R, w, wide=None):
     get a harmless value (they are discarded by the caller)."""
     cos_t = 0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0)
     one_minus = 1.0 - cos_t
-    diag = np.stack([value_of(R[..., i, i]) for i in range(3)], axis=-1) - value_of(cos_t)[..., None]
-    k = np.argmax(diag, axis=-1)
+    xp = namespace(R)
+    diag = stack([value_of(R[..., i, i]) for i in range(3)], axis=-1) - value_of(cos_t)[..., None]
+    k = xp.argmax(diag, axis=-1)
     if wide is not None:
-        k = np.where(wide, k, 0)
+        k = xp.where(wide, k, 0)
     u = None
     for col in range(3):
         chosen = k == col
-        if not chosen.any():
+        if not some(chosen):
             continue
-        B_col = np.stack([0.5 * (R[..., i, col] + R[..., col, i]) - (cos_t if i == col else 0.0)
-                          for i in range(3)], axis=-1)
+        B_col = stack([0.5 * (R[..., i, col] + R[..., col, i]) - (cos_t if i == col else 0.0)
+                       for i in range(3)], axis=-1)
         norm2 = one_minus * B_col[..., col]
-        if wide is not None or not chosen.all():
+        if wide is not None or not every(chosen):
             usable = chosen & (wide if wide is not None else True)
             norm2 = where(usable, norm2, 1.0)
-        candidate = B_col / np.sqrt(norm2)[..., None]
+        candidate = B_col / sqrt(norm2)[..., None]
         u = candidate if u is None else where(chosen[..., None], candidate, u)
-    flip = np.where(value_of(dot3(u, w)) < 0.0, -1.0, 1.0)
+    flip = xp.where(value_of(dot3(u, w)) < 0.0, -1.0, 1.0)
     u = u * flip[..., None]
-    return u * np.arctan2(dot3(u, w), cos_t)[..., None]
+    return u * arctan2(dot3(u, w), cos_t)[..., None]

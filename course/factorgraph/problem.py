@@ -11,9 +11,17 @@ step comes from the implementation's sparse Cholesky solver (chapter 2), or Supe
 not installed; where one kind of variable is never joined to another of its kind by a factor (the
 points of bundle adjustment, the landmarks of SLAM), those are eliminated first
 (``course.factorgraph.schur_elimination``, chapter 4's Schur complement for any graph).
+
+A variable fixed whole is held by the assembly (the exercise's contract: its rows and columns of H
+zero but for the identity, its entries of b zero). Some dofs of a variable (``graph.fix(key, dofs)``,
+Ceres' ``SubsetManifold``) are held here, around it: their Jacobian columns are zeroed before the
+assembly and 1 put on their diagonal after, so that their step is 0 and the others' are those of the
+system without them. An eliminated variable may be partly fixed: its block of D then holds the
+identity on the held dofs, decoupled from the rest, and their step comes out 0.
 """
 
 import numpy as np
+import scipy.sparse as sp
 
 from course.core import impl as impl_loader
 from course.core.errors import NonFiniteError, ShapeError, SingularSystemError, check_array
@@ -76,8 +84,13 @@ class FactorGraphProblem:
         self._losses = [group.loss for group in graph.groups.values()]
         self._kernels = self.impl.module("robust_kernels") if any(self._losses) else None
         self._fixed = np.array(sorted(set(graph.fixed)), dtype=np.int64)
-        self._fixed_dof = np.concatenate([np.arange(self._h_offsets[v], self._h_offsets[v + 1])
-                                          for v in self._fixed]) if len(self._fixed) else np.zeros(0, np.int64)
+        self._whole_fixed_dof = np.concatenate([np.arange(self._h_offsets[v], self._h_offsets[v + 1])
+                                                for v in self._fixed]) if len(self._fixed) else np.zeros(0, np.int64)
+        # the dofs held of partly fixed variables: their Jacobian columns zeroed, 1 on their diagonal
+        self._partial_dof = np.array(sorted(int(self._h_offsets[v]) + d for v, held in graph.fixed_dofs.items()
+                                            for d in held), dtype=np.int64)
+        self._fixed_dof = np.union1d(self._whole_fixed_dof, self._partial_dof).astype(np.int64)
+        self._column_masks = [_column_masks(ftype, keys, graph.fixed_dofs) for ftype, keys, _, _ in self._groups]
         self._assembler = self.impl.module("factor_linearisation").BlockSparseAssembler(
             dims, [keys for _, keys, _, _ in self._groups], self._fixed)
         self._solver = sparse_solver(self.impl.module("sparse_solve")) if solver is None else solver
@@ -182,8 +195,9 @@ class FactorGraphProblem:
         return check_array(value, shape, where, what)
 
     def free_gauges(self) -> list:
-        """The connected parts of the graph (by its factors) that hold no fixed variable and no factor on
-        one variable alone (a prior): ``[(number of variables, first key)]``. Their global pose is free."""
+        """The connected parts of the graph (by its factors) that hold no fixed variable (whole or partly)
+        and no factor on one variable alone (a prior): ``[(number of variables, first key)]``. Their
+        global pose is free."""
         parent = list(range(self.graph.num_variables))
 
         def root(v):
@@ -192,7 +206,7 @@ class FactorGraphProblem:
                 v = parent[v]
             return v
 
-        anchored = set(int(v) for v in self._fixed)
+        anchored = set(int(v) for v in self._fixed) | set(self.graph.fixed_dofs)  # partly fixed: said held
         for _, keys, _, _ in self._groups:
             if keys.shape[1] == 1:
                 anchored.update(int(v) for v in keys[:, 0])
@@ -209,7 +223,10 @@ class FactorGraphProblem:
         blocks = []
         robust_correction = 0.0  # a robust group's chi2 is sum rho, not the reweighted residuals' sum r~^T r~
         for group, (W, loss) in enumerate(zip(self._whitening, self._losses)):
-            r, J = noise.whiten(W, *self.factor_jacobians(x, group))
+            r, J = self.factor_jacobians(x, group)
+            J = [block if mask is None else block * mask[:, None, :]
+                 for block, mask in zip(J, self._column_masks[group])]
+            r, J = noise.whiten(W, r, J)
             if loss is not None:  # r~, J~ with J~^T J~ = J^T W_rho J and J~^T r~ = rho' J^T r (chapter 4)
                 r, J, rho = robust.reweight(self._kernels, loss, r, J)
                 robust_correction += rho - float(np.vdot(r, r))
@@ -219,14 +236,29 @@ class FactorGraphProblem:
         n = int(self._h_offsets[-1])
         b = check_array(b, (n,), "factor_linearisation.BlockSparseAssembler.assemble", "b")
         if not self._held_checked:  # the structure does not change between iterations: once is enough
-            check_held_still(H, b, self._fixed_dof, "factor_linearisation.BlockSparseAssembler.assemble",
+            check_held_still(H, b, self._whole_fixed_dof, "factor_linearisation.BlockSparseAssembler.assemble",
                              int(max((k.dim for k in self.graph.kinds), default=1)))
             self._held_checked = True
-        return Linearization(H=H, b=b, chi2=float(chi2), upper=True,
-                             diagonal_positions=getattr(self._assembler, "diagonal_positions", None))
+        diagonal_positions = getattr(self._assembler, "diagonal_positions", None)
+        if len(self._partial_dof):
+            H, diagonal_positions = self._hold_partial(H, diagonal_positions)
+        return Linearization(H=H, b=b, chi2=float(chi2), upper=True, diagonal_positions=diagonal_positions)
+
+    def _hold_partial(self, H, diagonal_positions):
+        """``H`` with 1 on the diagonal of the partly fixed variables' held dofs (their rows, columns and
+        entries of b are zero: their Jacobian columns were), so that their step is 0: the framework's
+        part, the assembly exercise's contract (whole variables) unchanged."""
+        n = H.shape[0]
+        if diagonal_positions is not None and sp.isspmatrix_csc(H) and len(diagonal_positions) == n:
+            H.data[np.asarray(diagonal_positions)[self._partial_dof]] = 1.0
+            return H, diagonal_positions
+        one = np.ones(len(self._partial_dof))
+        return sp.triu(H + sp.csc_matrix((one, (self._partial_dof, self._partial_dof)), shape=(n, n)),
+                       format="csc"), None
 
     def solve(self, lin: Linearization, damping=None):
-        """The step (n,) of ``(H + diag(damping)) h = -b``; fixed variables' steps are 0. A singular
+        """The step (n,) of ``(H + diag(damping)) h = -b``; fixed variables' steps, and the held dofs of
+        partly fixed ones, are 0. A singular
         system says which parts of the graph have a free gauge (:meth:`free_gauges`), if any."""
         try:
             if self._schur is not None:
@@ -274,3 +306,18 @@ def eliminated_kind(graph: FactorGraph):
         if dof >= rest:
             candidates.append((dof, kind))
     return max(candidates, key=lambda c: c[0])[1] if candidates else None
+
+
+def _column_masks(ftype, keys, fixed_dofs) -> list:
+    """Per slot of a group, None or the mask (M, d_a) that zeroes the Jacobian columns of the dofs held
+    of partly fixed variables (``FactorGraph.fix(key, dofs)``)."""
+    masks = []
+    for a, kind in enumerate(ftype.kinds):
+        mask = None
+        for v, dofs in fixed_dofs.items():
+            rows = np.flatnonzero(keys[:, a] == v)
+            if len(rows):
+                mask = np.ones((len(keys), kind.dim)) if mask is None else mask
+                mask[np.ix_(rows, list(dofs))] = 0.0
+        masks.append(mask)
+    return masks

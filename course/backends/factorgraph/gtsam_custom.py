@@ -21,8 +21,15 @@ The variables are those GTSAM retracts as we do, to first order (the order that 
 Fixed variables are not variables for GTSAM (as ``course.backends.posegraph.gtsam`` does): a factor
 holds a fixed variable's value as a constant and has keys for its free ones only; a factor of fixed
 variables alone is a constant of the error and is left out (``final_chi2`` counts it: it is our error
-on the solution, ``FactorGraphProblem.chi2``). The noise model is ``noiseModel.Gaussian.Information``
-of the factor's information, so that GTSAM's error is exactly half our chi2 (plus those constants).
+on the solution, ``FactorGraphProblem.chi2``). The noise model is ``noiseModel.Gaussian.Information`` of
+the factor's information, so that GTSAM's error is exactly half our chi2 (plus those constants).
+
+A group's robust loss is GTSAM's ``noiseModel.Robust`` of the same kernel (:func:`robust_estimator`;
+GTSAM reweights, ours adds the curvature term: the iterates differ, not the minimum). A partly fixed
+variable (``graph.fix(key, dofs)``) is a GTSAM variable whose Jacobians have the held dofs' columns
+zeroed: Levenberg-Marquardt's damping then gives them a zero step (exactly held for vectors and
+SE(2); a ``Pose3``'s retraction mixes rotation into translation beyond first order, so there the
+held dofs drift at second order of the others' steps).
 """
 
 import time
@@ -61,9 +68,11 @@ def _kind_io(kind):
     raise ValueError(f"gtsam-custom: no GTSAM value for variables of kind {kind.name}")
 
 
-def _error_function(ftype, z, constants, free, tangent_jacobians, jet):
+def _error_function(ftype, z, constants, free, tangent_jacobians, jet, held=None):
     """The callback of one factor: ``constants`` (per slot, the fixed value (1, *shape) or None),
-    ``free`` ``[(slot, key, read, columns)]`` in the order of the factor's keys."""
+    ``free`` ``[(slot, key, read, columns)]`` in the order of the factor's keys; ``held`` (per entry of
+    ``free``, the tangent indices held of a partly fixed variable, or ()) zeroes those Jacobian columns."""
+    held = held or [()] * len(free)
     kinds = ftype.kinds
     retractions = [kinds[slot].retract for slot, _, _, _ in free]
     dims = [kinds[slot].dim for slot, _, _, _ in free]
@@ -79,12 +88,24 @@ def _error_function(ftype, z, constants, free, tangent_jacobians, jet):
         if H is None:  # the error alone: plain arrays
             return np.asarray(residual(*points), dtype=float)[0]
         r, J = tangent_jacobians(residual, retractions, dims, points, jet)
-        for a, ((_, _, _, columns), block) in enumerate(zip(free, J)):
-            block = np.asarray(block, dtype=float)[0]
+        for a, ((_, _, _, columns), block, dofs) in enumerate(zip(free, J, held)):
+            block = np.array(block, dtype=float)[0]
+            block[:, list(dofs)] = 0.0  # a partly fixed variable: its held dofs do not move
             H[a] = block if columns is None else block[:, columns]
         return np.asarray(r, dtype=float)[0]
 
     return error
+
+
+def robust_estimator(loss):
+    """GTSAM's M-estimator of a robust loss: chapter 4's Huber, Cauchy and Tukey kernels on ``s = |r|^2``
+    are twice GTSAM's on ``e = |r|`` with ``k = a`` (Huber ``2 a e - a^2`` against ``k e - k^2 / 2``), so
+    that GTSAM's error stays half our chi2."""
+    import gtsam
+
+    make = {"huber": gtsam.noiseModel.mEstimator.Huber, "cauchy": gtsam.noiseModel.mEstimator.Cauchy,
+            "tukey": gtsam.noiseModel.mEstimator.Tukey}[loss.kernel]
+    return make.Create(float(loss.scale))
 
 
 def build(graph, impl="solutions"):
@@ -107,9 +128,6 @@ def build(graph, impl="solutions"):
     constant_chi2 = 0.0
     for group in graph.groups.values():
         ftype = group.type
-        if group.loss is not None:  # GTSAM's robust models reweight (IRLS), ours adds the curvature term
-            raise ValueError(f"gtsam-custom: the {ftype.name} factors of {graph.name} have the robust loss "
-                             f"{group.loss}, which this back end does not translate; solve it with ours-autodiff")
         keys, z, info = group.arrays()
         for m in range(len(keys)):
             variables = [int(v) for v in keys[m]]
@@ -122,7 +140,10 @@ def build(graph, impl="solutions"):
                 continue
             model = gtsam.noiseModel.Unit.Create(ftype.dim) if info is None else \
                 gtsam.noiseModel.Gaussian.Information(np.array(info[m]))
-            error = _error_function(ftype, z[m:m + 1], constants, mine, tangent_jacobians, jet)
+            if group.loss is not None:
+                model = gtsam.noiseModel.Robust.Create(robust_estimator(group.loss), model)
+            held = [graph.fixed_dofs.get(v, ()) for _, v, _, _ in mine]
+            error = _error_function(ftype, z[m:m + 1], constants, mine, tangent_jacobians, jet, held)
             factors.add(gtsam.CustomFactor(model, [v for _, v, _, _ in mine], error))
     return factors, values, free, constant_chi2
 

@@ -60,6 +60,20 @@ class BlockLinearization(Linearization):
         raise NotImplementedError("a bundle-adjustment H is kept as blocks: use BundleAdjustmentProblem.solve")
 
 
+def gauge_parameters(problem: BALProblem) -> np.ndarray:
+    """The camera parameters (C, 9) bool that fix the gauge: camera 0's pose (w, t) and the translation
+    component of camera 1 along which the scene's scale moves it most, 7 in all."""
+    if problem.num_cameras < 2:
+        raise ValueError("fix_gauge needs at least 2 cameras")
+    fixed = np.zeros((problem.num_cameras, 9), dtype=bool)
+    fixed[0, :6] = True
+    cam = problem.cameras
+    centres = -rotate(-cam[:2, :3], cam[:2, 3:6])  # c = -R^T t
+    baseline = rotate(cam[1:2, :3], (centres[1] - centres[0])[None])[0]  # d t_1 / d scale, up to sign
+    fixed[1, 3 + int(np.argmax(np.abs(baseline)))] = True
+    return fixed
+
+
 class BundleAdjustmentProblem:
     """``linearize`` / ``chi2`` / ``solve`` / ``retract`` for one BAL problem and implementation."""
 
@@ -79,15 +93,8 @@ class BundleAdjustmentProblem:
         self.num_cameras, self.num_points = problem.num_cameras, problem.num_points
         self.x0 = np.concatenate([problem.cameras.ravel(), problem.points.ravel()]).astype(float)
         self._split = 9 * self.num_cameras
-        self.fixed = np.zeros((self.num_cameras, 9), dtype=bool)  # camera parameters held fixed
-        if fix_gauge:
-            if self.num_cameras < 2:
-                raise ValueError("fix_gauge needs at least 2 cameras")
-            self.fixed[0, :6] = True
-            cam = problem.cameras
-            centres = -rotate(-cam[:2, :3], cam[:2, 3:6])  # c = -R^T t
-            baseline = rotate(cam[1:2, :3], (centres[1] - centres[0])[None])[0]  # d t_1 / d scale, up to sign
-            self.fixed[1, 3 + int(np.argmax(np.abs(baseline)))] = True
+        # camera parameters held fixed
+        self.fixed = gauge_parameters(problem) if fix_gauge else np.zeros((self.num_cameras, 9), dtype=bool)
 
     def unpack(self, x):
         """``(cameras (C, 9), points (P, 3))`` of a state vector x."""
