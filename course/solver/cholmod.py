@@ -25,6 +25,8 @@ class CholmodSolver:
     the numeric factorization of a pose graph's H.
     """
 
+    label = "cholmod"  # compare's name for it (``course.solver.choice``)
+
     def __init__(self):
         self._indptr: np.ndarray | None = None
         self._indices: np.ndarray | None = None

@@ -28,6 +28,8 @@ PIVOT_TOLERANCE = 1e-12
 class SuperLUSolver:
     """``H dx = -b`` by ``scipy.sparse.linalg.splu`` on the symmetric H of its upper triangle."""
 
+    label = "superlu"  # compare's name for it (``course.solver.choice``)
+
     def solve(self, H_upper, b):
         upper = sp.csc_matrix(H_upper)
         H = (upper + sp.triu(upper, k=1, format="csc").T).tocsc()
