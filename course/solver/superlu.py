@@ -62,7 +62,7 @@ def checked_step(solver, H, b, fixed_dof, name: str, what: str = "pose") -> np.n
     try:
         h = np.asarray(solver.solve(H, b), dtype=float)
     except (ValueError, RuntimeError, ArithmeticError) as exc:  # qdldl: "not quasi-definite", SuperLU: singular
-        if isinstance(exc, SingularSystemError):
+        if isinstance(exc, (SingularSystemError, NotImplementedError)):  # a TODO is a RuntimeError too
             raise
         raise SingularSystemError(f"{name}: the sparse solve failed ({exc}): H is not positive definite "
                                   f"(is a {what} fixed?)") from exc
