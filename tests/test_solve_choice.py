@@ -14,8 +14,7 @@ from course.core.impl import REPO_ROOT
 from course.core.impl import load as load_impl
 from course.problems.posegraph3d import dataset as datasets3d
 from course.problems.posegraph3d.problem import PoseGraph3DProblem
-from course.solver import SolverOptions, minimize
-from course.solver import choice
+from course.solver import SolverOptions, choice, minimize
 from course.solver.cholmod import CholmodSolver
 from course.solver.superlu import SuperLUSolver
 
