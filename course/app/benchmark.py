@@ -114,7 +114,7 @@ def superlu_vs_qdldl(name="w10000", repeats=5, impl="solutions", progress=None):
         runs = []
         for _ in range(repeats):
             with progress.run(label, "gauss-newton") as callback:
-                problem = PoseGraphProblem(graph, impl, solver=solver() if solver else None)
+                problem = PoseGraphProblem(graph, impl, solver=solver() if solver else "ours")
                 runs.append(minimize(problem, "gauss-newton", impl=impl, callback=callback))
         out.append((statistics.median(r.seconds for r in runs), runs[-1]))
     (superlu, superlu_run), (qdldl, qdldl_run) = out

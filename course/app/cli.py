@@ -19,6 +19,7 @@ from course.core.errors import DatasetError
 from course.core.impl import default_impl
 from course.core.jsonio import write_json
 from course.core.method_names import DEFAULT_METHODS, OUR_METHODS
+from course.core.solve_names import SOLVES
 
 #: ``--information``: the readers' repairs of an information matrix that is not positive definite
 #: (``course.solver.information.MODES``, written out here: the command line imports no numpy)
@@ -96,6 +97,10 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--plot", metavar="FILE",
                          help="write a PNG: chi2 per iteration (curve) or the graph before and after (pose graphs)")
     compare.add_argument("--max-iterations", type=int, default=100, help="for every solver (default 100)")
+    compare.add_argument("--solver", default=None, choices=SOLVES,
+                         help="our sparse solve of H dx = -b (pose graphs, factor graphs): "
+                              + "; ".join(f"{name}: {what}" for name, what in SOLVES.items())
+                              + " (default: auto); the table's column solve names the one each row ran")
     compare.add_argument("--information", default="strict", choices=INFORMATION,
                          help="pose graphs: an edge whose information matrix is not positive definite is refused "
                               "(strict, the default: the error names file, line and eigenvalues), or repaired: "
@@ -419,7 +424,8 @@ def cmd_compare(args) -> int:
                          f"{args.dataset} is not one (leave --information out)")
     progress = _progress(runner.kind, methods, backends, args.dataset)
     runs = runner.run(args.dataset, impl=impl, methods=methods, backends=backends, repeat=args.repeat,
-                      max_iterations=args.max_iterations, progress=progress, unimplemented="row", **init)
+                      max_iterations=args.max_iterations, progress=progress, unimplemented="row",
+                      solver=args.solver, **init)
     progress.close()
     where = f"impl {impl}; init {args.init}" if init else f"impl {impl}"
     notes = list(dict.fromkeys(r.note for r in runs if r.note))

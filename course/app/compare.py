@@ -44,6 +44,7 @@ from course.core.impl import load as load_impl
 from course.core.peers import PeerMissing
 from course.core.progress import quiet
 from course.core.trace import RunResult
+from course.solver.choice import check_name
 
 
 class UnknownDatasetError(CourseError, ValueError):
@@ -170,12 +171,13 @@ def _solve_or_row(solve, repeat, backend, method, unimplemented) -> RunResult:
         return RunResult.skipped(backend, method, failure_reason(exc))
 
 
-def factor_graph_run(graph, backend: str, method: str, impl, options) -> RunResult:
+def factor_graph_run(graph, backend: str, method: str, impl, options, solver=None) -> RunResult:
     """A factor graph (chapter 7) solved by ``backend``: our minimizer's ``method``, its Jacobians as
     ``FACTOR_GRAPH_BACKENDS`` says (the implementation's Jets, central differences, or JAX, compiled
     before the solve: ``compile_seconds``), or a factor graphs' peer (``registry.FACTOR_GRAPH_PEERS``:
-    GTSAM on custom factors, ``options.max_iterations`` iterations at most). ``PeerMissing`` when the
-    back end's library is not installed here."""
+    GTSAM on custom factors, ``options.max_iterations`` iterations at most). ``solver``: our sparse
+    solve (``course.solver.choice``; ``None``: ``auto``). ``PeerMissing`` when the back end's library
+    is not installed here."""
     from course.core import peers
     from course.factorgraph import FactorGraphProblem
     from course.solver import minimize
@@ -188,10 +190,10 @@ def factor_graph_run(graph, backend: str, method: str, impl, options) -> RunResu
         peers.require("jax")
         from course.backends.factorgraph import jax_factors
 
-        problem = jax_factors.problem(graph, impl)
+        problem = jax_factors.problem(graph, impl, solver=solver)
         compile_seconds = problem.jacobians.compile_seconds
     else:
-        problem = FactorGraphProblem(graph, impl, jacobians=FACTOR_GRAPH_BACKENDS[backend])
+        problem = FactorGraphProblem(graph, impl, jacobians=FACTOR_GRAPH_BACKENDS[backend], solver=solver)
     result = minimize(problem, method, impl=impl, options=options)
     result.backend, result.compile_seconds = backend, compile_seconds
     return result
@@ -233,6 +235,11 @@ def _median_run(solve, repeat: int) -> RunResult:
     return sorted(runs, key=lambda r: r.seconds)[len(runs) // 2]
 
 
+#: the sparse solve each peer's runs use (its library's default, as the back ends configure them)
+PEER_SOLVES = {"gtsam": "gtsam-multifrontal", "gtsam-custom": "gtsam-multifrontal", "g2o": "g2o-eigen",
+               "ceres": "ceres", "scipy": "scipy"}
+
+
 def _run_pairs(plan, ours, peer, repeat=1, unimplemented="raise", progress=None,
                failures: type[Exception] | tuple[type[Exception], ...] = (), impl=None, started=()) -> list:
     """One ``RunResult`` per ``(backend, method)`` of ``plan``, in its order: the run loop of every kind.
@@ -261,6 +268,8 @@ def _run_pairs(plan, ours, peer, repeat=1, unimplemented="raise", progress=None,
                     result = RunResult.skipped(backend, method, failure_reason(exc))
             if recording is not None:
                 result.called = tuple(dict.fromkeys((*started, *recording.names)))
+        if not result.linear_solve and not result.not_run:
+            result.linear_solve = PEER_SOLVES.get(backend, "")
         results.append(result)
     return results
 
@@ -319,7 +328,10 @@ def is_curve_name(name: str) -> bool:
     return name in ("curve", CURVE_SOURCE)
 
 
-def _curve_runner(dataset, impl=None, methods=None, backends=None, **options):
+def _curve_runner(dataset, impl=None, methods=None, backends=None, solver=None, **options):
+    if check_name(solver) != "auto":
+        raise ValueError(f"--solver {solver}: the curve solves its 3 x 3 system dense (gauss_newton.solve_step); "
+                         "the sparse solves are for pose graphs, bundle adjustment's factor graph and the like")
     if dataset == CURVE_SOURCE and options.get("data") is None:
         from course.problems.curve.source_data import source_data
 
@@ -335,7 +347,7 @@ def posegraph_plan(methods=None, backends=None) -> list:
 
 
 def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
-                  unimplemented="raise", progress=None, init="file") -> list:
+                  unimplemented="raise", progress=None, init="file", solver=None) -> list:
     """Every method and peer on one ``PoseGraph``, same start, same fixed poses.
 
     Returns ``list[RunResult]`` (``params`` (N, 3) poses); where the graph has ground
@@ -345,6 +357,8 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
     computed once by the implementation's initialiser and shared by every back end; each
     result records it in ``init`` and its time in ``init_seconds``. With
     ``unimplemented="row"`` an unwritten initialiser makes every pair a row naming its TODO.
+    ``solver``: our sparse solve, a name of ``course.solver.choice.SOLVES`` (``None``: ``auto``), for
+    ours and the factor-graph back ends; each row names the one it ran (``linear_solve``).
     """
     from course.app.starts import check_method, initialise
     from course.problems.posegraph.problem import MAX_DENSE_POSES, PoseGraphProblem
@@ -352,6 +366,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
     from course.solver import SolverOptions, minimize
 
     impl = _tree_impl(impl)
+    check_name(solver)
     options = SolverOptions(max_iterations=max_iterations)
     plan = posegraph_plan(methods, backends)
     check_method(init)
@@ -362,7 +377,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
 
     def problem():
         try:
-            return PoseGraphProblem(graph, impl)
+            return PoseGraphProblem(graph, impl, solver=solver)
         except ValueError as exc:  # too large for the per-edge loop while pose_graph_fast is a stub
             if unimplemented == "row" and graph.num_poses > MAX_DENSE_POSES and "pose_graph_fast" in str(exc):
                 raise NotImplementedError(
@@ -379,7 +394,7 @@ def run_posegraph(graph, impl=None, methods=None, backends=None, repeat=1, max_i
             chapters.require("ch7", f"back end {backend}")
             from course.problems.posegraph.factor_graph import as_factor_graph
 
-            result = factor_graph_run(as_factor_graph(graph), backend, method, impl, options)
+            result = factor_graph_run(as_factor_graph(graph), backend, method, impl, options, solver)
             result.params = result.params.reshape(-1, 3)
             return result
         kwargs = {"impl": impl} if backend == "ceres" else {}  # Ceres' edge cost is the implementation's
@@ -431,7 +446,7 @@ def bal_plan(methods=None, backends=None) -> list:
 
 
 def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
-            unimplemented="raise", progress=None, fix_gauge=True) -> list:
+            unimplemented="raise", progress=None, fix_gauge=True, solver=None) -> list:
     """Every method and peer on one ``BALProblem`` (``course.problems.bal.dataset``), all from its own start.
 
     Ours: ``minimize(BundleAdjustmentProblem(problem, impl, fix_gauge), method)``: by default
@@ -444,7 +459,8 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
     ``final_chi2`` our ``sum |r|^2`` over all observations, and each peer's own cost beside
     it). A run that stops on a singular system (undamped Gauss-Newton meets bundle
     adjustment's 7-dimensional gauge freedom) is a row ``failed: ...``. ``impl``,
-    ``unimplemented``, ``progress`` as in ``run_curve``.
+    ``unimplemented``, ``progress`` as in ``run_curve``. ``solver`` (``course.solver.choice``) is the
+    factor-graph back ends' sparse solve; ours keeps ``bundle_adjustment.schur_solve``.
     """
     from course.backends.bal.common import BALRunResult
     from course.core.errors import SingularSystemError
@@ -452,6 +468,7 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
     from course.solver import SolverOptions, minimize
 
     impl = _tree_impl(impl)
+    check_name(solver)
     options = SolverOptions(max_iterations=max_iterations)
     plan = bal_plan(methods, backends)
 
@@ -465,7 +482,8 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
             chapters.require("ch7", f"back end {backend}")
             from course.problems.bal.factor_graph import as_factor_graph
 
-            result = factor_graph_run(as_factor_graph(problem, fix_gauge=fix_gauge), backend, method, impl, options)
+            result = factor_graph_run(as_factor_graph(problem, fix_gauge=fix_gauge), backend, method, impl, options,
+                                      solver)
             return BALRunResult.from_run(result, problem, peer_cost="ours: 0.5 sum |r|^2 over all observations")
         return _run_peer("bal", backend, problem, method, max_iterations)
 
@@ -504,20 +522,21 @@ def posegraph3d_plan(methods=None, backends=None) -> list:
 
 
 def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max_iterations=100,
-                    unimplemented="raise", progress=None, init="file") -> list:
+                    unimplemented="raise", progress=None, init="file", solver=None) -> list:
     """Every method and peer on one ``PoseGraph3D``, same start, same fixed poses.
 
     Returns ``list[RunResult]`` (``params`` the packed poses (12N,), ``final_chi2`` our error
     for every back end, see ``course.geometry.se3``). Arguments as in ``run_posegraph``;
     ``init`` is ``file``, ``chordal`` (the implementation's ``chordal_3d``) or ``initializepose3``
     (GTSAM's), computed once and shared by every back end, its time in each result's
-    ``init_seconds``.
+    ``init_seconds``. ``solver`` as in ``run_posegraph``.
     """
     from course.app.starts import initialise_3d as initialise
     from course.problems.posegraph3d.problem import PoseGraph3DProblem
     from course.solver import SolverOptions, minimize
 
     impl = _tree_impl(impl)
+    check_name(solver)
     options = SolverOptions(max_iterations=max_iterations)
     plan = posegraph3d_plan(methods, backends)
     started = _start_or_rows(initialise, graph, init, impl, plan, unimplemented)
@@ -526,14 +545,15 @@ def run_posegraph3d(graph, impl=None, methods=None, backends=None, repeat=1, max
     graph, init_seconds, init_called = started
 
     def ours(method, callback):
-        return minimize(PoseGraph3DProblem(graph, impl), method, impl=impl, options=options, callback=callback)
+        return minimize(PoseGraph3DProblem(graph, impl, solver=solver), method, impl=impl, options=options,
+                        callback=callback)
 
     def peer(backend, method):
         if backend in FACTOR_GRAPH_BACKENDS or backend in registry.FACTOR_GRAPH_PEERS:
             chapters.require("ch7", f"back end {backend}")
             from course.problems.posegraph3d.factor_graph import as_factor_graph
 
-            return factor_graph_run(as_factor_graph(graph), backend, method, impl, options)
+            return factor_graph_run(as_factor_graph(graph), backend, method, impl, options, solver)
         kwargs = {"impl": impl} if backend == "ceres" else {}  # Ceres' edge error is the implementation's
         return _run_peer("posegraph3d", backend, graph, method, max_iterations, **kwargs)
 
@@ -646,7 +666,9 @@ def short_stop_reason(reason) -> str:
 def format_table(runs, title: str = "") -> str:
     """A plain-text table: backend, method, iterations, initial and final chi2, total
     and per-iteration time (milliseconds), why the run stopped (``short_stop_reason``), and
-    the parameters when they are few (the curve).
+    the parameters when they are few (the curve). A column ``solve`` names the sparse solve each
+    run used (``RunResult.linear_solve``: ours ``ours``, ``cholmod``, ``superlu``, ``dense`` or ``schur``;
+    a peer's its library's), where any run says.
     A run that did not run (``not_run``) is a row with its backend, method and the reason (a
     failure's by what failed, ``short_not_run``: ``advice`` prints the whole message once).
     Runs started from an initialisation (``RunResult.init`` other than ``file``) get a note
@@ -656,6 +678,9 @@ def format_table(runs, title: str = "") -> str:
     row that did not run)."""
     header = ["backend", "method", "iters", "initial chi2", "final chi2", "total ms", "ms/iter", "stop"]
     ran = [r for r in runs if not r.not_run]
+    show_solve = any(r.linear_solve for r in ran)
+    if show_solve:
+        header.insert(7, "solve")
     params = [_params_text(r.params) for r in ran]
     show_params = bool(ran) and all(p is not None for p in params)
     if show_params:
@@ -673,6 +698,7 @@ def format_table(runs, title: str = "") -> str:
             f"{r.final_chi2:.10g}",
             f"{1e3 * r.seconds:.3f}",
             f"{1e3 * r.seconds_per_iteration:.4f}",
+            *([r.linear_solve or "-"] if show_solve else []),
             short_stop_reason(r.stop_reason),
         ]
         if show_params:

@@ -22,7 +22,8 @@ LIBRARIES = {
     "qdldl": "the sparse solves use scipy's SuperLU instead",
     "numba": "the Schur complement's reduction uses scipy's block-sparse product instead (about 4 times slower)",
     "jupytext": "the notebooks run from their .ipynb files as shipped",
-    "cvxopt": "the 3D outlier experiments factorize with the sparse solve of the exercises (slower under fill-in)",
+    "cvxopt": "large systems and the 3D outlier experiments factorize with the implementation's sparse solve "
+              "instead of CHOLMOD (slower under fill-in)",
 }
 #: what installs a library where a wheel exists
 INSTALL = {"pyceres": EXTRA_HINT, "g2opy": EXTRA_HINT, "gtsam": EXTRA_HINT, "jax": EXTRA_HINT, "pycolmap": EXTRA_HINT,

@@ -52,6 +52,9 @@ class RunResult:
     ``called``: the implementation's functions the run called (``module.qualname``, in the order
     first called; ``course.core.calls``), the code to blame when it ends wrong; ``None`` where nobody
     recorded them.
+    ``linear_solve``: the sparse solve of ``H dx = -b`` the run used (ours: ``course.solver.choice``'s
+    label, ``ours``, ``cholmod``, ``superlu``, or ``dense``/``schur`` where the problem solves its own
+    way; a peer's: its library's solve), ``""`` where unknown.
     """
 
     backend: str
@@ -72,6 +75,7 @@ class RunResult:
     information_repair: str = ""
     compile_seconds: float = 0.0
     called: tuple | None = None
+    linear_solve: str = ""
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
@@ -111,6 +115,7 @@ class RunResult:
             "init_seconds": float(self.init_seconds),
             "stop_reason": self.stop_reason,
             "factorizations": int(self.factorizations),
+            "linear_solve": self.linear_solve,
             "trace": [_finite_or_none(asdict(r)) for r in self.trace],
         }
         if self.ate is not None:

@@ -7,10 +7,12 @@ Jacobians (``jacobians``: ``"autodiff"`` by the implementation's Jets and ``auto
 ``"numeric"`` by central differences, or a function that a peer supplies, see
 ``FactorGraphProblem``), whitened by the square root of the information, and all groups assembled
 by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pattern found once. The
-step comes from the implementation's sparse Cholesky solver (chapter 2), or SuperLU where qdldl is
-not installed; where one kind of variable is never joined to another of its kind by a factor (the
-points of bundle adjustment, the landmarks of SLAM), those are eliminated first
-(``course.factorgraph.schur_elimination``, chapter 4's Schur complement for any graph).
+step comes from the sparse solve ``course.solver.choice`` picks (``solver``, default ``auto``: CHOLMOD
+on a large system where cvxopt is installed, else the implementation's sparse Cholesky solver of
+chapter 2, or SuperLU where qdldl is not installed; ``linear_solve`` names it); where one kind of
+variable is never joined to another of its kind by a factor (the points of bundle adjustment, the
+landmarks of SLAM), those are eliminated first (``course.factorgraph.schur_elimination``, chapter 4's
+Schur complement for any graph).
 
 A variable fixed whole is held by the assembly (the exercise's contract: its rows and columns of H
 zero but for the identity, its entries of b zero). Some dofs of a variable (``graph.fix(key, dofs)``,
@@ -31,9 +33,10 @@ from course.factorgraph.numeric import central_differences
 from course.factorgraph.schur_elimination import SchurElimination
 from course.factorgraph.values import Values
 from course.solver import robust
+from course.solver.choice import choose
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
-from course.solver.superlu import checked_step, sparse_solver
+from course.solver.superlu import checked_step
 
 JACOBIANS = ("autodiff", "numeric")
 #: factors per evaluation of the automatic Jacobians (ladybug-49's 31843 observations: 143 ms at once,
@@ -51,7 +54,9 @@ class FactorGraphProblem:
     The error (``chi2``) is always the factor types' own residual.
 
     ``eliminate``: ``"auto"`` eliminates the kind of variable that :func:`eliminated_kind` finds,
-    ``None`` solves the whole H.
+    ``None`` solves the whole H. ``solver``: a name of ``course.solver.choice.SOLVES`` (default
+    ``auto``, decided on the size of the system solved after elimination) or an object with
+    ``solve(H_upper, b) -> dx``.
     """
 
     def __init__(self, graph: FactorGraph, impl="solutions", jacobians="autodiff", solver=None, eliminate="auto"):
@@ -93,12 +98,13 @@ class FactorGraphProblem:
         self._column_masks = [_column_masks(ftype, keys, graph.fixed_dofs) for ftype, keys, _, _ in self._groups]
         self._assembler = self.impl.module("factor_linearisation").BlockSparseAssembler(
             dims, [keys for _, keys, _, _ in self._groups], self._fixed)
-        self._solver = sparse_solver(self.impl.module("sparse_solve")) if solver is None else solver
         self._held_checked = False
         if eliminate not in ("auto", None):
             raise ValueError(f"eliminate must be 'auto' or None, got {eliminate!r}")
         kind = eliminated_kind(graph) if eliminate == "auto" else None
         self.eliminated = kind
+        solved = int(dims.sum()) - (0 if kind is None else int(dims[self._by_kind[kind][0]].sum()))
+        self._solver, self.linear_solve = choose(solver, self.impl.module("sparse_solve"), solved)
         self._schur = None if kind is None else SchurElimination(
             dims, self._by_kind[kind][0], self._solver, graph.name, graph.keys)
 

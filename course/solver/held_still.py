@@ -20,14 +20,14 @@ def check_held_still(H, b, fixed_dof, where: str, dof_per_pose: int) -> None:
     fixed_dof = np.asarray(fixed_dof, dtype=np.int64)
     if not len(fixed_dof):
         return
-    upper = sp.triu(sp.csr_matrix(H), format="coo")
-    fixed = np.zeros(upper.shape[0], dtype=bool)
-    fixed[fixed_dof] = True
-    touched = fixed[upper.row] | fixed[upper.col]
-    expected = (upper.row == upper.col).astype(float)
-    scale = max(float(np.max(np.abs(upper.data), initial=0.0)), float(np.max(np.abs(b), initial=0.0)), 1.0)
-    wrong = touched & (np.abs(upper.data - expected) > 1e-12 * scale)
-    diagonal = upper.diagonal()[fixed_dof]
+    rows, cols, values = _upper_entries_touching(H, fixed_dof)
+    expected = (rows == cols).astype(float)
+    data = H.data if sp.issparse(H) else np.asarray(H)
+    scale = max(float(np.max(np.abs(data), initial=0.0)), float(np.max(np.abs(b), initial=0.0)), 1.0)
+    wrong = np.abs(values - expected) > 1e-12 * scale
+    on_diagonal = np.zeros(np.shape(H)[0])
+    np.add.at(on_diagonal, rows[rows == cols], values[rows == cols])
+    diagonal = on_diagonal[fixed_dof]
     missing = np.abs(diagonal - 1.0) > 1e-12 * scale
     b_wrong = np.abs(np.asarray(b, dtype=float)[fixed_dof]) > 1e-12 * scale
     if not (wrong.any() or missing.any() or b_wrong.any()):
@@ -36,8 +36,8 @@ def check_held_still(H, b, fixed_dof, where: str, dof_per_pose: int) -> None:
     found = []
     if wrong.any():
         k = int(np.argmax(wrong))
-        r, c = int(upper.row[k]), int(upper.col[k])
-        found.append(f"H[{r}, {c}] = {upper.data[k]:.6g} where {expected[k]:g} is expected "
+        r, c = int(rows[k]), int(cols[k])
+        found.append(f"H[{r}, {c}] = {values[k]:.6g} where {expected[k]:g} is expected "
                      f"({int(wrong.sum())} entries of the fixed rows and columns are off)")
     elif missing.any():
         k = int(np.argmax(missing))
@@ -50,3 +50,21 @@ def check_held_still(H, b, fixed_dof, where: str, dof_per_pose: int) -> None:
         f"{'are' if len(poses) > 1 else 'is'} fixed but not held still: {'; '.join(found)}. A fixed pose's rows "
         f"and columns of H are zero but for the identity on its diagonal block, and its entries of b are zero; "
         f"without that H is singular ({dof_per_pose} gauge freedoms: the whole graph can move) and no step is right")
+
+
+def _upper_entries_touching(H, fixed_dof):
+    """``(rows, cols, values)`` of the entries of H's upper triangle (diagonal included) stored in a row
+    or a column of ``fixed_dof``: read from H's CSC arrays without expanding the whole matrix (a large
+    graph's H has a few hundred thousand entries, the fixed rows and columns a few hundred)."""
+    H = sp.csc_matrix(H)  # no copy when H is CSC already
+    if not H.has_canonical_format:  # one entry per position, sorted: on a copy, the caller's H untouched
+        H = H.copy()
+        H.sum_duplicates()
+    fixed = np.zeros(H.shape[0], dtype=bool)
+    fixed[fixed_dof] = True
+    in_column = np.concatenate([np.arange(H.indptr[f], H.indptr[f + 1]) for f in np.flatnonzero(fixed)])
+    where = np.union1d(np.flatnonzero(fixed[H.indices]), in_column.astype(np.int64))
+    rows = H.indices[where].astype(np.int64)
+    cols = np.searchsorted(H.indptr, where, side="right") - 1
+    upper = rows <= cols
+    return rows[upper], cols[upper], np.asarray(H.data[where], dtype=float)[upper]

@@ -119,4 +119,5 @@ def minimize(problem: Problem, method="gauss-newton", impl="solutions", options:
         initial_chi2=initial_chi2, final_chi2=problem.chi2(x),
         iterations=len(trace) - 1, seconds=time.perf_counter() - start, trace=trace,
         stop_reason=reason, factorizations=strategy.factorizations,
+        linear_solve=str(getattr(problem, "linear_solve", "")),
     )

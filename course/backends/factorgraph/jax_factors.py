@@ -141,11 +141,11 @@ class JaxJacobians:
         return np.asarray(r), [np.asarray(block) for block in J]
 
 
-def problem(graph, impl="solutions"):
-    """``FactorGraphProblem(graph, impl, jacobians=JaxJacobians())``, compiled at its start (one
-    linearisation): its ``jacobians.compile_seconds`` says how long compiling took."""
+def problem(graph, impl="solutions", solver=None):
+    """``FactorGraphProblem(graph, impl, jacobians=JaxJacobians(), solver=solver)``, compiled at its start
+    (one linearisation): its ``jacobians.compile_seconds`` says how long compiling took."""
     from course.factorgraph import FactorGraphProblem
 
-    out = FactorGraphProblem(graph, impl, jacobians=JaxJacobians())
+    out = FactorGraphProblem(graph, impl, jacobians=JaxJacobians(), solver=solver)
     out.linearize(out.x0)
     return out

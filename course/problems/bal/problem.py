@@ -77,6 +77,10 @@ def gauge_parameters(problem: BALProblem) -> np.ndarray:
 class BundleAdjustmentProblem:
     """``linearize`` / ``chi2`` / ``solve`` / ``retract`` for one BAL problem and implementation."""
 
+    #: the solve of ``H h = -b`` (``compare``'s ``solve`` column): the implementation's
+    #: ``bundle_adjustment.schur_solve`` (points eliminated, the reduced camera system solved its way)
+    linear_solve = "schur"
+
     def __init__(self, problem: BALProblem, impl="solutions", fix_gauge: bool = False, loss=None):
         """``fix_gauge``: hold camera 0's pose (w, t) and one translation component of camera 1 (the
         one along which the scene's scale moves it most) at their start values, which removes the

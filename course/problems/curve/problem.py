@@ -60,6 +60,9 @@ class CurveProblem:
     and ``gauss_newton.normal_equations``; ``solve`` uses ``gauss_newton.solve_step``.
     """
 
+    #: the solve of ``H h = -b`` (``compare``'s ``solve`` column): the implementation's dense 3 x 3 one
+    linear_solve = "dense"
+
     def __init__(self, data: CurveData, impl="solutions"):
         self.data = data
         self.impl = impl_loader.load(impl)

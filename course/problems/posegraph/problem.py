@@ -2,9 +2,9 @@
 
 The unknown is the flat vector ``x = poses.ravel()`` (3N,). Linearization uses the
 implementation's vectorized ``pose_graph_fast`` when it is written and falls back to
-its per-edge loop ``pose_graph_assembly`` (dense H) otherwise; the step comes from its
-``sparse_solve.SparseCholeskySolver`` on the upper triangle of H, or, where qdldl is not
-installed, from scipy's SuperLU (``course.solver.superlu``), said once.
+its per-edge loop ``pose_graph_assembly`` (dense H) otherwise; the step comes from the sparse solve
+``course.solver.choice`` picks on the upper triangle of H (``auto``: CHOLMOD on a large graph, else its
+``sparse_solve.SparseCholeskySolver``, or, where qdldl is not installed, scipy's SuperLU, said once).
 """
 
 import numpy as np
@@ -13,9 +13,10 @@ from course.core import impl as impl_loader
 from course.core.errors import SingularSystemError, check_array
 from course.geometry.se2 import wrap_angle
 from course.problems.posegraph.graph import PoseGraph
+from course.solver.choice import choose
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
-from course.solver.superlu import checked_step, sparse_solver
+from course.solver.superlu import checked_step
 
 #: the per-edge loop assembles a dense (3N, 3N) H: refuse beyond this many poses
 MAX_DENSE_POSES = 4000
@@ -25,13 +26,14 @@ class PoseGraphProblem:
     """``linearize`` / ``chi2`` / ``solve`` / ``retract`` for one pose graph and implementation."""
 
     def __init__(self, graph: PoseGraph, impl="solutions", vectorized=None, solver=None):
-        """``solver``: an object with ``solve(H_upper, b) -> dx`` (default: :func:`sparse_solver`)."""
+        """``solver``: a name of ``course.solver.choice.SOLVES`` (default ``auto``) or an object with
+        ``solve(H_upper, b) -> dx``; ``linear_solve`` names the one that runs."""
         self.graph = graph
         self.impl = impl_loader.load(impl)
         self.x0 = graph.poses.ravel().copy()
         self.num_poses = graph.num_poses
         self._sparse = self.impl.module("sparse_solve")
-        self._solver = sparse_solver(self._sparse) if solver is None else solver
+        self._solver, self.linear_solve = choose(solver, self._sparse, 3 * graph.num_poses)
         self._fixed_dof = (3 * graph.fixed[:, None] + np.arange(3)).ravel()
         self._assembler = None
         self._held_checked = False

@@ -4,8 +4,9 @@ The point is ``x`` (12N,): per pose ``t`` (3) then ``R`` (9, row by row); the st
 (6N,) is per pose ``(rho, phi)`` and moves it by the implementation's
 ``pose_graph_3d.retract``. Linearization is the implementation's
 ``pose_graph_3d.edge_errors_and_jacobians`` and ``pose_graph_3d_assembly.SparseAssembler3D``;
-the step comes from its chapter-2 ``sparse_solve.SparseCholeskySolver`` (or scipy's SuperLU
-where qdldl is not installed). ``chi2`` is always the framework's own
+the step comes from the sparse solve ``course.solver.choice`` picks (``auto``: CHOLMOD on a large
+graph, else its chapter-2 ``sparse_solve.SparseCholeskySolver``, or scipy's SuperLU where qdldl is
+not installed). ``chi2`` is always the framework's own
 (``course.geometry.se3``), so a wrong exercise cannot fake a low cost.
 
 Robust variants: ``weights`` (M,) scale every edge's information (GNC's inner problems,
@@ -22,9 +23,10 @@ from course.core.errors import check_array
 from course.geometry import se3
 from course.problems.posegraph3d.graph import PoseGraph3D
 from course.solver import robust
+from course.solver.choice import choose
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
-from course.solver.superlu import checked_step, sparse_solver
+from course.solver.superlu import checked_step
 
 
 def pack(t, R) -> np.ndarray:
@@ -42,8 +44,10 @@ class PoseGraph3DProblem:
     """``linearize`` / ``chi2`` / ``solve`` / ``retract`` for one 3D graph and implementation."""
 
     def __init__(self, graph: PoseGraph3D, impl="solutions", solver=None, weights=None, loss=None):
-        """``solver``: an object with ``solve(H_upper, b) -> dx`` (default: the implementation's
-        sparse Cholesky, or SuperLU without qdldl); ``weights`` (M,) >= 0 and ``loss``
+        """``solver``: a name of ``course.solver.choice.SOLVES`` (default ``auto``: CHOLMOD on a large
+        graph where cvxopt is installed, else the implementation's sparse Cholesky, or SuperLU without
+        qdldl) or an object with ``solve(H_upper, b) -> dx``; ``linear_solve`` names the one that runs;
+        ``weights`` (M,) >= 0 and ``loss``
         (``(kernel, scale)``, scale in units of sqrt(s)) as in the module docstring."""
         self.graph = graph
         self.impl = impl_loader.load(impl)
@@ -61,7 +65,7 @@ class PoseGraph3DProblem:
         self.x0 = pack(graph.t, graph.R)
         self.num_poses = graph.num_poses
         self._edges = self.impl.module("pose_graph_3d")
-        self._solver = sparse_solver(self.impl.module("sparse_solve")) if solver is None else solver
+        self._solver, self.linear_solve = choose(solver, self.impl.module("sparse_solve"), 6 * graph.num_poses)
         self._assembler = self.impl.module("pose_graph_3d_assembly").SparseAssembler3D(
             graph.num_poses, graph.edges_i, graph.edges_j, graph.fixed)
         self._fixed_dof = (6 * graph.fixed[:, None] + np.arange(6)).ravel()
