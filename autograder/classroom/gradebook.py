@@ -160,9 +160,9 @@ def adjust(data: dict, overrides=(), lateness=None, due=None, submitted=None, so
     score = before
     if lateness is not None:
         score = point_grid.scaled(before, lateness.fraction)
-        applied = lateness.due if getattr(lateness, "due", None) is not None else due
+        due_applied = lateness.due if getattr(lateness, "due", None) is not None else due
         extended = getattr(lateness, "basis", "") not in ("", ASSIGNMENT_DUE)
-        extra["late"] = {"due": applied.isoformat() if applied is not None else None,
+        extra["late"] = {"due": due_applied.isoformat() if due_applied is not None else None,
                          "basis": getattr(lateness, "basis", ""),
                          "days": round(lateness.late.total_seconds() / 86400.0, 4),
                          "fraction": lateness.fraction, "penalty": point_grid.total((before, -score)),
