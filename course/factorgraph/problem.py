@@ -3,7 +3,8 @@
 ``x`` (n_x,) is every variable's stored value, one after the other in the order they were added;
 a step ``h`` (n,) is every variable's tangent step in the same order. ``linearize`` evaluates each
 group of factors at once: the values of its variables gathered, the residual and its tangent
-Jacobians (``jacobians``: ``"autodiff"`` by the implementation's Jets and ``autodiff_factor``,
+Jacobians (``jacobians``: ``"autodiff"`` by the implementation's Jets and ``autodiff_factor``, each
+variable's stored value seeded with its kind's ``plus_jacobian`` and the fixed ones held as constants,
 ``"numeric"`` by central differences, or a function that a peer supplies, see
 ``FactorGraphProblem``), whitened by the square root of the information, and all groups assembled
 by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pattern found once. The
@@ -76,6 +77,9 @@ class FactorGraphProblem:
         self._losses = [group.loss for group in graph.groups.values()]
         self._kernels = self.impl.module("robust_kernels") if any(self._losses) else None
         self._fixed = np.array(sorted(set(graph.fixed)), dtype=np.int64)
+        # per group, per slot: which factors hold a fixed variable there (None where none does)
+        self._held = [[held if held.any() else None for held in np.isin(keys, self._fixed).T]
+                      for _, keys, _, _ in self._groups]
         self._fixed_dof = np.concatenate([np.arange(self._h_offsets[v], self._h_offsets[v + 1])
                                           for v in self._fixed]) if len(self._fixed) else np.zeros(0, np.int64)
         self._assembler = self.impl.module("factor_linearisation").BlockSparseAssembler(
@@ -144,21 +148,38 @@ class FactorGraphProblem:
         tangent_jacobians = self.impl.module("autodiff_factor").tangent_jacobians
         where = "autodiff_factor.tangent_jacobians"
         m = ftype.dim
+        held = self._held[group]
         rs, Js = [], []
         for start in range(0, len(keys), CHUNK):  # a chunk's Jets stay in the cache: 3x faster than all at once
             part = slice(start, start + CHUNK)
             count = len(keys[part])
+            values = [x[part] for x in xs]
+            # a slot held fixed in every factor of the chunk is a constant (no Jet directions); one held in
+            # some has its plus-Jacobian's rows 0 there: its block is 0, as the assembler takes it
+            free = [a for a in range(len(dims)) if held[a] is None or not held[a][part].all()]
+            plus = []
+            for a in free:
+                P = ftype.kinds[a].plus_jacobian(values[a])
+                plus.append(P if held[a] is None else np.where(held[a][part][:, None, None], 0.0, P))
 
-            def residual_of_part(*points, z_part=z[part]):
-                return ftype.residual(z_part, *points)
+            def residual_of_part(*points, z_part=z[part], values=values, free=free):
+                full = list(values)
+                for a, point in zip(free, points):
+                    full[a] = point
+                return ftype.residual(z_part, *full)
 
-            r, J = tangent_jacobians(residual_of_part, retractions, dims, [x[part] for x in xs], jet)
+            if not free:  # every variable fixed: the residual alone, its blocks 0
+                r, J = residual_of_part(), []
+            else:
+                r, J = tangent_jacobians(residual_of_part, plus, [values[a] for a in free], jet)
             rs.append(self._checked(r, (count, m), where, "r", group, start))
-            if not isinstance(J, (list, tuple)) or len(J) != len(dims):
+            if not isinstance(J, (list, tuple)) or len(J) != len(free):
                 raise ShapeError(f"{where} returned {len(J) if isinstance(J, (list, tuple)) else type(J).__name__} "
-                                 f"Jacobian blocks for a factor with {len(dims)} variables")
-            Js.append([self._checked(block, (count, m, d), where, f"J[{a}]", group, start)
-                       for a, (block, d) in enumerate(zip(J, dims))])
+                                 f"Jacobian blocks for a factor with {len(free)} variables ({ftype.name})")
+            blocks = [np.zeros((count, m, d)) for d in dims]
+            for i, (a, block) in enumerate(zip(free, J)):
+                blocks[a] = self._checked(block, (count, m, dims[a]), where, f"J[{i}]", group, start)
+            Js.append(blocks)
         if len(rs) == 1:
             return rs[0], Js[0]
         return np.concatenate(rs), [np.concatenate([J[a] for J in Js]) for a in range(len(dims))]
