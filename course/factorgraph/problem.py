@@ -4,9 +4,10 @@
 a step ``h`` (n,) is every variable's tangent step in the same order. ``linearize`` evaluates each
 group of factors at once: the values of its variables gathered, the residual and its tangent
 Jacobians (``jacobians``: ``"autodiff"`` by the implementation's Jets and ``autodiff_factor``, each
-variable's stored value seeded with its kind's ``plus_jacobian`` and the fixed ones held as constants,
-``"numeric"`` by central differences, or a function that a peer supplies, see
-``FactorGraphProblem``), whitened by the square root of the information, and all groups assembled
+variable's stored value seeded with its kind's ``plus_jacobian``, ``"numeric"`` by central
+differences, or a function that a peer supplies, see ``FactorGraphProblem``; a fixed variable is not
+differentiated: a constant, or its seed 0 in the factors that hold it, and its blocks 0 on every
+path), whitened by the square root of the information, and all groups assembled
 by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pattern found once. The
 step comes from the implementation's sparse Cholesky solver (chapter 2), or SuperLU where qdldl is
 not installed; where one kind of variable is never joined to another of its kind by a factor (the
@@ -136,19 +137,19 @@ class FactorGraphProblem:
         retractions = [kind.retract for kind in ftype.kinds]
         dims = [kind.dim for kind in ftype.kinds]
         xs = self._slots(x, group)
+        held = self._held[group]
         if callable(self.jacobians):
             r, J = self.jacobians(ftype, z, xs)
-            return self._checked(r, (len(keys), ftype.dim), "jacobians", "r", group, 0), [
+            return self._checked(r, (len(keys), ftype.dim), "jacobians", "r", group, 0), self._held_still(held, [
                 self._checked(block, (len(keys), ftype.dim, d), "jacobians", f"J[{a}]", group, 0)
-                for a, (block, d) in enumerate(zip(J, dims))]
+                for a, (block, d) in enumerate(zip(J, dims))])
         if self.jacobians == "numeric":
             r, J = central_differences(residual, retractions, dims, xs)
-            return self._checked(r, (len(keys), ftype.dim), "the residual", "r", group, 0), J
+            return self._checked(r, (len(keys), ftype.dim), "the residual", "r", group, 0), self._held_still(held, J)
         jet = self.impl.module("jets").Jet
         tangent_jacobians = self.impl.module("autodiff_factor").tangent_jacobians
         where = "autodiff_factor.tangent_jacobians"
         m = ftype.dim
-        held = self._held[group]
         rs, Js = [], []
         for start in range(0, len(keys), CHUNK):  # a chunk's Jets stay in the cache: 3x faster than all at once
             part = slice(start, start + CHUNK)
@@ -183,6 +184,12 @@ class FactorGraphProblem:
         if len(rs) == 1:
             return rs[0], Js[0]
         return np.concatenate(rs), [np.concatenate([J[a] for J in Js]) for a in range(len(dims))]
+
+    @staticmethod
+    def _held_still(held, J) -> list:
+        """``J`` with the blocks of fixed variables 0 (``held``: per slot, (M,) or None), as the Jets give
+        them: whichever path linearised, a fixed variable is not differentiated."""
+        return [block if mask is None else np.where(mask[:, None, None], 0.0, block) for mask, block in zip(held, J)]
 
     def describe_factor(self, group: int, row: int) -> str:
         """``"factor 3000 of type 'between_se3' on 'x12', 'x13'"``: factor ``row`` of group ``group``."""
