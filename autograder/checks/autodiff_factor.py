@@ -64,7 +64,8 @@ def _case(rng, kinds, M, m, note, held=None):
     sizes = [int(np.prod(x.shape[1:])) for x in xs]
     C = tuple(rng.normal(0.0, 1.0, (M, m, s)) for s in sizes)
     D = tuple(rng.normal(0.0, 0.5, (M, m, s)) for s in sizes)
-    names = ", ".join({"vector": f"a {n}-vector", "linear": f"a linear {n}-vector"}.get(kind, kind) for kind, n in kinds)
+    names = ", ".join({"vector": f"a {n}-vector", "linear": f"a linear {n}-vector"}.get(kind, kind)
+                      for kind, n in kinds)
     return Call(TASK, (tuple(kind for kind, _ in kinds), xs, tuple(plus), C, D), returns="dict", label=NAME,
                 where=f"on {M} factor{'s' if M > 1 else ''} of {len(kinds)} variable{'s' if len(kinds) > 1 else ''} "
                       f"({names}), m = {m}{note}")
