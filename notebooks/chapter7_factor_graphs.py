@@ -214,7 +214,10 @@ print(chapter7.step_table(study))
 # $R\,[e_k]_\times$ for SO(3)), and the factor graph hands them with the values to your
 # `tangent_jacobians` (`exercises/autodiff_factor.py`). One evaluation gives all of a factor's Jacobians
 # when its $k = d_1 + \dots + d_s$ directions are shared out among the variables; how to lay them out so
-# that each block comes out where it belongs is yours to work out. A fixed variable is not
+# that each block comes out where it belongs is yours to work out. (The factor graph calls it one
+# variable at a time, the others plain arrays: a product of two Jets of different variables spends half
+# its arithmetic on zeros, so on sphere2500 two evaluations in 6 directions cost less than one in 12.)
+# A fixed variable is not
 # differentiated: where a factor holds one, its $P_a$ is 0 there (its block comes out 0; the assembly
 # holds it still anyway), and a slot fixed in every factor of a group is passed as a plain array, a
 # constant with no directions.

@@ -264,12 +264,13 @@ def matmul(a, b) -> Jet:
         bv = bv[..., None]
         bg = None if bg is None else bg[..., None, :]
     value = av @ bv
-    grad = 0.0
+    grad = None
     if ag is not None:  # (dA B)[..., i, :, :] = B^T dA[..., i, :, :]: one batched matmul
-        grad = grad + np.swapaxes(bv, -1, -2)[..., None, :, :] @ ag
+        grad = np.swapaxes(bv, -1, -2)[..., None, :, :] @ ag
     if bg is not None:  # A dB with dB's (p, k) flattened: one batched matmul
         flat = av @ bg.reshape(bg.shape[:-2] + (-1,))
-        grad = grad + flat.reshape(flat.shape[:-1] + bg.shape[-2:])
+        dB = flat.reshape(flat.shape[:-1] + bg.shape[-2:])
+        grad = dB if grad is None else grad + dB
     if column:
         return Jet(value[..., 0], grad[..., 0, :])
     return Jet(value, grad)

@@ -37,10 +37,10 @@ def between_se3(z, xi, xj):
     t_z, R_z = se3_parts(z)
     t_i, R_i = se3_parts(xi)
     t_j, R_j = se3_parts(xj)
-    Rz_T = np.swapaxes(R_z, -1, -2)
-    d = jetmath.matvec(jetmath.transpose(R_i), t_j - t_i)
-    e_t = jetmath.matvec(Rz_T, d - t_z)
-    e_phi = jetmath.so3_log(Rz_T @ (jetmath.transpose(R_i) @ R_j))
+    # R_z^T R_i^T = (R_i R_z)^T: one product fewer on Jets, none when x_i is a constant
+    A_T = jetmath.transpose(R_i @ R_z)
+    e_t = jetmath.matvec(A_T, t_j - t_i) - jetmath.matvec(np.swapaxes(R_z, -1, -2), t_z)
+    e_phi = jetmath.so3_log(A_T @ R_j)
     return _concatenate(e_t, e_phi)
 
 

@@ -7,13 +7,16 @@ Jacobians (``jacobians``: ``"autodiff"`` by the implementation's Jets and ``auto
 variable's stored value seeded with its kind's ``plus_jacobian``, ``"numeric"`` by central
 differences, or a function that a peer supplies, see ``FactorGraphProblem``; a fixed variable is not
 differentiated: a constant, or its seed 0 in the factors that hold it, and its blocks 0 on every
-path), whitened by the square root of the information, and all groups assembled
+path; the Jets evaluate a group in chunks that stay in the cache, one slot at a time, ``SLOT_BY_SLOT``),
+whitened by the square root of the information, and all groups assembled
 by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pattern found once. The
 step comes from the implementation's sparse Cholesky solver (chapter 2), or SuperLU where qdldl is
 not installed; where one kind of variable is never joined to another of its kind by a factor (the
 points of bundle adjustment, the landmarks of SLAM), those are eliminated first
 (``course.factorgraph.schur_elimination``, chapter 4's Schur complement for any graph).
 """
+
+from functools import partial
 
 import numpy as np
 
@@ -30,10 +33,17 @@ from course.solver.linearization import Linearization
 from course.solver.superlu import checked_step, sparse_solver
 
 JACOBIANS = ("autodiff", "numeric")
-#: factors per evaluation of the automatic Jacobians (ladybug-49's 31843 observations: 143 ms at once,
-#: 48 ms in chunks of 2048, whose Jets fit in the cache)
-CHUNK = 2048
-
+#: the bytes of one Jet's derivative per evaluation of the automatic Jacobians: a factor type's factors
+#: are evaluated in chunks whose widest seeded value (M, n, k) holds about this many, so that a chunk's
+#: Jets stay in the cache (ladybug-49's 31843 observations: 143 ms at once, 48 ms in chunks)
+CHUNK_BYTES = 1 << 20
+#: the fewest factors per chunk (below it the Python of each Jet operation costs more than its arithmetic)
+CHUNK_MIN = 256
+#: each free slot of a factor differentiated in an evaluation of its own, its Jets in that variable's
+#: d_a directions alone (the other variables plain arrays): a product of two Jets of different variables
+#: spends half its arithmetic on zeros, and a product with a constant is one term of the product rule. On
+#: sphere2500's between factors two evaluations of 6 directions take 0.8 of one of 12.
+SLOT_BY_SLOT = True
 
 class FactorGraphProblem:
     """The minimizer's problem for ``graph``, with the Jacobians of ``jacobians`` and ``impl``'s pieces.
@@ -150,9 +160,12 @@ class FactorGraphProblem:
         tangent_jacobians = self.impl.module("autodiff_factor").tangent_jacobians
         where = "autodiff_factor.tangent_jacobians"
         m = ftype.dim
-        rs, Js = [], []
-        for start in range(0, len(keys), CHUNK):  # a chunk's Jets stay in the cache: 3x faster than all at once
-            part = slice(start, start + CHUNK)
+        r_all = np.empty((len(keys), m))
+        J_all = [np.zeros((len(keys), m, d)) if h is not None else np.empty((len(keys), m, d))
+                 for h, d in zip(held, dims)]
+        chunk = chunk_size(ftype)
+        for start in range(0, len(keys), chunk):  # a chunk's Jets stay in the cache
+            part = slice(start, start + chunk)
             count = len(keys[part])
             values = [x[part] for x in xs]
             # a slot held fixed in every factor of the chunk is a constant (no Jet directions); one held in
@@ -163,27 +176,28 @@ class FactorGraphProblem:
                 P = ftype.kinds[a].plus_jacobian(values[a])
                 plus.append(P if held[a] is None else np.where(held[a][part][:, None, None], 0.0, P))
 
-            def residual_of_part(*points, z_part=z[part], values=values, free=free):
+            def residual_of_part(*points, z_part=z[part], values=values, slots=free):
                 full = list(values)
-                for a, point in zip(free, points):
+                for a, point in zip(slots, points):
                     full[a] = point
                 return ftype.residual(z_part, *full)
 
             if not free:  # every variable fixed: the residual alone, its blocks 0
-                r, J = residual_of_part(), []
-            else:
-                r, J = tangent_jacobians(residual_of_part, plus, [values[a] for a in free], jet)
-            rs.append(self._checked(r, (count, m), where, "r", group, start))
-            if not isinstance(J, (list, tuple)) or len(J) != len(free):
-                raise ShapeError(f"{where} returned {len(J) if isinstance(J, (list, tuple)) else type(J).__name__} "
-                                 f"Jacobian blocks for a factor with {len(free)} variables ({ftype.name})")
-            blocks = [np.zeros((count, m, d)) for d in dims]
-            for i, (a, block) in enumerate(zip(free, J)):
-                blocks[a] = self._checked(block, (count, m, dims[a]), where, f"J[{i}]", group, start)
-            Js.append(blocks)
-        if len(rs) == 1:
-            return rs[0], Js[0]
-        return np.concatenate(rs), [np.concatenate([J[a] for J in Js]) for a in range(len(dims))]
+                r_all[part] = self._checked(residual_of_part(), (count, m), "the residual", "r", group, start)
+                continue
+            for slots in ([[a] for a in free] if SLOT_BY_SLOT else [free]):
+                r, J = tangent_jacobians(partial(residual_of_part, slots=slots), [plus[free.index(a)] for a in slots],
+                                         [values[a] for a in slots], jet)
+                if slots[0] == free[0]:
+                    r_all[part] = _shaped(r, (count, m), where, "r")
+                if not isinstance(J, (list, tuple)) or len(J) != len(slots):
+                    raise ShapeError(f"{where} returned {len(J) if isinstance(J, (list, tuple)) else type(J).__name__} "
+                                     f"Jacobian blocks for a factor with {len(slots)} variables ({ftype.name})")
+                for i, (a, block) in enumerate(zip(slots, J)):
+                    J_all[a][part] = _shaped(block, (count, m, dims[a]), where, f"J[{i}]")
+        # finite, each non-finite entry named by its factor in the group (one pass over each output)
+        return self._checked(r_all, r_all.shape, where, "r", group, 0), [
+            self._checked(block, block.shape, where, f"J[{a}]", group, 0) for a, block in enumerate(J_all)]
 
     @staticmethod
     def _held_still(held, J) -> list:
@@ -201,7 +215,12 @@ class FactorGraphProblem:
         """``check_array`` of a group's output (or of a chunk of it starting at factor ``start``), a
         non-finite entry named by its factor: its index in the group, its type and its variables' keys."""
         arr = np.asarray(value, dtype=float) if isinstance(value, np.ndarray) else value
-        if isinstance(arr, np.ndarray) and arr.shape == tuple(shape) and not np.all(np.isfinite(arr)):
+        finite = None
+        if isinstance(arr, np.ndarray) and arr.shape == tuple(shape):
+            finite = bool(np.isfinite(arr).all())
+            if finite:
+                return arr
+        if finite is False:
             index = tuple(int(k) for k in np.argwhere(~np.isfinite(arr))[0])
             row = start + index[0]
             raise NonFiniteError(
@@ -280,6 +299,24 @@ class FactorGraphProblem:
             moved = kind.retract(out[x_index].reshape((len(members),) + kind.shape), h[h_index])
             out[x_index] = np.asarray(moved, dtype=float).reshape(len(members), -1)
         return out
+
+
+def _shaped(value, shape, where: str, what: str):
+    """``value`` where it is an array of ``shape``, else ``check_array``'s error (its finiteness is checked
+    once for the whole group, by ``FactorGraphProblem._checked``)."""
+    if isinstance(value, np.ndarray) and value.shape == shape:
+        return value
+    return check_array(value, shape, where, what)
+
+
+def chunk_size(ftype) -> int:
+    """The factors of type ``ftype`` per evaluation on Jets: ``CHUNK_BYTES`` over the bytes per factor of
+    its widest seeded value (``n`` stored numbers, ``k`` directions: one slot's with ``SLOT_BY_SLOT``, all
+    of them without), at least ``CHUNK_MIN``."""
+    dims = [kind.dim for kind in ftype.kinds]
+    k = max(dims) if SLOT_BY_SLOT else sum(dims)
+    widest = max(int(np.prod(kind.shape)) for kind in ftype.kinds)
+    return max(CHUNK_MIN, CHUNK_BYTES // (8 * widest * k))
 
 
 def eliminated_kind(graph: FactorGraph):

@@ -126,19 +126,24 @@ class SE3Kind(VariableKind):
         t, R = se3_parts(np.asarray(x, dtype=float))
         out = np.zeros((len(t), 12, 6))
         out[:, :3, :3] = R
-        out[:, 3:, 3:] = rotation_plus_jacobian(R)
+        rotation_plus_jacobian(R, out[:, 3:, 3:])
         return out
 
 
-def rotation_plus_jacobian(R: np.ndarray) -> np.ndarray:
+def rotation_plus_jacobian(R: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """``d vec(R Exp(phi)) / d phi`` at ``phi = 0`` (M, 9, 3) of rotations ``R`` (M, 3, 3): column ``k`` is
     ``vec(R [e_k]_x)``, whose column ``j`` is ``R (e_k x e_j)``: ``R [e_0]_x = [0, R e_2, -R e_1]``,
-    ``R [e_1]_x = [-R e_2, 0, R e_0]``, ``R [e_2]_x = [R e_1, -R e_0, 0]``."""
-    out = np.zeros((len(R), 3, 3, 3))  # [m, i, j, k]: row i, column j of R [e_k]_x
-    out[:, :, 1, 0], out[:, :, 2, 0] = R[:, :, 2], -R[:, :, 1]
-    out[:, :, 0, 1], out[:, :, 2, 1] = -R[:, :, 2], R[:, :, 0]
-    out[:, :, 0, 2], out[:, :, 1, 2] = R[:, :, 1], -R[:, :, 0]
-    return out.reshape(len(R), 9, 3)
+    ``R [e_1]_x = [-R e_2, 0, R e_0]``, ``R [e_2]_x = [R e_1, -R e_0, 0]``. Written into ``out`` (M, 9, 3)
+    if given (zeros where these are)."""
+    if out is None:
+        out = np.zeros((len(R), 9, 3))
+    P = out.reshape(len(R), 3, 3, 3)  # [m, i, j, k]: row i, column j of R [e_k]_x
+    P[:, :, 1, 0], P[:, :, 2, 0] = R[:, :, 2], -R[:, :, 1]
+    P[:, :, 0, 1], P[:, :, 2, 1] = -R[:, :, 2], R[:, :, 0]
+    P[:, :, 0, 2], P[:, :, 1, 2] = R[:, :, 1], -R[:, :, 0]
+    if not np.shares_memory(P, out):  # ``out`` a view that reshape had to copy
+        out[...] = P.reshape(out.shape)
+    return out
 
 
 def _identities(M: int, n: int) -> np.ndarray:

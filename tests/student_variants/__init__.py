@@ -1418,8 +1418,8 @@ BUGS_FACTOR_GRAPH = {
         "jets.py", ["def arctan2"], "grad = grad - _times(yv / r2, xg)", "grad = grad + _times(yv / r2, xg)",
         {J_ATAN, J_RES}, "the dx term is subtracted"),
     "jets_matmul_one_term": V(
-        "jets.py", ["def matmul"], "        grad = grad + flat.reshape(flat.shape[:-1] + bg.shape[-2:])",
-        "        pass", {J_MATMUL, J_RES}, "both factors vary"),
+        "jets.py", ["def matmul"], "grad = dB if grad is None else grad + dB", "grad = dB if grad is None else grad",
+        {J_MATMUL, J_RES}, "both factors vary"),
     "autodiff_all_at_offset_zero": V(
         "autodiff_factor.py", [], "grad[:, :, offset:offset + d] = P", "grad[:, :, 0:d] = P", {AD_MANY},
         "give each its own directions"),
