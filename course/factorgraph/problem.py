@@ -170,11 +170,13 @@ class FactorGraphProblem:
             values = [x[part] for x in xs]
             # a slot held fixed in every factor of the chunk is a constant (no Jet directions); one held in
             # some has its plus-Jacobian's rows 0 there: its block is 0, as the assembler takes it
-            free = [a for a in range(len(dims)) if held[a] is None or not held[a][part].all()]
+            held_here = [None if h is None else h[part] for h in held]
+            free = [a for a, h in enumerate(held_here) if h is None or not h.all()]
             plus = []
             for a in free:
                 P = ftype.kinds[a].plus_jacobian(values[a])
-                plus.append(P if held[a] is None else np.where(held[a][part][:, None, None], 0.0, P))
+                h = held_here[a]
+                plus.append(P if h is None else np.where(h[:, None, None], 0.0, P))
 
             def residual_of_part(*points, z_part=z[part], values=values, slots=free):
                 full = list(values)
