@@ -45,6 +45,7 @@ CHUNK_MIN = 256
 #: sphere2500's between factors two evaluations of 6 directions take 0.8 of one of 12.
 SLOT_BY_SLOT = True
 
+
 class FactorGraphProblem:
     """The minimizer's problem for ``graph``, with the Jacobians of ``jacobians`` and ``impl``'s pieces.
 
@@ -194,7 +195,8 @@ class FactorGraphProblem:
                     r_all[part] = _shaped(r, (count, m), where, "r")
                 if not isinstance(J, (list, tuple)) or len(J) != len(slots):
                     raise ShapeError(f"{where} returned {len(J) if isinstance(J, (list, tuple)) else type(J).__name__} "
-                                     f"Jacobian blocks for a factor with {len(slots)} variables ({ftype.name})")
+                                     f"Jacobian blocks for the {len(slots)} plus-Jacobian(s) it was given "
+                                     f"({ftype.name}, slot(s) {', '.join(map(str, slots))})")
                 for i, (a, block) in enumerate(zip(slots, J)):
                     J_all[a][part] = _shaped(block, (count, m, dims[a]), where, f"J[{i}]")
         # finite, each non-finite entry named by its factor in the group (one pass over each output)
