@@ -9,8 +9,9 @@
 #
 # 1. **Theory**, derived: dual numbers from scratch and forward-mode differentiation in $k$ directions
 #    (exercise `jets`); why automatic derivatives are exact and finite differences are not; the chain
-#    rule through a retraction, and why $\mathrm{Exp}$ at $\delta = 0$ needs its series (exercise
-#    `autodiff_factor`); the generic linearisation: factors grouped by type, whitened, assembled into a
+#    rule through a retraction, the retraction's derivative at 0 as the Jets' seed (Ceres' `Manifold`),
+#    and why $\mathrm{Exp}$ at $\delta = 0$ needs its series (exercise `autodiff_factor`); the generic
+#    linearisation: factors grouped by type, whitened, assembled into a
 #    pattern found once for variables of mixed sizes (exercise `factor_linearisation`). After each
 #    exercise's theory, a cell `check("...")` grades it here, with the same sandboxed judge and public
 #    checks as `python -m autograder --only ...`; before it, a cell checks your code where you work.
@@ -198,15 +199,37 @@ print(chapter7.step_table(study))
 #
 # For SE(3), $x \boxplus (\rho, \phi) = (t + R\rho,\ R\,\mathrm{Exp}(\phi))$ and $\mathrm{Exp}(\phi) = I +
 # [\phi]_\times + O(|\phi|^2)$, so the second factor has $\partial t / \partial \rho = R$,
-# $\partial R / \partial \phi_k = R\,[e_k]_\times$, and zeros elsewhere. With Jets neither factor is
-# written: seed the *steps* $\delta_a$ at zero, move each variable through its retraction (code that runs
-# on Jets), and evaluate the residual on the moved values. The arithmetic applies the chain rule itself,
-# and the derivative that comes out is $J_a$. One evaluation gives all of a factor's Jacobians when its
-# $k = d_1 + \dots + d_s$ directions are shared out among the steps; how to lay them out so that each
-# block comes out where it belongs is yours to work out (`tangent_jacobians` in
-# `exercises/autodiff_factor.py`).
+# $\partial R / \partial \phi_k = R\,[e_k]_\times$, and zeros elsewhere.
 #
-# **Why $\mathrm{Exp}$ at $\delta = 0$ needs its series.** The seeds sit exactly at $\delta = 0$. By
+# **The retraction's derivative as the seed.** Jets can take $J_a$ two ways. The first: seed the *steps*
+# $\delta_a$ at zero, move each variable through its retraction on Jets, and evaluate the residual on the
+# moved values; the arithmetic applies the chain rule itself. But then the retraction runs on Jets at
+# every linearisation, $\mathrm{Exp}$ and a product of rotations each carrying $k$ derivatives: on
+# sphere2500 more than half the time of the Jacobians. The second writes the second factor down once, as
+# just derived. Call it $P_a = \partial\, \mathrm{vec}(x_a \boxplus \delta) / \partial \delta \,|_{\delta = 0}$
+# ($n_a \times d_a$, $n_a$ the stored numbers): to first order
+#
+# $$\mathrm{vec}(x_a \boxplus \delta_a) = \mathrm{vec}(x_a) + P_a\, \delta_a .$$
+#
+# A Jet *is* a first-order expansion, so the Jet whose value is $x_a$ and whose derivative in $\delta_a$'s
+# directions is $P_a$ is the moved value, as far as any derivative can tell; the residual evaluated on it
+# has the derivative $\frac{\partial r}{\partial x_a} P_a = J_a$, and no retraction runs on Jets. This is
+# Ceres' way: a `Manifold` gives `Plus` and `PlusJacobian`, the latter exactly $P_a$, and Ceres seeds
+# through it. Here each kind of variable gives `plus_jacobian(x)` in closed form
+# (`course.factorgraph.variables`: the identity for vectors and SE(2), the blocks above for SE(3),
+# $R\,[e_k]_\times$ for SO(3)), and the factor graph hands them with the values to your
+# `tangent_jacobians` (`exercises/autodiff_factor.py`). One evaluation gives all of a factor's Jacobians
+# when its $k = d_1 + \dots + d_s$ directions are shared out among the variables; how to lay them out so
+# that each block comes out where it belongs is yours to work out. (The factor graph calls it one
+# variable at a time, the others plain arrays: a product of two Jets of different variables spends half
+# its arithmetic on zeros, so on sphere2500 two evaluations in 6 directions cost less than one in 12.)
+# A fixed variable is not
+# differentiated: where a factor holds one, its $P_a$ is 0 there (its block comes out 0; the assembly
+# holds it still anyway), and a slot fixed in every factor of a group is passed as a plain array, a
+# constant with no directions.
+#
+# **Why $\mathrm{Exp}$ at $\delta = 0$ needs its series.** The first way's seeds sit exactly at
+# $\delta = 0$ (and so does any Jet that checks a plus-Jacobian, as below). By
 # Rodrigues, $\mathrm{Exp}(\phi) = I + a(t)\,[\phi]_\times + b(t)\,[\phi]_\times^2$ with $t = |\phi| =
 # \sqrt{\phi^\top \phi}$, $a = \sin t / t$, $b = (1 - \cos t) / t^2$. At $\phi = 0$ the closed forms are
 # $0/0$: `nan` in the value and in every derivative, and a `nan` spreads to everything computed from it.
@@ -237,7 +260,8 @@ with todo_as_one_line():
 # Jets give three things: the derivative of the residual in the 24 stored numbers of both poses (seeded
 # directly), the derivative of the retraction at 0, and the tangent Jacobians seeded through the
 # retraction. The product of the first two is the third, and the retraction's derivative is the one
-# derived above.
+# derived above: `SE3.plus_jacobian`'s closed form. Seeding the stored values with it gives the same
+# Jacobians, with no retraction on Jets.
 
 # %% id="chain-rule"
 edge = chapter7.se3_edge(seed=0, residual_angle=0.4)  # z, x_i, x_j stored (1, 12); T_i, T_j as (t, R)
@@ -248,15 +272,16 @@ with todo_as_one_line():
 hint("tangent_jacobians", 1)
 
 # %% [markdown] id="tangent-check-md"
-# **Check your `tangent_jacobians` where you work**, on the same edge: its two $6 \times 6$ blocks against
-# central differences through the retraction (`plus="se3"`: exactly $T \boxplus \delta$), each wrong entry
-# named by its block.
+# **Check your `tangent_jacobians` where you work**, on the same edge, seeded with the poses'
+# plus-Jacobians: its two $6 \times 6$ blocks against central differences through the retraction
+# (`plus="se3"`: exactly $T \boxplus \delta$), each wrong entry named by its block.
 
 # %% id="tangent-check"
 with todo_as_one_line():
     Jet = chapter7.exercise("jets", IMPL).Jet
     tangent_jacobians = chapter7.exercise("autodiff_factor", IMPL).tangent_jacobians
-    r, (A, B) = tangent_jacobians(edge.residual, [SE3.retract, SE3.retract], [6, 6], [edge.x_i, edge.x_j], Jet)
+    plus_jacobians = [SE3.plus_jacobian(edge.x_i), SE3.plus_jacobian(edge.x_j)]  # (1, 12, 6) each
+    r, (A, B) = tangent_jacobians(edge.residual, plus_jacobians, [edge.x_i, edge.x_j], Jet)
     check_jacobian(edge.error, [edge.T_i, edge.T_j], J=[A[0], B[0]], plus="se3", names=["T_i", "T_j"], rows="se3")
 
 # %% id="check-autodiff"

@@ -4,17 +4,22 @@ A factor with s variables has a residual ``r(x_1, ..., x_s)`` (M, m), vectorised
 Its Jacobian with respect to variable ``a`` is taken in that variable's tangent space: the derivative
 of ``r(x_1, ..., x_a (+) delta_a, ..., x_s)`` with respect to ``delta_a`` (size ``d_a``) at
 ``delta_a = 0``, where ``(+)`` is the variable's retraction (``x + delta`` for a vector; ``(t + R rho,
-R Exp(phi))`` for an SE(3) pose, as in chapter 6). Forward-mode automatic differentiation gives all
-of them in one evaluation: seed every step as Jets at zero, in ``k = d_1 + ... + d_s`` directions,
-move each variable by its step through its retraction, evaluate the residual once on the moved
-Jets, and read the blocks off its derivative. Derive how the seeds must be laid out so that each
-block comes out where it belongs (``python -m autograder hint tangent_jacobians 1``).
+R Exp(phi))`` for an SE(3) pose, as in chapter 6). You are given each retraction's derivative at
+``delta = 0``, its plus-Jacobian ``P_a = d vec(x_a (+) delta_a) / d delta_a`` (M, n_a, d_a), with ``n_a``
+the number of stored values of ``x_a`` (``vec`` row by row, as numpy's ``reshape``): Ceres'
+``Manifold::PlusJacobian``. Forward-mode automatic differentiation gives all the Jacobians in one
+evaluation: make every variable's stored value a Jet in ``k = d_1 + ... + d_s`` directions, whose
+derivative says how it moves with the steps, evaluate the residual once on them, and read the blocks
+off its derivative. Derive what each Jet's derivative must be, and where, so that each block comes
+out where it belongs (``python -m autograder hint tangent_jacobians 1``). No retraction runs on Jets.
 
 Inputs at the edges of the contract (each is a check input):
 - one factor (M = 1)
 - one variable (s = 1)
 - a variable stored in another shape than its tangent size (SO(3): 3x3 stored, 3 tangent)
 - the same kind in two slots
+- a plus-Jacobian that is neither the identity nor symmetric (a square one)
+- a variable held fixed in some factors: its plus-Jacobian is 0 there
 
 Allowed imports: numpy, scipy.
 """
@@ -22,29 +27,35 @@ Allowed imports: numpy, scipy.
 import numpy as np
 
 
-def tangent_jacobians(residual, retractions, dims, xs, jet):
+def tangent_jacobians(residual, plus_jacobians, xs, jet):
     """``r`` (M, m) and ``[J_1, ..., J_s]``, ``J_a = dr/d delta_a`` (M, m, d_a), at ``delta = 0``.
 
     Args:
-        residual: ``residual(p_1, ..., p_s)`` -> (M, m): the residual of the moved values (Jets).
-        retractions: s functions ``retract(x, delta)`` -> the moved value, ``x`` (M, *shape_a) an
-            array, ``delta`` (M, d_a) a Jet; the result is a Jet of ``x``'s shape.
-        dims: the tangent sizes ``(d_1, ..., d_s)``.
+        residual: ``residual(p_1, ..., p_s)`` -> (M, m): the residual of the values ``p_a``, each a Jet
+            of ``x_a``'s shape (M, *shape_a).
+        plus_jacobians: ``[P_1, ..., P_s]``, ``P_a = d vec(x_a (+) delta_a) / d delta_a`` at ``delta_a = 0``
+            (M, n_a, d_a), ``n_a = prod(shape_a)``; ``d_a`` is its last size. Where a variable is held
+            fixed, its rows are 0: it does not move, and its block comes out 0.
         xs: the variables' values ``(x_1, ..., x_s)``, each (M, *shape_a).
-        jet: the Jet class: ``jet.seed(value, offset, k)`` (value (M, n): its entry ``[..., i]`` has
-            the unit derivative in direction ``offset + i`` of ``k``) and ``jet.constant(value, k)``
-            (a zero derivative); a Jet has ``value`` and ``grad`` (value's shape + (k,)) and an array's
-            container: indexing and slicing (``jet_M_k[:, 2:5]``), ``reshape``, ``+``, ``-`` and scaling
-            by a number.
+        jet: the Jet class: ``jet(value, grad)`` (``grad`` of value's shape + (k,): ``grad[..., j]`` is the
+            derivative of ``value`` in direction ``j``), ``jet.seed(value, offset, k)`` (value (M, n): its
+            entry ``[..., i]`` has the unit derivative in direction ``offset + i`` of ``k``) and
+            ``jet.constant(value, k)`` (a zero derivative); a Jet has ``value`` and ``grad`` and an array's
+            container: indexing and slicing (``jet_M_k[:, 2:5]``), ``reshape``, ``+``, ``-`` and scaling by
+            a number.
     """
     # BEGIN SOLUTION
+    dims = [int(np.shape(P)[-1]) for P in plus_jacobians]
     k = int(sum(dims))
     offsets = np.concatenate([[0], np.cumsum(dims)]).astype(int)
-    moved = []
-    for retract, d, offset, x in zip(retractions, dims, offsets, xs):
-        delta = jet.seed(np.zeros((len(x), d)), int(offset), k)
-        moved.append(retract(x, delta))
-    r = residual(*moved)
+    points = []
+    for P, x, offset, d in zip(plus_jacobians, xs, offsets, dims):
+        x = np.asarray(x, dtype=float)
+        n = int(np.prod(x.shape[1:]))
+        grad = np.zeros((len(x), n, k))
+        grad[:, :, offset:offset + d] = P
+        points.append(jet(x.reshape(len(x), n), grad).reshape(x.shape))
+    r = residual(*points)
     grad = np.asarray(r.grad, dtype=float)
     return (np.asarray(r.value, dtype=float),
             [grad[..., offsets[a]:offsets[a + 1]] for a in range(len(dims))])
@@ -56,16 +67,19 @@ def tangent_jacobians(residual, retractions, dims, xs, jet):
 HINTS = {
     "tangent_jacobians": (
         """Give every scalar of every step its own direction: ``k`` directions in all, variable ``a``'s
-        step taking ``d_a`` of them. Move each variable by its seeded step through its own retraction,
-        evaluate the residual once, and cut the derivative's last axis into the variables' blocks.""",
-        """Variable ``a``'s directions start at ``offset_a = d_1 + ... + d_(a-1)``: ``jet.seed(np.zeros((M,
-        d_a)), offset_a, k)``. By the chain rule, ``r.grad[..., offset_a + j]`` is then ``dr / d delta_a[j]``
-        at ``delta = 0``, the retraction's derivative included.""",
+        step taking ``d_a`` of them. To first order the moved value is ``vec(x_a) + P_a delta_a``: the Jet of
+        ``x_a`` carries that as its derivative. Evaluate the residual once, and cut the derivative's last
+        axis into the variables' blocks.""",
+        """Variable ``a``'s directions start at ``offset_a = d_1 + ... + d_(a-1)``. By the chain rule
+        ``dr / d delta_a = (dr / d vec(x_a)) P_a``: seed ``x_a``'s Jet with ``grad[:, :, offset_a:offset_a + d_a]
+        = P_a`` (not the identity, and not its transpose; 0 in the other directions), and
+        ``r.grad[..., offset_a + j]`` is ``dr / d delta_a[j]`` at ``delta = 0``.""",
         """::
 
             offsets = [0, d_1, d_1 + d_2, ...]
-            moved = [retract_a(x_a, jet.seed(zeros((M, d_a)), offsets[a], k)) for each a]
-            r = residual(*moved)
+            grad_a = zeros((M, n_a, k)); grad_a[:, :, offsets[a]:offsets[a + 1]] = P_a
+            points = [jet(x_a.reshape(M, n_a), grad_a).reshape(x_a.shape) for each a]
+            r = residual(*points)
             return r.value, [r.grad[..., offsets[a]:offsets[a + 1]] for each a]""",
     ),
 }

@@ -328,11 +328,13 @@ def matmul(a, b) -> Jet:
         bv = bv[..., None]
         bg = None if bg is None else bg[..., None, :]
     value = av @ bv
-    grad = 0.0
-    if ag is not None:
-        grad = grad + np.einsum("...ijk,...jl->...ilk", ag, bv)
-    if bg is not None:
-        grad = grad + np.einsum("...ij,...jlk->...ilk", av, bg)
+    grad = None
+    if ag is not None:  # (dA B)[..., i, :, :] = B^T dA[..., i, :, :]: one batched matmul
+        grad = np.swapaxes(bv, -1, -2)[..., None, :, :] @ ag
+    if bg is not None:  # A dB with dB's (p, k) flattened: one batched matmul
+        flat = av @ bg.reshape(bg.shape[:-2] + (-1,))
+        dB = flat.reshape(flat.shape[:-1] + bg.shape[-2:])
+        grad = dB if grad is None else grad + dB
     if column:
         return Jet(value[..., 0], grad[..., 0, :])
     return Jet(value, grad)

@@ -10,26 +10,31 @@ from autograder.checks.autodiff_factor import NAME
 from autograder.tasks.jets import tangent_jacobians_task
 
 
-def _variant(offsets="sum", read="offsets", order="forward", sign=1.0, ambient=False):
-    def tangent_jacobians(residual, retractions, dims, xs, jet):
-        if ambient:  # the stored coordinates seeded, no retraction
-            sizes = [int(np.prod(np.shape(x)[1:])) for x in xs]
-            starts = np.concatenate([[0], np.cumsum(sizes)])
-            points = []
-            for x, s, o in zip(xs, sizes, starts):
-                seeded = jet.seed(np.reshape(x, (len(x), s)), int(o), int(starts[-1]))
-                points.append(jet(seeded.value.reshape(np.shape(x)), seeded.grad.reshape(np.shape(x) + (-1,))))
-            r = residual(*points)
-            return r.value, [r.grad[..., starts[a]:starts[a + 1]] for a in range(len(xs))]
+def _variant(offsets="sum", read="offsets", order="forward", sign=1.0, seed="plus"):
+    def tangent_jacobians(residual, plus_jacobians, xs, jet):
+        M = len(xs[0])
+        sizes = [int(np.prod(np.shape(x)[1:])) for x in xs]
+        if seed == "ambient":  # the stored coordinates seeded with the identity, dr/d vec(x) returned
+            dims = sizes
+            plus_jacobians = [np.broadcast_to(np.eye(n), (M, n, n)) for n in sizes]
+        else:
+            dims = [int(np.shape(P)[-1]) for P in plus_jacobians]
         k = int(sum(dims))
         start = {"sum": np.concatenate([[0], np.cumsum(dims)])[:-1],
                  "zero": [0] * len(dims),
                  "equal": [a * d for a, d in enumerate(dims)]}[offsets]
-        moved = []
-        for retract, d, o, x in zip(retractions, dims, start, xs):
-            seeded = jet.seed(np.zeros((len(x), d)), int(o), k)
-            moved.append(retract(x, jet(seeded.value, sign * seeded.grad)))
-        r = residual(*moved)
+        points = []
+        for P, x, n, d, o in zip(plus_jacobians, xs, sizes, dims, start):
+            if seed == "identity":  # the first d stored numbers seeded, as if P were the identity
+                P = np.broadcast_to(np.eye(n, d), (M, n, d))
+            elif seed == "transposed":
+                if np.shape(P)[1] != d:
+                    raise ValueError("a transpose of a non-square plus-Jacobian does not fit")
+                P = np.swapaxes(P, 1, 2)
+            grad = np.zeros((M, n, k))
+            grad[:, :, int(o):int(o) + d] = sign * np.asarray(P)
+            points.append(jet(np.reshape(x, (M, n)), grad).reshape(np.shape(x)))
+        r = residual(*points)
         where = start if read == "offsets" else [0] * len(dims)
         ends = [int(o) + d for o, d in zip(where, dims)]
         if offsets == "equal":  # the one wrong offsets array, read as it was seeded: up to the next offset
@@ -41,17 +46,21 @@ def _variant(offsets="sum", read="offsets", order="forward", sign=1.0, ambient=F
 
 
 SLIPS = [
-    ({"offsets": "zero"}, "every variable's step seeded in the same directions 0 .. d_a - 1: their derivatives add "
+    ({"offsets": "zero"}, "every variable seeded in the same directions 0 .. d_a - 1: their derivatives add "
                           "up in one block; give each its own directions, offset by the sizes before it"),
     ({"offsets": "equal"}, "the offsets are the running sum of the tangent sizes (0, d_1, d_1 + d_2, ...), not "
                            "a d_a: the sizes differ"),
     ({"read": "first"}, "each block is read from its own columns of r's derivative, offset_a .. offset_a + d_a, "
                         "not from the first d_a"),
     ({"order": "reversed"}, "the blocks come back in the order of the variables"),
-    ({"sign": -1.0}, "the step is x (+) delta, seeded with +1: the derivative of x (+) (-delta) has the "
-                     "opposite sign"),
-    ({"ambient": True}, "that is the derivative by the stored numbers (e.g. the 9 entries of R), not by the "
-                        "tangent step: seed delta = 0 and move x by the retraction, x (+) delta"),
+    ({"sign": -1.0}, "the Jet of x_a is seeded with +P_a (x (+) delta moves by +P_a delta): seeded with -P_a "
+                     "every derivative has the opposite sign"),
+    ({"seed": "identity"}, "x_a's Jet is seeded with the identity, as if the step moved the first d_a stored "
+                           "numbers: seed it with the plus-Jacobian P_a = d vec(x_a (+) delta) / d delta"),
+    ({"seed": "transposed"}, "the plus-Jacobian is transposed: grad[:, i, offset_a + j] = P_a[:, i, j], row i "
+                             "the stored number, column j the step's direction"),
+    ({"seed": "ambient"}, "that is the derivative by the stored numbers (e.g. the 9 entries of R), not by the "
+                          "tangent step: seed x_a's Jet with P_a, so that the chain rule gives dr/d vec(x_a) P_a"),
 ]
 
 

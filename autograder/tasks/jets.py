@@ -66,15 +66,15 @@ def residual_on_jets(factor, z, xs, impl):
 
 
 class TracingJet:
-    """A Jet that carries the derivatives it is given and has no rules of its own: the residual and
-    the retractions of ``tangent_jacobians_task`` compute theirs in closed form, so that the student's
+    """A Jet that carries the derivatives it is given and has no rules of its own: the residual of
+    ``tangent_jacobians_task`` computes its own in closed form, so that the student's
     ``autodiff_factor`` is graded without their ``jets``. It has what the real Jet's given part has that
     needs no derivative rule of the exercise (``course.factorgraph``'s and the exercise's ``jets.Jet``:
-    ``seed``, ``constant``, ``shape``, ``ndim``, ``k``, ``len``, indexing and slicing, ``reshape``,
-    ``swapaxes``, ``mT``, ``T``, ``transpose``, ``sum``, ``mean``, ``+``, ``-``, scaling by a number,
-    ``abs``, comparisons, and numpy's ``stack``, ``concatenate``, ``where``, ``sum``, ``mean``,
-    ``transpose``, ``minimum``, ``maximum``, ``abs``), so that any use of it the contract allows is
-    graded alike; the rest fails with one line."""
+    the constructor ``TracingJet(value, grad)``, ``seed``, ``constant``, ``shape``, ``ndim``, ``k``,
+    ``len``, indexing and slicing, ``reshape``, ``swapaxes``, ``mT``, ``T``, ``transpose``, ``sum``,
+    ``mean``, ``+``, ``-``, scaling by a number, ``abs``, comparisons, and numpy's ``stack``,
+    ``concatenate``, ``where``, ``sum``, ``mean``, ``transpose``, ``minimum``, ``maximum``, ``abs``),
+    so that any use of it the contract allows is graded alike; the rest fails with one line."""
 
     def __init__(self, value, grad):
         self.value = np.asarray(value, dtype=float)
@@ -291,50 +291,14 @@ def _flat(point, M, size, k):
     return np.asarray(point, dtype=float).reshape(M, size), None
 
 
-def retraction(kind):
-    """``retract(x, delta)`` of ``kind`` (``vector``, ``se2``, ``so3``, ``se3``), with the derivative
-    of ``vec(x (+) delta)`` by ``delta`` in closed form, applied to ``delta``'s derivative."""
-    from course.geometry.so3 import exp_many, right_jacobian_many, skew
-
-    def retract(x, delta):
-        x = np.asarray(x, dtype=float)
-        M = len(x)
-        d_value = delta.value if isinstance(delta, TracingJet) else np.asarray(delta, dtype=float)
-        d_value = d_value.reshape(M, -1)
-        if kind in ("vector", "se2"):
-            moved = x + d_value
-            D = np.broadcast_to(np.eye(x.shape[1]), (M, x.shape[1], x.shape[1]))
-        else:
-            R = x.reshape(M, 3, 3) if kind == "so3" else x[:, 3:].reshape(M, 3, 3)
-            phi = d_value[:, -3:]
-            R_new = R @ exp_many(phi)
-            # d vec(R Exp(phi)) / d phi_j = vec(R Exp(phi) [J_r(phi) e_j]_x)
-            Jr = right_jacobian_many(phi)
-            dR = np.stack([(R_new @ skew(Jr[:, :, j])).reshape(M, 9) for j in range(3)], axis=2)
-            if kind == "so3":
-                moved, D = R_new.reshape(M, 3, 3), dR
-            else:
-                t_new = x[:, :3] + np.einsum("mab,mb->ma", R, d_value[:, :3])
-                moved = np.concatenate([t_new, R_new.reshape(M, 9)], axis=1)
-                D = np.zeros((M, 12, 6))
-                D[:, :3, :3] = R
-                D[:, 3:, 3:] = dR
-        if not isinstance(delta, TracingJet):
-            return moved
-        grad = np.matmul(D, delta.grad.reshape(M, D.shape[2], -1))
-        return TracingJet(moved, grad.reshape(moved.shape + (grad.shape[-1],)))
-
-    return retract
-
-
-def tangent_jacobians_task(kinds, xs, C, D, impl):
+def tangent_jacobians_task(kinds, xs, plus, C, D, impl):
     """``autodiff_factor.tangent_jacobians`` of ``r = sum_a C_a vec(p_a) + (sum_a D_a vec(p_a))^2``
-    (entrywise square; ``C_a``, ``D_a`` (M, m, size_a)) on variables of ``kinds`` at ``xs``.
+    (entrywise square; ``C_a``, ``D_a`` (M, m, size_a)) on variables of ``kinds`` at ``xs``, with the
+    plus-Jacobians ``plus`` (M, size_a, d_a).
 
     Fields: ``r`` (M, m), ``count`` (how many blocks came back), ``J0``, ``J1``, ... the blocks."""
     sizes = [int(np.prod(np.shape(x)[1:])) for x in xs]
     M = len(xs[0])
-    dims = [{"vector": s, "se2": 3, "so3": 3, "se3": 6}[kind] for kind, s in zip(kinds, sizes)]
 
     def residual(*points):
         flats = [_flat(p, M, s, None) for p, s in zip(points, sizes)]
@@ -348,8 +312,8 @@ def tangent_jacobians_task(kinds, xs, C, D, impl):
         return TracingJet(value, sum(np.matmul(A, g) for A, g in grads))
 
     module = impl.module("autodiff_factor")
-    out = module.tangent_jacobians(residual, [retraction(k) for k in kinds], dims,
-                                   [np.asarray(x, dtype=float) for x in xs], TracingJet)
+    out = module.tangent_jacobians(residual, [np.array(P, dtype=float) for P in plus],
+                                   [np.array(x, dtype=float) for x in xs], TracingJet)
     if not isinstance(out, tuple) or len(out) != 2:
         raise OutputError(f"returned {type(out).__name__}, expected a tuple (r, [J_1, ..., J_s])")
     r, J = out

@@ -85,10 +85,10 @@ def between_se3(z, xi, xj):
     t_z, R_z = se3_parts(z)
     t_i, R_i = se3_parts(xi)
     t_j, R_j = se3_parts(xj)
-    Rz_T = jm.transpose(R_z)
-    d = jm.matvec(jm.transpose(R_i), t_j - t_i)
-    e_t = jm.matvec(Rz_T, d - t_z)
-    e_phi = jm.so3_log(Rz_T @ (jm.transpose(R_i) @ R_j))
+    # R_z^T R_i^T = (R_i R_z)^T: one product fewer on Jets, none when x_i is a constant
+    A_T = jm.transpose(R_i @ R_z)
+    e_t = jm.matvec(A_T, t_j - t_i) - jm.matvec(jm.transpose(R_z), t_z)
+    e_phi = jm.so3_log(A_T @ R_j)
     return jm.concatenate([e_t, e_phi])
 
 

@@ -3,9 +3,12 @@
 ``x`` (n_x,) is every variable's stored value, one after the other in the order they were added;
 a step ``h`` (n,) is every variable's tangent step in the same order. ``linearize`` evaluates each
 group of factors at once: the values of its variables gathered, the residual and its tangent
-Jacobians (``jacobians``: ``"autodiff"`` by the implementation's Jets and ``autodiff_factor``,
-``"numeric"`` by central differences, or a function that a peer supplies, see
-``FactorGraphProblem``), whitened by the square root of the information, and all groups assembled
+Jacobians (``jacobians``: ``"autodiff"`` by the implementation's Jets and ``autodiff_factor``, each
+variable's stored value seeded with its kind's ``plus_jacobian``, ``"numeric"`` by central
+differences, or a function that a peer supplies, see ``FactorGraphProblem``; a fixed variable is not
+differentiated: a constant, or its seed 0 in the factors that hold it, and its blocks 0 on every
+path; the Jets evaluate a group in chunks that stay in the cache, one slot at a time, ``SLOT_BY_SLOT``),
+whitened by the square root of the information, and all groups assembled
 by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pattern found once. The
 step comes from the sparse solve ``course.solver.choice`` picks (``solver``, default ``auto``: CHOLMOD
 on a large system where cvxopt is installed, else the implementation's sparse Cholesky solver of
@@ -21,6 +24,8 @@ assembly and 1 put on their diagonal after, so that their step is 0 and the othe
 system without them. An eliminated variable may be partly fixed: its block of D then holds the
 identity on the held dofs, decoupled from the rest, and their step comes out 0.
 """
+
+from functools import partial
 
 import numpy as np
 import scipy.sparse as sp
@@ -39,9 +44,17 @@ from course.solver.linearization import Linearization
 from course.solver.superlu import checked_step
 
 JACOBIANS = ("autodiff", "numeric")
-#: factors per evaluation of the automatic Jacobians (ladybug-49's 31843 observations: 143 ms at once,
-#: 48 ms in chunks of 2048, whose Jets fit in the cache)
-CHUNK = 2048
+#: the bytes of one Jet's derivative per evaluation of the automatic Jacobians: a factor type's factors
+#: are evaluated in chunks whose widest seeded value (M, n, k) holds about this many, so that a chunk's
+#: Jets stay in the cache (ladybug-49's 31843 observations: 143 ms at once, 48 ms in chunks)
+CHUNK_BYTES = 1 << 20
+#: the fewest factors per chunk (below it the Python of each Jet operation costs more than its arithmetic)
+CHUNK_MIN = 256
+#: each free slot of a factor differentiated in an evaluation of its own, its Jets in that variable's
+#: d_a directions alone (the other variables plain arrays): a product of two Jets of different variables
+#: spends half its arithmetic on zeros, and a product with a constant is one term of the product rule. On
+#: sphere2500's between factors two evaluations of 6 directions take 0.8 of one of 12.
+SLOT_BY_SLOT = True
 
 
 class FactorGraphProblem:
@@ -89,6 +102,9 @@ class FactorGraphProblem:
         self._losses = [group.loss for group in graph.groups.values()]
         self._kernels = self.impl.module("robust_kernels") if any(self._losses) else None
         self._fixed = np.array(sorted(set(graph.fixed)), dtype=np.int64)
+        # per group, per slot: which factors hold a fixed variable there (None where none does)
+        self._held = [[held if held.any() else None for held in np.isin(keys, self._fixed).T]
+                      for _, keys, _, _ in self._groups]
         self._whole_fixed_dof = np.concatenate([np.arange(self._h_offsets[v], self._h_offsets[v + 1])
                                                 for v in self._fixed]) if len(self._fixed) else np.zeros(0, np.int64)
         # the dofs held of partly fixed variables: their Jacobian columns zeroed, 1 on their diagonal
@@ -151,36 +167,66 @@ class FactorGraphProblem:
         retractions = [kind.retract for kind in ftype.kinds]
         dims = [kind.dim for kind in ftype.kinds]
         xs = self._slots(x, group)
+        held = self._held[group]
         if callable(self.jacobians):
             r, J = self.jacobians(ftype, z, xs)
-            return self._checked(r, (len(keys), ftype.dim), "jacobians", "r", group, 0), [
+            return self._checked(r, (len(keys), ftype.dim), "jacobians", "r", group, 0), self._held_still(held, [
                 self._checked(block, (len(keys), ftype.dim, d), "jacobians", f"J[{a}]", group, 0)
-                for a, (block, d) in enumerate(zip(J, dims))]
+                for a, (block, d) in enumerate(zip(J, dims))])
         if self.jacobians == "numeric":
             r, J = central_differences(residual, retractions, dims, xs)
-            return self._checked(r, (len(keys), ftype.dim), "the residual", "r", group, 0), J
+            return self._checked(r, (len(keys), ftype.dim), "the residual", "r", group, 0), self._held_still(held, J)
         jet = self.impl.module("jets").Jet
         tangent_jacobians = self.impl.module("autodiff_factor").tangent_jacobians
         where = "autodiff_factor.tangent_jacobians"
         m = ftype.dim
-        rs, Js = [], []
-        for start in range(0, len(keys), CHUNK):  # a chunk's Jets stay in the cache: 3x faster than all at once
-            part = slice(start, start + CHUNK)
+        r_all = np.empty((len(keys), m))
+        J_all = [np.zeros((len(keys), m, d)) if h is not None else np.empty((len(keys), m, d))
+                 for h, d in zip(held, dims)]
+        chunk = chunk_size(ftype)
+        for start in range(0, len(keys), chunk):  # a chunk's Jets stay in the cache
+            part = slice(start, start + chunk)
             count = len(keys[part])
+            values = [x[part] for x in xs]
+            # a slot held fixed in every factor of the chunk is a constant (no Jet directions); one held in
+            # some has its plus-Jacobian's rows 0 there: its block is 0, as the assembler takes it
+            held_here = [None if h is None else h[part] for h in held]
+            free = [a for a, h in enumerate(held_here) if h is None or not h.all()]
+            plus = []
+            for a in free:
+                P = ftype.kinds[a].plus_jacobian(values[a])
+                h = held_here[a]
+                plus.append(P if h is None else np.where(h[:, None, None], 0.0, P))
 
-            def residual_of_part(*points, z_part=z[part]):
-                return ftype.residual(z_part, *points)
+            def residual_of_part(*points, z_part=z[part], values=values, slots=free):
+                full = list(values)
+                for a, point in zip(slots, points):
+                    full[a] = point
+                return ftype.residual(z_part, *full)
 
-            r, J = tangent_jacobians(residual_of_part, retractions, dims, [x[part] for x in xs], jet)
-            rs.append(self._checked(r, (count, m), where, "r", group, start))
-            if not isinstance(J, (list, tuple)) or len(J) != len(dims):
-                raise ShapeError(f"{where} returned {len(J) if isinstance(J, (list, tuple)) else type(J).__name__} "
-                                 f"Jacobian blocks for a factor with {len(dims)} variables")
-            Js.append([self._checked(block, (count, m, d), where, f"J[{a}]", group, start)
-                       for a, (block, d) in enumerate(zip(J, dims))])
-        if len(rs) == 1:
-            return rs[0], Js[0]
-        return np.concatenate(rs), [np.concatenate([J[a] for J in Js]) for a in range(len(dims))]
+            if not free:  # every variable fixed: the residual alone, its blocks 0
+                r_all[part] = self._checked(residual_of_part(), (count, m), "the residual", "r", group, start)
+                continue
+            for slots in ([[a] for a in free] if SLOT_BY_SLOT else [free]):
+                r, J = tangent_jacobians(partial(residual_of_part, slots=slots), [plus[free.index(a)] for a in slots],
+                                         [values[a] for a in slots], jet)
+                if slots[0] == free[0]:
+                    r_all[part] = _shaped(r, (count, m), where, "r")
+                if not isinstance(J, (list, tuple)) or len(J) != len(slots):
+                    raise ShapeError(f"{where} returned {len(J) if isinstance(J, (list, tuple)) else type(J).__name__} "
+                                     f"Jacobian blocks for the {len(slots)} plus-Jacobian(s) it was given "
+                                     f"({ftype.name}, slot(s) {', '.join(map(str, slots))})")
+                for i, (a, block) in enumerate(zip(slots, J)):
+                    J_all[a][part] = _shaped(block, (count, m, dims[a]), where, f"J[{i}]")
+        # finite, each non-finite entry named by its factor in the group (one pass over each output)
+        return self._checked(r_all, r_all.shape, where, "r", group, 0), [
+            self._checked(block, block.shape, where, f"J[{a}]", group, 0) for a, block in enumerate(J_all)]
+
+    @staticmethod
+    def _held_still(held, J) -> list:
+        """``J`` with the blocks of fixed variables 0 (``held``: per slot, (M,) or None), as the Jets give
+        them: whichever path linearised, a fixed variable is not differentiated."""
+        return [block if mask is None else np.where(mask[:, None, None], 0.0, block) for mask, block in zip(held, J)]
 
     def describe_factor(self, group: int, row: int) -> str:
         """``"factor 3000 of type 'between_se3' on 'x12', 'x13'"``: factor ``row`` of group ``group``."""
@@ -192,7 +238,12 @@ class FactorGraphProblem:
         """``check_array`` of a group's output (or of a chunk of it starting at factor ``start``), a
         non-finite entry named by its factor: its index in the group, its type and its variables' keys."""
         arr = np.asarray(value, dtype=float) if isinstance(value, np.ndarray) else value
-        if isinstance(arr, np.ndarray) and arr.shape == tuple(shape) and not np.all(np.isfinite(arr)):
+        finite = None
+        if isinstance(arr, np.ndarray) and arr.shape == tuple(shape):
+            finite = bool(np.isfinite(arr).all())
+            if finite:
+                return arr
+        if finite is False:
             index = tuple(int(k) for k in np.argwhere(~np.isfinite(arr))[0])
             row = start + index[0]
             raise NonFiniteError(
@@ -290,6 +341,24 @@ class FactorGraphProblem:
             moved = kind.retract(out[x_index].reshape((len(members),) + kind.shape), h[h_index])
             out[x_index] = np.asarray(moved, dtype=float).reshape(len(members), -1)
         return out
+
+
+def _shaped(value, shape, where: str, what: str):
+    """``value`` where it is an array of ``shape``, else ``check_array``'s error (its finiteness is checked
+    once for the whole group, by ``FactorGraphProblem._checked``)."""
+    if isinstance(value, np.ndarray) and value.shape == shape:
+        return value
+    return check_array(value, shape, where, what)
+
+
+def chunk_size(ftype) -> int:
+    """The factors of type ``ftype`` per evaluation on Jets: ``CHUNK_BYTES`` over the bytes per factor of
+    its widest seeded value (``n`` stored numbers, ``k`` directions: one slot's with ``SLOT_BY_SLOT``, all
+    of them without), at least ``CHUNK_MIN``."""
+    dims = [kind.dim for kind in ftype.kinds]
+    k = max(dims) if SLOT_BY_SLOT else sum(dims)
+    widest = max(int(np.prod(kind.shape)) for kind in ftype.kinds)
+    return max(CHUNK_MIN, CHUNK_BYTES // (8 * widest * k))
 
 
 def eliminated_kind(graph: FactorGraph):

@@ -4,14 +4,21 @@ A kind has an ambient shape (how one value is stored, e.g. (12,) for an SE(3) po
 row), a tangent size ``dim`` (how many numbers a step has) and a retraction ``x (+) delta`` that maps
 a step to a new value, vectorised over a batch: ``x`` (M, *shape), ``delta`` (M, dim). The
 retractions run on arrays and on Jets (a Jet ``delta``), so that a factor's Jacobians with respect to
-the tangent spaces are the derivatives of ``r(x (+) delta)`` at ``delta = 0``. Each matches the
-chapter whose problem it serves, so that the Jacobians compare with that chapter's:
+the tangent spaces are the derivatives of ``r(x (+) delta)`` at ``delta = 0``. Each kind also gives
+the retraction's derivative there, ``plus_jacobian(x)`` = ``d vec(x (+) delta) / d delta`` at ``delta = 0``
+(M, size, dim), in closed form (Ceres' ``Manifold::PlusJacobian``): by the chain rule the tangent
+Jacobian is the stored coordinates' Jacobian times it, so that the Jets are seeded with it on the
+stored values and no retraction runs on Jets (``autodiff_factor``). Each matches the chapter whose
+problem it serves, so that the Jacobians compare with that chapter's:
 
-- ``Vector(n)``: ``x + delta``;
-- ``SE2`` (x, y, theta): ``x + delta``, the angle wrapped (chapter 2: plain addition);
+- ``Vector(n)``: ``x + delta``; plus-Jacobian ``I``;
+- ``SE2`` (x, y, theta): ``x + delta``, the angle wrapped (chapter 2: plain addition); ``I`` (the wrap
+  subtracts a constant);
 - ``SE3`` (t, R): ``(t + R rho, R Exp(phi))``, ``delta = (rho, phi)`` (chapter 6: on the right);
-- ``SO3`` (R): ``R Exp(phi)``;
-- ``BAL_CAMERA`` (w, t, f, k1, k2): ``x + delta`` (chapter 4: plain addition, the angle-axis too).
+  ``d t / d rho = R``, ``d R / d phi_k = R [e_k]_x`` (``Exp(phi) = I + [phi]_x + O(|phi|^2)``), the
+  other two blocks 0;
+- ``SO3`` (R): ``R Exp(phi)``; ``d R / d phi_k = R [e_k]_x``;
+- ``BAL_CAMERA`` (w, t, f, k1, k2): ``x + delta`` (chapter 4: plain addition, the angle-axis too); ``I``.
 """
 
 from dataclasses import dataclass
@@ -32,6 +39,13 @@ class VariableKind:
     def retract(self, x, delta):
         """``x (+) delta``: (M, *shape) from ``x`` (M, *shape) and ``delta`` (M, dim), arrays or Jets."""
         raise NotImplementedError
+
+    def plus_jacobian(self, x) -> np.ndarray:
+        """``d vec(x (+) delta) / d delta`` at ``delta = 0`` (M, size, dim) of values ``x`` (M, *shape)
+        (``size = prod(shape)``, ``vec`` row by row as stored): what the Jets are seeded with."""
+        raise NotImplementedError(f"the variable kind {self.name} gives retract but not plus_jacobian (the "
+                                  "retraction's derivative at delta = 0, (M, size, dim)), which the automatic "
+                                  "Jacobians seed the stored values with")
 
     def typed(self, value: np.ndarray):
         """One stored value (``shape``) as its users read it: an array here; an SE(3) pose a :class:`Pose3`."""
@@ -54,6 +68,9 @@ class Vector(VariableKind):
     def retract(self, x, delta):
         return x + delta
 
+    def plus_jacobian(self, x) -> np.ndarray:
+        return _identities(len(x), self.dim)
+
 
 class SE2Kind(VariableKind):
     def __init__(self):
@@ -63,6 +80,9 @@ class SE2Kind(VariableKind):
         moved = x + delta
         return np.stack([moved[..., 0], moved[..., 1], jetmath.wrap_angle(moved[..., 2])], axis=-1)
 
+    def plus_jacobian(self, x) -> np.ndarray:
+        return _identities(len(x), 3)
+
 
 class SO3Kind(VariableKind):
     def __init__(self):
@@ -70,6 +90,9 @@ class SO3Kind(VariableKind):
 
     def retract(self, x, delta):
         return x @ jetmath.so3_exp(delta)
+
+    def plus_jacobian(self, x) -> np.ndarray:
+        return rotation_plus_jacobian(np.asarray(x, dtype=float))
 
 
 @dataclass(frozen=True)
@@ -98,6 +121,34 @@ class SE3Kind(VariableKind):
         t_new = t + jetmath.matvec(R, delta[..., :3])
         R_new = R @ jetmath.so3_exp(delta[..., 3:])
         return _concatenate_last(t_new, R_new.reshape(R_new.shape[:-2] + (9,)))
+
+    def plus_jacobian(self, x) -> np.ndarray:
+        t, R = se3_parts(np.asarray(x, dtype=float))
+        out = np.zeros((len(t), 12, 6))
+        out[:, :3, :3] = R
+        rotation_plus_jacobian(R, out[:, 3:, 3:])
+        return out
+
+
+def rotation_plus_jacobian(R: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``d vec(R Exp(phi)) / d phi`` at ``phi = 0`` (M, 9, 3) of rotations ``R`` (M, 3, 3): column ``k`` is
+    ``vec(R [e_k]_x)``, whose column ``j`` is ``R (e_k x e_j)``: ``R [e_0]_x = [0, R e_2, -R e_1]``,
+    ``R [e_1]_x = [-R e_2, 0, R e_0]``, ``R [e_2]_x = [R e_1, -R e_0, 0]``. Written into ``out`` (M, 9, 3)
+    if given (zeros where these are)."""
+    if out is None:
+        out = np.zeros((len(R), 9, 3))
+    P = out.reshape(len(R), 3, 3, 3)  # [m, i, j, k]: row i, column j of R [e_k]_x
+    P[:, :, 1, 0], P[:, :, 2, 0] = R[:, :, 2], -R[:, :, 1]
+    P[:, :, 0, 1], P[:, :, 2, 1] = -R[:, :, 2], R[:, :, 0]
+    P[:, :, 0, 2], P[:, :, 1, 2] = R[:, :, 1], -R[:, :, 0]
+    if not np.shares_memory(P, out):  # ``out`` a view that reshape had to copy
+        out[...] = P.reshape(out.shape)
+    return out
+
+
+def _identities(M: int, n: int) -> np.ndarray:
+    """``I`` (M, n, n): the plus-Jacobian of plain addition."""
+    return np.broadcast_to(np.eye(n), (M, n, n)).copy()
 
 
 def se3_parts(x):

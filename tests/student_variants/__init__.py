@@ -1393,6 +1393,7 @@ J_ATAN = "jets.arctan2: arctan2"
 J_MATMUL = "jets.matmul: matrix products"
 AD = "autodiff_factor.tangent_jacobians: "
 AD_ONE, AD_MANY = AD + "the Jacobian of one variable", AD + "the Jacobians of several variables of different sizes"
+AD_RES = AD + "the residual at delta = 0"
 FL = "factor_linearisation.BlockSparseAssembler: "
 FL_2D, FL_3D = FL + "H, b and chi2 of poses and landmarks", FL + "H, b and chi2 of variables of mixed sizes"
 FL_FIXED, FL_ONE = FL + "fixed variables held still", FL + "one factor of one variable"
@@ -1423,16 +1424,16 @@ BUGS_FACTOR_GRAPH = {
         "jets.py", ["def __pow__"], "grad = np.where(self.grad == 0.0, 0.0, grad)", "pass", {J_POW},
         "nothing depends on the seeds there"),
     "jets_matmul_one_term": V(
-        "jets.py", ["def matmul"], '        grad = grad + np.einsum("...ij,...jlk->...ilk", av, bg)', "        pass",
+        "jets.py", ["def matmul"], "grad = dB if grad is None else grad + dB", "grad = dB if grad is None else grad",
         {J_MATMUL, J_RES}, "both factors vary"),
     "autodiff_all_at_offset_zero": V(
-        "autodiff_factor.py", [], "delta = jet.seed(np.zeros((len(x), d)), int(offset), k)",
-        "delta = jet.seed(np.zeros((len(x), d)), 0, k)", {AD_MANY}, "give each its own directions"),
+        "autodiff_factor.py", [], "grad[:, :, offset:offset + d] = P", "grad[:, :, 0:d] = P", {AD_MANY},
+        "give each its own directions"),
     "autodiff_blocks_from_the_first_columns": V(
         "autodiff_factor.py", [], "[grad[..., offsets[a]:offsets[a + 1]] for a in range(len(dims))]",
         "[grad[..., :dims[a]] for a in range(len(dims))]", {AD_MANY}, "not from the first d_a"),
-    "autodiff_negative_step": V(
-        "autodiff_factor.py", [], "moved.append(retract(x, delta))", "moved.append(retract(x, -delta))",
+    "autodiff_negative_seed": V(
+        "autodiff_factor.py", [], "grad[:, :, offset:offset + d] = P", "grad[:, :, offset:offset + d] = -P",
         {AD_ONE, AD_MANY}, "the opposite sign"),
     "autodiff_equal_offsets": V(
         "autodiff_factor.py", [], "offsets = np.concatenate([[0], np.cumsum(dims)]).astype(int)",
@@ -1442,6 +1443,13 @@ BUGS_FACTOR_GRAPH = {
         "autodiff_factor.py", [], "[grad[..., offsets[a]:offsets[a + 1]] for a in range(len(dims))])",
         "[grad[..., offsets[a]:offsets[a + 1]] for a in range(len(dims))][::-1])", {AD_MANY},
         "in the order of the variables"),
+    "autodiff_seeded_with_the_identity": V(
+        "autodiff_factor.py", [], "grad[:, :, offset:offset + d] = P", "grad[:, :, offset:offset + d] = np.eye(n, d)",
+        {AD_ONE, AD_MANY}, "seeded with the identity"),
+    "autodiff_plus_jacobian_transposed": V(
+        "autodiff_factor.py", [], "grad[:, :, offset:offset + d] = P",
+        "grad[:, :, offset:offset + d] = np.swapaxes(P, 1, 2)", {AD_RES, AD_ONE, AD_MANY},
+        "the plus-Jacobian is transposed"),
     "linearisation_b_sign": V(
         "factor_linearisation.py", ["def assemble"], 'g = np.einsum("mra,mr->ma", J[a], r)',
         'g = -np.einsum("mra,mr->ma", J[a], r)', {FL_2D, FL_3D, FL_FIXED, FL_ONE}, "the gradient's sign"),
@@ -1461,15 +1469,17 @@ BUGS_FACTOR_GRAPH = {
         "the upper triangle is in the variables' order"),
 }
 
+#: one evaluation per variable, its Jet in its own d_a directions, the others plain arrays
 PER_VARIABLE = """    blocks, r = [], None
-    for a in range(len(dims)):  # one evaluation per variable, the others held as arrays
-        moved = [retract(x, jet.seed(np.zeros((len(x), d)), 0, d)) if b == a else x
-                 for b, (retract, d, x) in enumerate(zip(retractions, dims, xs))]
-        out = residual(*moved)
+    for a in range(len(plus_jacobians)):
+        d = int(np.shape(plus_jacobians[a])[-1])
+        x = np.asarray(xs[a], dtype=float)
+        point = jet(x.reshape(len(x), -1), np.asarray(plus_jacobians[a], dtype=float)).reshape(x.shape)
+        out = residual(*[point if b == a else np.asarray(v, dtype=float) for b, v in enumerate(xs)])
         r = out.value
-        blocks.append(np.asarray(out.grad, dtype=float))
+        blocks.append(np.asarray(out.grad, dtype=float)[..., :d])
     return np.asarray(r, dtype=float), blocks
-    k = int(sum(dims))"""
+    dims = [int(np.shape(P)[-1]) for P in plus_jacobians]"""
 
 DENSE_THEN_TRIANGLE = """        n = self._shape[0]
         dense, b, chi2 = np.zeros((n, n)), np.zeros(n), 0.0
@@ -1488,26 +1498,58 @@ DENSE_THEN_TRIANGLE = """        n = self._shape[0]
         b[self._fixed_dof] = 0.0
         return sp.csc_matrix(np.triu(dense)), b, chi2"""
 
-#: one seed of all k directions, sliced per variable (the real Jet's container slices)
-ONE_SEED_SLICED = """    k = int(sum(dims))
+#: one Jet of every stored number, its derivative the plus-Jacobians on a block diagonal, sliced per variable
+ONE_SEED_SLICED = """    dims = [int(np.shape(P)[-1]) for P in plus_jacobians]
+    k = int(sum(dims))
     offsets = np.concatenate([[0], np.cumsum(dims)]).astype(int)
-    steps = jet.seed(np.zeros((len(xs[0]), k)), 0, k)
-    moved = [retract(x, steps[:, o:o + d]) for retract, d, o, x in zip(retractions, dims, offsets, xs)]
-    r = residual(*moved)
-    grad = np.asarray(r.grad, dtype=float)
-    return (np.asarray(r.value, dtype=float),
-            [grad[..., offsets[a]:offsets[a + 1]] for a in range(len(dims))])
-    k = int(sum(dims))"""
+    sizes = [int(np.prod(np.shape(x)[1:])) for x in xs]
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+    M = len(xs[0])
+    grad = np.zeros((M, int(starts[-1]), k))
+    for a, P in enumerate(plus_jacobians):
+        grad[:, starts[a]:starts[a + 1], offsets[a]:offsets[a + 1]] = P
+    every = jet(np.concatenate([np.reshape(x, (M, -1)) for x in xs], axis=1), grad)
+    points = [every[:, starts[a]:starts[a + 1]].reshape(np.shape(x)) for a, x in enumerate(xs)]
+    r = residual(*points)
+    return np.asarray(r.value, dtype=float), [np.asarray(r.grad)[..., offsets[a]:offsets[a + 1]]
+                                              for a in range(len(dims))]
+    dims = [int(np.shape(P)[-1]) for P in plus_jacobians]"""
 
-#: each step a constant Jet whose derivative is set by hand (``jet.constant``)
-SEEDS_BY_CONSTANT = """delta = jet.constant(np.zeros((len(x), d)), k)
-        delta.grad[:, np.arange(d), int(offset) + np.arange(d)] = 1.0"""
+#: each value a constant Jet whose derivative is set in place (``jet.constant``)
+SEEDS_BY_CONSTANT = """point = jet.constant(x.reshape(len(x), n), k)
+        point.grad[:, :, offset:offset + d] = P
+        points.append(point.reshape(x.shape))"""
+
+#: the steps seeded at 0 as unit directions, then pushed through P by hand (the chain rule once)
+SEED_THEN_PLUS_JACOBIAN = """delta = jet.seed(np.zeros((len(x), d)), int(offset), k)
+        grad = np.einsum("mnd,mdk->mnk", P, delta.grad)
+        points.append(jet(x.reshape(len(x), n), grad).reshape(x.shape))"""
+
+#: the Jacobians by the stored numbers (identity seeds, n_a directions each), then times P_a
+AMBIENT_THEN_PLUS_JACOBIAN = """    sizes = [int(np.prod(np.shape(x)[1:])) for x in xs]
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+    n_all = int(starts[-1])
+    seeded = [jet.seed(np.reshape(x, (len(x), -1)), int(o), n_all).reshape(np.shape(x)) for x, o in zip(xs, starts)]
+    r = residual(*seeded)
+    grad = np.asarray(r.grad, dtype=float)
+    return np.asarray(r.value, dtype=float), [grad[..., starts[a]:starts[a + 1]] @ np.asarray(P)
+                                              for a, P in enumerate(plus_jacobians)]
+    dims = [int(np.shape(P)[-1]) for P in plus_jacobians]"""
 
 ALTERNATIVES_FACTOR_GRAPH = {
-    "autodiff_one_seed_sliced": V("autodiff_factor.py", [], "    k = int(sum(dims))", ONE_SEED_SLICED, set()),
+    "autodiff_one_seed_sliced": V(
+        "autodiff_factor.py", [], "    dims = [int(np.shape(P)[-1]) for P in plus_jacobians]", ONE_SEED_SLICED, set()),
     "autodiff_seeds_by_constant": V(
-        "autodiff_factor.py", [], "delta = jet.seed(np.zeros((len(x), d)), int(offset), k)", SEEDS_BY_CONSTANT,
-        set()),
+        "autodiff_factor.py", [], """grad = np.zeros((len(x), n, k))
+        grad[:, :, offset:offset + d] = P
+        points.append(jet(x.reshape(len(x), n), grad).reshape(x.shape))""", SEEDS_BY_CONSTANT, set()),
+    "autodiff_seed_then_plus_jacobian": V(
+        "autodiff_factor.py", [], """grad = np.zeros((len(x), n, k))
+        grad[:, :, offset:offset + d] = P
+        points.append(jet(x.reshape(len(x), n), grad).reshape(x.shape))""", SEED_THEN_PLUS_JACOBIAN, set()),
+    "autodiff_ambient_then_plus_jacobian": V(
+        "autodiff_factor.py", [], "    dims = [int(np.shape(P)[-1]) for P in plus_jacobians]",
+        AMBIENT_THEN_PLUS_JACOBIAN, set()),
     "jets_sqrt_by_power": V(
         "jets.py", ["def sqrt"], "grad = _times(0.5 / root, x.grad)", "grad = _times(0.5 * root ** -1.0, x.grad)",
         set()),
@@ -1517,7 +1559,8 @@ ALTERNATIVES_FACTOR_GRAPH = {
     "jets_power_guarded_by_value": V(
         "jets.py", ["def __pow__"], "grad = np.where(self.grad == 0.0, 0.0, grad)",
         "grad = np.where((self.value[..., None] == 0.0) & (self.grad == 0.0), 0.0, grad)", set()),
-    "autodiff_one_evaluation_per_variable": V("autodiff_factor.py", [], "    k = int(sum(dims))", PER_VARIABLE, set()),
+    "autodiff_one_evaluation_per_variable": V(
+        "autodiff_factor.py", [], "    dims = [int(np.shape(P)[-1]) for P in plus_jacobians]", PER_VARIABLE, set()),
     "linearisation_dense_then_triangle": V(
         "factor_linearisation.py", ["def assemble"], "        n = self._shape[0]", DENSE_THEN_TRIANGLE, set()),
 }

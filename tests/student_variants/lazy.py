@@ -105,7 +105,9 @@ return e, A, B""",
         {}),
     "autodiff_factor": (
         "from course.factorgraph.numeric import central_differences",
-        {"tangent_jacobians": """return central_differences(residual, retractions, dims, xs)"""}),
+        {"tangent_jacobians": """moves = [lambda x, d, P=P: x + (P @ d[..., None]).reshape(np.shape(x))
+         for P in plus_jacobians]
+return central_differences(residual, moves, [np.shape(P)[-1] for P in plus_jacobians], xs)"""}),
     "factor_linearisation": (
         "from course.factorgraph.problem import FactorGraphProblem",
         {}),

@@ -2,7 +2,8 @@
 
 The error of every factor is OUR residual (``course.factorgraph.factors``, the factor type's own), and
 its Jacobians come from our Jets, factor by factor: each call of GTSAM's Python callback evaluates
-``autodiff_factor.tangent_jacobians`` of the implementation (with its ``jets.Jet``) on that one factor.
+``autodiff_factor.tangent_jacobians`` of the implementation (with its ``jets.Jet``, each variable seeded
+with its kind's ``plus_jacobian``) on that one factor.
 That is what a Python custom factor costs: one callback per factor and linearisation, against our
 linearisation that evaluates a whole group of factors at once.
 
@@ -74,8 +75,6 @@ def _error_function(ftype, z, constants, free, tangent_jacobians, jet, held=None
     ``free``, the tangent indices held of a partly fixed variable, or ()) zeroes those Jacobian columns."""
     held = held or [()] * len(free)
     kinds = ftype.kinds
-    retractions = [kinds[slot].retract for slot, _, _, _ in free]
-    dims = [kinds[slot].dim for slot, _, _, _ in free]
 
     def residual(*points):
         full = list(constants)
@@ -87,7 +86,8 @@ def _error_function(ftype, z, constants, free, tangent_jacobians, jet, held=None
         points = [read(values, key) for _, key, read, _ in free]
         if H is None:  # the error alone: plain arrays
             return np.asarray(residual(*points), dtype=float)[0]
-        r, J = tangent_jacobians(residual, retractions, dims, points, jet)
+        plus = [kinds[slot].plus_jacobian(point) for (slot, _, _, _), point in zip(free, points)]
+        r, J = tangent_jacobians(residual, plus, points, jet)
         for a, ((_, _, _, columns), block, dofs) in enumerate(zip(free, J, held)):
             block = np.array(block, dtype=float)[0]
             block[:, list(dofs)] = 0.0  # a partly fixed variable: its held dofs do not move
