@@ -111,8 +111,9 @@ class ConfigError(ValueError):
         super().__init__(f"{path}: {key}: {message}" if key else f"{path}: {message}")
 
 
-def _close(name: str, choices) -> str:
-    near = difflib.get_close_matches(name, list(choices), n=4, cutoff=0.5)
+def did_you_mean(name: str, choices, n: int = 4) -> str:
+    """`` (did you mean a, b?)`` naming the ``choices`` closest to ``name`` ('' when none is close)."""
+    near = difflib.get_close_matches(name, list(choices), n=n, cutoff=0.5)
     return f" (did you mean {', '.join(near)}?)" if near else ""
 
 
@@ -201,7 +202,7 @@ class Course:
     def assignment(self, name: str) -> Assignment:
         if name not in self.assignments:
             raise ConfigError(self.source, f"assignments.{name}", "no such assignment; the assignments are "
-                              f"{', '.join(self.assignments)}{_close(name, self.assignments)}")
+                              f"{', '.join(self.assignments)}{did_you_mean(name, self.assignments)}")
         return self.assignments[name]
 
     def owner(self, module: str) -> str:
@@ -346,7 +347,7 @@ def _known(table: dict, allowed: set, key: str, path, expected: str) -> None:
     for name in table:
         if name not in allowed:
             where = f"{key}.{name}" if key else name
-            raise ConfigError(path, where, f"unknown key{_close(name, allowed)}; expected {expected}")
+            raise ConfigError(path, where, f"unknown key{did_you_mean(name, allowed)}; expected {expected}")
 
 
 def _names(value, key, path, known, what) -> list:
@@ -354,8 +355,8 @@ def _names(value, key, path, known, what) -> list:
         raise ConfigError(path, key, f"expected a list of {what} names, got {value!r}")
     for index, name in enumerate(value):
         if name not in known:
-            raise ConfigError(path, f"{key}[{index}]", f"unknown {what} {name!r}{_close(name, known)}; expected one "
-                              f"of {', '.join(known)}")
+            raise ConfigError(path, f"{key}[{index}]", f"unknown {what} {name!r}{did_you_mean(name, known)}; "
+                              f"expected one of {', '.join(known)}")
         if value.index(name) != index:
             raise ConfigError(path, f"{key}[{index}]", f"{name!r} is listed twice")
     return list(value)
@@ -422,8 +423,8 @@ def _points(raw, key, path, exercises, registry, optional, counts) -> dict:
     for name, value in given.items():
         where = f"{key}.points.{name}"
         if name not in known:
-            raise ConfigError(path, where, f"unknown name{_close(name, known)}; expected one of this assignment's "
-                              "check modules, exercises or check names: " + ", ".join(known))
+            raise ConfigError(path, where, f"unknown name{did_you_mean(name, known)}; expected one of this "
+                              "assignment's check modules, exercises or check names: " + ", ".join(known))
         _number(value, where, path, "a number of points >= 0")
     for level in ("module", "exercise", "check"):
         for name, value in given.items():

@@ -286,7 +286,8 @@ def main(argv=None) -> int:
     try:
         subs = intake.read(args.submissions, unpack_to=out / "export")
         known = class_roster(args.roster, out)
-        found_overrides = kept_overrides(out, args.overrides, assignment_of(args.assignment, args.config))
+        assignment = assignment_of(args.assignment, args.config)
+        found_overrides = kept_overrides(out, args.overrides, assignment)
     except (intake.IntakeError, roster.RosterError, overrides.OverridesError) as exc:
         p.error(str(exc))
     subs = [roster.apply(sub, known.find(sub.id, sub.path.name, sub.sid, sub.email)) for sub in subs]
@@ -313,8 +314,7 @@ def main(argv=None) -> int:
     results_dir = out / "results"
     results_dir.mkdir(exist_ok=True)
     modules = submission.exercise_modules(REPO_ROOT)
-    graded_files = None if assignment_of(args.assignment, args.config) is None else \
-        [f"{m}.py" for m in assignment_of(args.assignment, args.config).modules]
+    graded_files = None if assignment is None else [f"{m}.py" for m in assignment.modules]
     where = {sub.id: submission.locate_submission(sub.path, modules, graded_files) for sub in mine}
     hashes = {sub.id: submission.content_hash(where[sub.id]) for sub in mine}
 
@@ -351,7 +351,6 @@ def main(argv=None) -> int:
         _retable(results_dir / f"{sub.id}.txt", data)
         return data
 
-    assignment = assignment_of(args.assignment, args.config)
     checks = select(assignment.checks() if assignment is not None else all_checks(), args.only)
     names = [(c.name, c.exercise, c.points, False) for c in checks] if which != "hidden" else []
     names += [(c.name + HIDDEN_SUFFIX, c.exercise, c.points, True) for c in checks] if which != "public" else []

@@ -24,7 +24,6 @@ record's total after new marks.
 """
 
 import csv
-import difflib
 import math
 from dataclasses import dataclass
 from datetime import datetime, timedelta
@@ -32,6 +31,7 @@ from pathlib import Path
 
 from autograder.classroom import gradebook
 from autograder.classroom.overrides import Override
+from autograder.course_config import did_you_mean
 from autograder.late import Lateness
 
 COLUMNS = ("id", "name", "question", "points", "items", "comment")
@@ -55,11 +55,6 @@ class Mark:
     line: int = 0
 
 
-def _close(name: str, choices) -> str:
-    near = difflib.get_close_matches(name, list(choices), n=3, cutoff=0.5)
-    return f" (did you mean {', '.join(near)}?)" if near else ""
-
-
 def keys_of(record: dict) -> set:
     """The names of a record's student(s): id, sids and e-mails (a group's "; "-joined), lower case."""
     extra = record["extra_data"]
@@ -79,7 +74,7 @@ def read(path, rubrics: dict, records) -> list:
     header = {(name or "").strip().lower(): name for name in reader.fieldnames or []}
     unknown = [name for name in header if name not in COLUMNS]
     if unknown:
-        raise MarksError(f"{path}: line 1: unknown column {unknown[0]!r}{_close(unknown[0], COLUMNS)}; "
+        raise MarksError(f"{path}: line 1: unknown column {unknown[0]!r}{did_you_mean(unknown[0], COLUMNS, n=3)}; "
                          f"expected {','.join(COLUMNS)}")
     missing = [c for c in REQUIRED if c not in header] or ([] if {"points", "items"} & set(header) else ["points"])
     if missing:
@@ -101,12 +96,12 @@ def read(path, rubrics: dict, records) -> list:
         student = students.get(values["id"].lower())
         if student is None:
             raise MarksError(f"{where}: column id: {values['id']!r} is no graded student (no record in results/ has "
-                             f"this id, sid or e-mail){_close(values['id'].lower(), students)}")
+                             f"this id, sid or e-mail){did_you_mean(values['id'].lower(), students, n=3)}")
         qid = values["question"]
         rubric = rubrics.get(qid)
         if rubric is None:
             raise MarksError(f"{where}: column question: {qid!r} is no written question of this assignment"
-                             f"{_close(qid, rubrics)}; its questions are {', '.join(rubrics)}")
+                             f"{did_you_mean(qid, rubrics, n=3)}; its questions are {', '.join(rubrics)}")
         if (student, qid) in seen:
             raise MarksError(f"{where}: column question: {qid} of {values['id']} is marked already on line "
                              f"{seen[(student, qid)]}")
@@ -115,7 +110,8 @@ def read(path, rubrics: dict, records) -> list:
         for item in items:
             if rubric.item(item) is None:
                 ids = [i.id for i in rubric.items]
-                raise MarksError(f"{where}: column items: {item!r} is no rubric item of {qid}{_close(item, ids)}; "
+                near = did_you_mean(item, ids, n=3)
+                raise MarksError(f"{where}: column items: {item!r} is no rubric item of {qid}{near}; "
                                  f"its items are {', '.join(ids) or 'none (give points)'}")
         if len(set(items)) != len(items):
             raise MarksError(f"{where}: column items: an item is given twice ({values['items']})")

@@ -22,12 +22,12 @@ mark (:data:`OMIT`) as its first line, so that the release renders nothing of it
 A mistake is a :class:`RubricError` naming the file, the key and the field.
 """
 
-import difflib
 import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from autograder.course_config import did_you_mean
 from course.core.impl import REPO_ROOT
 
 if sys.version_info >= (3, 11):
@@ -80,11 +80,6 @@ def default(question) -> Rubric:
     return Rubric(question.id, sum(i.points for i in items), items)
 
 
-def _close(name: str, choices) -> str:
-    near = difflib.get_close_matches(name, list(choices), n=3, cutoff=0.5)
-    return f" (did you mean {', '.join(near)}?)" if near else ""
-
-
 def _positive(value, path, key) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 or value != value:
         raise RubricError(f"{path}: {key}: expected a number > 0, got {value!r}")
@@ -96,7 +91,7 @@ def parse(data: dict, questions, path="<rubric>") -> dict:
     known = {q.id: q for q in questions}
     for key in data:
         if key not in known:
-            raise RubricError(f"{path}: [{key}]: no written question has this id{_close(key, known)}; "
+            raise RubricError(f"{path}: [{key}]: no written question has this id{did_you_mean(key, known, n=3)}; "
                               f"this assignment's are {', '.join(known) or 'none'}")
     out = {}
     for qid, question in known.items():
@@ -108,7 +103,8 @@ def parse(data: dict, questions, path="<rubric>") -> dict:
             raise RubricError(f"{path}: {qid}: expected a table [{qid}] with points and items, got {table!r}")
         for field in table:
             if field not in ("points", "items"):
-                raise RubricError(f"{path}: [{qid}].{field}: unknown field{_close(field, ('points', 'items'))}; "
+                near = did_you_mean(field, ("points", "items"), n=3)
+                raise RubricError(f"{path}: [{qid}].{field}: unknown field{near}; "
                                   "expected points and items")
         if "points" not in table:
             raise RubricError(f"{path}: [{qid}].points: missing (what the question is worth, > 0)")
