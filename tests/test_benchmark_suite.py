@@ -1,6 +1,6 @@
 """``benchmark --suite`` (course.app.benchmark_suite) and the machine beside its ratios (course.app.machine):
 the description's fields, the JSON of a one-row run, ``--only``, ``--compare`` on hand-written files, a peer
-missing or a TODO as a row, and the README's commands. No timing is judged: the machine is shared."""
+missing or a TODO as a row, and the measured page's commands. No timing is judged: the machine is shared."""
 
 import json
 import os
@@ -324,19 +324,19 @@ def test_a_file_that_is_not_a_suite_s_is_named_with_its_line_or_row(tmp_path):
         benchmark_suite.load(tmp_path / "absent.json")
 
 
-# ------------------------------------------------------------------ the README
+# ------------------------------------------------------------------ the measured page (docs/measured.md)
 
 
-def readme_commands() -> list:
-    """The README's ``benchmark --suite`` commands (its ```bash blocks)."""
-    blocks = re.findall(r"```bash\n(.*?)```", (REPO_ROOT / "README.md").read_text(), re.S)
+def page_commands() -> list:
+    """The measured page's ``benchmark --suite`` commands (its ```bash blocks)."""
+    blocks = re.findall(r"```bash\n(.*?)```", (REPO_ROOT / "docs" / "measured.md").read_text(), re.S)
     return [line.strip() for block in blocks for line in block.splitlines() if "benchmark --suite" in line]
 
 
 @pytest.mark.slow
 @needs("g2opy")
-def test_the_readme_s_suite_commands_run(tmp_path, data_folder):
-    commands = readme_commands()
+def test_the_measured_page_s_suite_commands_run(tmp_path, data_folder):
+    commands = page_commands()
     assert len(commands) == 2 and "--json intel.json" in commands[0] and "--compare intel.json" in commands[1]
     env = {**os.environ, "PYTHONPATH": str(REPO_ROOT)}
     outputs = []
