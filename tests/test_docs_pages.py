@@ -15,7 +15,6 @@ import pytest
 
 from course.app import benchmark_suite, commands_page, measured_page
 from course.app.cli import build_parser
-from course.core.impl import REPO_ROOT
 
 
 def flags(page: str) -> dict:

@@ -70,7 +70,7 @@ def section(name: str, data: dict) -> str:
              f"- load average at the start: {', '.join(map(str, load)) if load else 'unknown'}"
              + (f"; {data['note']}" if data.get("note") else ""),
              f"- reproduce: `{_command(m.get('command'))}`", "",
-             "| row | ratio (min to max) | ours ms | peer ms | goal | what it divides |",
+             "| row | ratio (min to max) | first ms | second (peer) ms | goal | what it divides (first / second) |",
              "|---|---|---|---|---|---|"]
     for row in data["rows"]:
         if row["status"] != "measured":
