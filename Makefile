@@ -42,3 +42,9 @@ benchmark: $(STAMP)
 
 clean:
 	rm -rf $(VENV) out *.egg-info
+
+# the generated pages: docs/commands.md (every command's --help) and docs/measured.md (from docs/measured/)
+.PHONY: docs-pages
+docs-pages: $(STAMP)
+	$(PY) -m course.app.commands_page
+	$(PY) -m course.app.measured_page

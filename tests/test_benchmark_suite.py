@@ -1,6 +1,6 @@
 """``benchmark --suite`` (course.app.benchmark_suite) and the machine beside its ratios (course.app.machine):
 the description's fields, the JSON of a one-row run, ``--only``, ``--compare`` on hand-written files, a peer
-missing or a TODO as a row, and the README's commands. No timing is judged: the machine is shared."""
+missing or a TODO as a row, and the measured page's commands. No timing is judged: the machine is shared."""
 
 import json
 import os
@@ -119,7 +119,9 @@ def test_a_failed_solve_is_a_row_and_the_rest_runs():
 
     chosen = [benchmark_suite.Item(name, {"ours/peer": ""}, measure)
               for name, measure in (("a", singular), ("b", fine))]
-    rows = benchmark_suite.run(repeats=2, out=lambda line: None, chosen=chosen, command="test")["rows"]
+    result = benchmark_suite.run(repeats=2, out=lambda line: None, chosen=chosen, command="test")
+    rows = result["rows"]
+    assert result["note"] == ""  # no --note
     assert rows[0]["reason"] == "failed: SingularSystemError: the system is singular at iteration 3"
     assert rows[1]["ratio"] == 0.5 and rows[1]["repeats"] == 2
 
@@ -159,7 +161,7 @@ def test_only_selects_an_item_a_part_of_its_name_or_a_dataset():
 def test_an_unknown_row_or_a_lone_old_file_is_a_usage_error(capsys, tmp_path):
     assert course_main(["benchmark", "--suite", "--only", "nothing"]) == 2
     assert "--only 'nothing' selects no row" in capsys.readouterr().err
-    for argv in (["--json", "x.json"], ["--compare", "a.json"], ["--suite", "--compare", "a", "b"],
+    for argv in (["--json", "x.json"], ["--note", "busy"], ["--compare", "a.json"], ["--suite", "--compare", "a", "b"],
                  ["--suite", "--repeats", "0"]):
         with pytest.raises(SystemExit) as stopped:
             course_main(["benchmark", *argv])
@@ -170,9 +172,10 @@ def test_an_unknown_row_or_a_lone_old_file_is_a_usage_error(capsys, tmp_path):
 def test_the_suite_on_intel_writes_the_rows_beside_the_machine(tmp_path, data_folder, capsys):
     path = tmp_path / "suite.json"
     assert course_main(["benchmark", "--suite", "--only", "2d:solution:intel", "--repeats", "1",
-                        "--json", str(path)]) == 0
+                        "--note", "measured on a shared machine", "--json", str(path)]) == 0
     out = capsys.readouterr().out
     data = json.loads(path.read_text())
+    assert data["note"] == "measured on a shared machine" and "--note" in data["machine"]["command"]
     assert data["format"] == benchmark_suite.FORMAT and data["repeats"] == 1 and data["impl"] == "solutions"
     assert data["warmup"] == benchmark_suite.WARMUP and data["seconds"] > 0
     assert {"cpu", "cores", "affinity", "blas", "python", "versions", "date", "commit",
@@ -324,19 +327,19 @@ def test_a_file_that_is_not_a_suite_s_is_named_with_its_line_or_row(tmp_path):
         benchmark_suite.load(tmp_path / "absent.json")
 
 
-# ------------------------------------------------------------------ the README
+# ------------------------------------------------------------------ the measured page (docs/measured.md)
 
 
-def readme_commands() -> list:
-    """The README's ``benchmark --suite`` commands (its ```bash blocks)."""
-    blocks = re.findall(r"```bash\n(.*?)```", (REPO_ROOT / "README.md").read_text(), re.S)
+def page_commands() -> list:
+    """The measured page's ``benchmark --suite`` commands (its ```bash blocks)."""
+    blocks = re.findall(r"```bash\n(.*?)```", (REPO_ROOT / "docs" / "measured.md").read_text(), re.S)
     return [line.strip() for block in blocks for line in block.splitlines() if "benchmark --suite" in line]
 
 
 @pytest.mark.slow
 @needs("g2opy")
-def test_the_readme_s_suite_commands_run(tmp_path, data_folder):
-    commands = readme_commands()
+def test_the_measured_page_s_suite_commands_run(tmp_path, data_folder):
+    commands = page_commands()
     assert len(commands) == 2 and "--json intel.json" in commands[0] and "--compare intel.json" in commands[1]
     env = {**os.environ, "PYTHONPATH": str(REPO_ROOT)}
     outputs = []

@@ -330,10 +330,12 @@ def format_row(row: Row) -> str:
             f"ours {_ms(row.ours_seconds)}, peer {_ms(row.peer_seconds)}{goal}")
 
 
-def run(repeats: int = 5, impl: str = "solutions", only=None, out=print, chosen=None, command=None) -> dict:
+def run(repeats: int = 5, impl: str = "solutions", only=None, out=print, chosen=None, command=None,
+        note: str = "") -> dict:
     """Measure the items of ``chosen`` (default :func:`items`) that ``only`` selects, printing each row
     as it comes; returns the JSON: ``format``, ``machine`` (:func:`course.app.machine.describe`, taken
-    before the first run), ``impl``, ``repeats``, ``warmup``, ``seconds`` (the whole run) and ``rows``."""
+    before the first run), ``impl``, ``repeats``, ``warmup``, ``seconds`` (the whole run), ``note`` (what
+    the measurer says of the run, e.g. "measured on a shared machine") and ``rows``."""
     picked = select(chosen if chosen is not None else items(), only)
     description = machine.describe(command)
     out(f"{description['cpu']}, {description['affinity'] or description['cores']} cores, BLAS "
@@ -353,7 +355,7 @@ def run(repeats: int = 5, impl: str = "solutions", only=None, out=print, chosen=
     out(f"goals met: {sum(bool(row.met) for row in goals)} of {len(goals)}; "
         f"not run: {sum(row.status != 'measured' for row in rows)} of {len(rows)} rows")
     return {"format": FORMAT, "machine": description, "impl": impl, "repeats": repeats, "warmup": WARMUP,
-            "seconds": round(time.perf_counter() - start, 3), "rows": [row.as_json() for row in rows]}
+            "seconds": round(time.perf_counter() - start, 3), "note": note, "rows": [row.as_json() for row in rows]}
 
 
 #: the fields :func:`load` requires of a measured row
@@ -442,14 +444,14 @@ def _ratio(row: dict) -> str:
 
 
 def main(repeats: int = 5, impl: str = "solutions", only=None, json_path=None, compare_with=(), out=print,
-         chosen=None, command=None) -> int:
+         chosen=None, command=None, note: str = "") -> int:
     """``benchmark --suite``: run (unless ``compare_with`` holds two files), write ``json_path``, and compare
     with ``compare_with[0]`` (``ValueError`` on a file that is not a suite's, before anything runs)."""
     files = [load(path) for path in compare_with]
     if len(files) == 2:
         compare(files[0], files[1], out=out)
         return 0
-    result = run(repeats, impl, only, out, chosen, command)
+    result = run(repeats, impl, only, out, chosen, command, note)
     if json_path:
         write_json(json_path, result, indent=1, newline=True)
         out(f"wrote {json_path}")

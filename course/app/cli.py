@@ -132,6 +132,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="--suite: these rows only: an item (2d:solution:intel), a part of it (2d, 2d:solution) "
                             "or a dataset (intel); a name that selects nothing lists the items")
     bench.add_argument("--json", default=None, metavar="FILE", help="--suite: write the rows and the machine to FILE")
+    bench.add_argument("--note", default="", metavar="TEXT",
+                       help="--suite: a note kept in the JSON beside the machine (e.g. 'measured on a shared machine')")
     bench.add_argument("--compare", nargs="+", default=(), metavar=("OLD.json", "NEW.json"),
                        help="with --suite: this run against OLD.json; with two files (no --suite): NEW.json against "
                             "OLD.json, nothing run. Prints the machines' differences, then each row's old and new "
@@ -523,7 +525,7 @@ def cmd_datasets(args) -> int:
 def cmd_benchmark(args) -> int:
     if args.suite or args.compare:
         return _benchmark_suite(args)
-    for flag in ("only", "json"):
+    for flag in ("only", "json", "note"):
         if getattr(args, flag):
             args.parser.error(f"--{flag} needs --suite")
     if args.autodiff:
@@ -554,7 +556,8 @@ def _benchmark_suite(args) -> int:
     if len(args.compare) == 1 and not args.suite:
         args.parser.error("--compare OLD.json compares with a --suite run: add --suite, or give a second file")
     return benchmark_suite.main(repeats=args.repeats, impl=args.impl or default_impl(), only=_names(args.only),
-                                json_path=args.json, compare_with=args.compare, command=args.command)
+                                json_path=args.json, compare_with=args.compare, command=args.command,
+                                note=args.note)
 
 
 def cmd_vio(args) -> int:

@@ -15,7 +15,7 @@ checked against the serial one (rtol 1e-10) before it is timed. Next to each tim
 the process's CPU time over the wall time (how many cores the variant really had), and the
 minor page faults of one call.
 
-What the figures say (2 cores shared with other engineers' jobs; README, "Measured here"):
+What the figures say (2 cores shared with other engineers' jobs; docs/measured.md, its notes on the parallel assembly):
 
 - Threads do not pay on ladybug-49 (31843 observations): two threads took 0.85 times the
   serial assembly's speed, four 1.1 times, with 1.5 to 1.7 cores busy; when another job held
