@@ -380,6 +380,50 @@ def test_robust_noise_models_solve_to_one_minimum_on_ours_jax_and_gtsam_custom()
     _same_minimum(_robust_graph())
 
 
+def test_a_singular_system_after_diverging_steps_says_so_and_the_references_row_is_explained():
+    from course.app import compare
+    from course.core.errors import SingularSystemError
+    from course.core.trace import IterationRecord, RunResult
+
+    seen = []
+    with pytest.raises(SingularSystemError, match=r"^S is singular \(after 2 steps, chi2 7.2e\+09, 4.4e\+18: "
+                                                  r"the steps diverged first\)$"):
+        with compare.steps_before_failure(seen.append) as watch:
+            watch(IterationRecord(1, 7.2e9))
+            watch(IterationRecord(2, 1e20, accepted=False))  # a rejected step is not where the solve went
+            watch(IterationRecord(3, 4.4e18))
+            raise SingularSystemError("S is singular")
+    assert len(seen) == 3
+    with pytest.raises(SingularSystemError, match=r"^at the start$"):  # no step taken: the message as it was
+        with compare.steps_before_failure():
+            raise SingularSystemError("at the start")
+    with pytest.raises(SingularSystemError, match=r"\(after 2 steps, chi2 9, 3\)$"):  # no divergence claimed
+        with compare.steps_before_failure() as watch:
+            watch(IterationRecord(1, 9.0))
+            watch(IterationRecord(2, 3.0))
+            raise SingularSystemError("x")
+    # the reference's own failed row is printed under the table, as every back end's is
+    runs = [RunResult.skipped("ours", "gauss-newton", "failed: schur_solve: S is not positive definite"),
+            RunResult.skipped("ours-autodiff", "gauss-newton", "failed: bal: block of 'p3' not positive definite")]
+    assert compare.advice(runs, "bal", "solutions") == [
+        "ours gauss-newton failed: schur_solve: S is not positive definite",
+        "ours-autodiff gauss-newton failed: bal: block of 'p3' not positive definite"]
+
+
+@pytest.mark.slow
+def test_ladybug_49s_gauss_newton_rows_fail_alike_after_the_same_diverging_steps(data_folder):
+    """``compare ladybug-49 --backends ours,ours-autodiff --methods gauss-newton``: the factor graph's row runs
+    (no free gauge stops it) and ends as chapter 4's: two undamped steps that raise chi2 by 12 orders,
+    then a system that is not positive definite, both said under the table."""
+    from course.app import compare
+    from course.problems.bal.dataset import load_bal
+
+    rows = compare.run_bal(load_bal("ladybug-49"), methods=["gauss-newton"], backends=["ours", "ours-autodiff"])
+    for row in rows:
+        assert row.not_run.endswith("(after 2 steps, chi2 7.2e+09, 4.4e+18: the steps diverged first)"), row.not_run
+    assert "the gauge is free" not in rows[1].not_run
+
+
 @pytest.mark.slow
 def test_ladybug_49s_factor_graph_with_the_gauge_fixed_steps_as_chapter_4s_gauss_newton(data_folder):
     """Undamped Gauss-Newton goes uphill from ladybug-49's start in both (chi2 1.7e6 to 7.2e9, then 4e18;
