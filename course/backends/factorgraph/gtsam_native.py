@@ -16,6 +16,7 @@ type is a ``ValueError`` naming it (give the graph priors in place of fixed pose
 """
 
 import time
+from typing import Any
 
 import numpy as np
 
@@ -74,14 +75,14 @@ def build(graph):
 
 def read(graph, values) -> np.ndarray:
     """Every variable's value at GTSAM's ``values``, stored as ours (flat, in variable order)."""
-    out = []
+    out: list[np.ndarray] = []
     for v, kind in enumerate(graph.kinds):
         if kind.name == "SE2":
             pose = values.atPose2(v)
-            out.append([pose.x(), pose.y(), pose.theta()])
+            out.append(np.array([pose.x(), pose.y(), pose.theta()]))
         else:
             out.append(np.asarray(values.atPoint2(v), dtype=float))
-    return np.concatenate([np.asarray(o, dtype=float) for o in out])
+    return np.concatenate(out)
 
 
 def solve(graph, method: str = "levenberg-marquardt", max_iterations: int = 100, *,
@@ -97,7 +98,7 @@ def solve(graph, method: str = "levenberg-marquardt", max_iterations: int = 100,
         raise ValueError(f"unknown gtsam method {method!r}; choose one of {METHODS}")
     ours = FactorGraphProblem(graph)
     factors, values = build(graph)
-    params = gtsam.LevenbergMarquardtParams() if method == METHODS[0] else gtsam.GaussNewtonParams()
+    params: Any = gtsam.LevenbergMarquardtParams() if method == METHODS[0] else gtsam.GaussNewtonParams()
     params.setMaxIterations(int(max_iterations))
     params.setRelativeErrorTol(relative_error_tol)
     params.setAbsoluteErrorTol(absolute_error_tol)
