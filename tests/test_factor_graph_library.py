@@ -139,6 +139,8 @@ def _solve(graph, backend):
         from course.backends.factorgraph import jax_factors
 
         problem = jax_factors.problem(graph)
+    elif backend == "numeric":
+        problem = FactorGraphProblem(graph, jacobians="numeric")
     else:
         problem = FactorGraphProblem(graph)
     result = minimize(problem, "lm-type3", options=OPTIONS)
@@ -217,7 +219,12 @@ def test_a_users_factor_type_runs_on_ours_jax_and_gtsam_custom_by_itself():
     from course.backends.factorgraph import jax_factors
 
     assert not hasattr(jax_factors, "RESIDUALS")
-    _same_minimum(_user_graph())
+    _same_minimum(_user_graph(), backends=("numeric", "jax", "gtsam-custom"))
+    # nothing was registered anywhere: a second type of the same residual, made here, runs as well
+    again = FactorType("relative_position_again", (SE2, Vector(2)), 2, relative_position)
+    g = _user_graph()
+    g.add(again, ["x1", "l0"], [0.9, 0.9], noise=noise.sigmas([0.05, 0.05]))
+    _same_minimum(g)
 
 
 # ---------------------------------------------------------------- noise models
