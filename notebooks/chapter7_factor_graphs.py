@@ -17,7 +17,8 @@
 #    checks as `python -m autograder --only ...`; before it, a cell checks your code where you work.
 # 2. **Experiments**: intel (in the full setting also sphere2500 and ladybug-49) as factor graphs:
 #    automatic against analytic Jacobians, the minimum each solve ends at, what the automatic Jacobians
-#    cost, and a new factor in five lines that the graph solves with no Jacobian written by hand.
+#    cost, a new factor in five lines that the graph solves with no Jacobian written by hand, and a new
+#    problem built from the factor library alone (range-only SLAM) against GTSAM's own factors.
 # 3. **Written questions.**
 #
 # Stuck on a derivation? `hint("jets", 1)` (or `python -m autograder hint NAME LEVEL` in a terminal)
