@@ -8,6 +8,10 @@ unchanged: numpy's functions (``np.sin(x)``, ``np.sqrt(x)``, ``x @ y``) call :me
 which sends them to the rules of this module; an array of Jets is one Jet with ``value`` of
 that shape (a batch of M rotation matrices is ``value`` (M, 3, 3), ``grad`` (M, 3, 3, k)).
 
+The container is given, ``course.core.jet_container.JetContainer``, which ``Jet`` extends: the
+constructor, ``seed``, ``constant``, indexing, ``reshape``, ``.T``, ``sum``, ``+``, ``-`` and the
+like, which need no derivative rule.
+
 Given with the Jet, built from your rules (so they are right when your rules are): ``abs`` and
 ``np.abs`` (the sign decided by the value: at 0 the derivative is ``+dx``, as Ceres' ``abs``),
 comparisons (``x < 0`` compares the values and gives a boolean array), ``np.where``,
@@ -34,10 +38,22 @@ Inputs at the edges of the contract (each is a check input):
 - arctan2 at magnitudes whose squares overflow or underflow (x, y ~ 1e200 and ~ 1e-200): finite derivatives
 - one direction (k = 1) and a scalar Jet (value of shape ())
 
-Allowed imports: numpy, scipy.
+Allowed imports: numpy, scipy, course.core.jet_container.
 """
 
 import numpy as np
+
+from course.core.jet_container import (
+    JetContainer,
+    axes_of,
+    compare,
+    concatenate,
+    maximum,
+    minimum,
+    stack,
+    value_of,
+    where,
+)
 
 
 def _parts(x):
@@ -52,138 +68,15 @@ def _times(factor, grad):
     return np.asarray(factor)[..., None] * grad
 
 
-class Jet:
-    """``value`` (...,) and ``grad`` (..., k): a batch of numbers with their derivatives in k directions."""
+class Jet(JetContainer):
+    """``value`` (...,) and ``grad`` (..., k): a batch of numbers with their derivatives in k directions.
 
-    __array_priority__ = 1000  # numpy defers ``array * jet`` to ``jet.__rmul__``
-
-    def __init__(self, value, grad):
-        self.value = np.asarray(value, dtype=float)
-        grad = np.asarray(grad, dtype=float)
-        if grad.shape[:-1] != self.value.shape:
-            grad = np.broadcast_to(grad, self.value.shape + grad.shape[-1:])
-        self.grad = grad
-
-    # --------------------------------------------------------------- given: the container
-
-    @classmethod
-    def constant(cls, value, k: int) -> "Jet":
-        """``value`` with a zero derivative in ``k`` directions."""
-        value = np.asarray(value, dtype=float)
-        return cls(value, np.zeros(value.shape + (k,)))
-
-    @classmethod
-    def seed(cls, value, offset: int, k: int) -> "Jet":
-        """``value`` (..., n) as the variables ``offset .. offset + n - 1`` of ``k``: the derivative of
-        its entry ``[..., i]`` is the unit vector ``offset + i``."""
-        value = np.asarray(value, dtype=float)
-        n = value.shape[-1]
-        grad = np.zeros(value.shape + (k,))
-        grad[..., np.arange(n), offset + np.arange(n)] = 1.0
-        return cls(value, grad)
-
-    @property
-    def shape(self):
-        return self.value.shape
-
-    @property
-    def ndim(self):
-        return self.value.ndim
-
-    @property
-    def k(self) -> int:
-        return self.grad.shape[-1]
-
-    def __len__(self):
-        return len(self.value)
-
-    def __getitem__(self, index):
-        index = index if isinstance(index, tuple) else (index,)
-        if any(i is Ellipsis for i in index):
-            return Jet(self.value[index], self.grad[index + (slice(None),)])
-        return Jet(self.value[index], self.grad[index + (Ellipsis,)] if index else self.grad)
-
-    def reshape(self, *shape) -> "Jet":
-        """``value`` reshaped (as ``ndarray.reshape``); each entry keeps its derivative."""
-        value = self.value.reshape(*shape)
-        return Jet(value, self.grad.reshape(value.shape + (self.k,)))
-
-    def swapaxes(self, a: int, b: int) -> "Jet":
-        """Axes ``a`` and ``b`` of ``value`` swapped (negative axes count from ``value``'s last)."""
-        a, b = (axis % self.ndim for axis in (a, b))
-        return Jet(np.swapaxes(self.value, a, b), np.swapaxes(self.grad, a, b))
-
-    @property
-    def mT(self) -> "Jet":
-        """The matrix transpose of the last two axes (as ``ndarray.mT``)."""
-        return self.swapaxes(-1, -2)
-
-    @property
-    def T(self) -> "Jet":  # noqa: N802 (numpy's name)
-        """All of ``value``'s axes reversed (as ``ndarray.T``)."""
-        return self.transpose()
-
-    def transpose(self, *axes) -> "Jet":
-        """``value``'s axes permuted (as ``ndarray.transpose``; none given: reversed)."""
-        axes = tuple(axes[0]) if len(axes) == 1 and isinstance(axes[0], (tuple, list)) else axes
-        axes = tuple(range(self.ndim))[::-1] if not axes else tuple(a % self.ndim for a in axes)
-        return Jet(np.transpose(self.value, axes), np.transpose(self.grad, axes + (self.ndim,)))
-
-    def sum(self, axis=None, keepdims=False) -> "Jet":
-        """The sum over ``value``'s ``axis`` (an int, a tuple of them, or all of them)."""
-        axes = _axes(axis, self.ndim)
-        return Jet(self.value.sum(axis=axes, keepdims=keepdims), self.grad.sum(axis=axes, keepdims=keepdims))
-
-    def mean(self, axis=None, keepdims=False) -> "Jet":
-        """The mean over ``value``'s ``axis`` (an int, a tuple of them, or all of them)."""
-        total = self.sum(axis, keepdims)
-        return total * (float(total.value.size) / float(max(self.value.size, 1)))
-
-    def __repr__(self):
-        return f"Jet(value={self.value!r}, grad={self.grad!r})"
-
-    def __neg__(self):
-        return Jet(-self.value, -self.grad)
-
-    def __pos__(self):
-        return self
-
-    def __add__(self, other):
-        v, g = _parts(other)
-        return Jet(self.value + v, self.grad if g is None else self.grad + g)
-
-    __radd__ = __add__
-
-    def __sub__(self, other):
-        v, g = _parts(other)
-        return Jet(self.value - v, self.grad if g is None else self.grad - g)
-
-    def __rsub__(self, other):
-        return (-self) + other
+    Given (``course.core.jet_container.JetContainer``): the constructor ``Jet(value, grad)``, ``constant``,
+    ``seed``, ``shape``, ``ndim``, ``k``, ``len``, indexing, ``reshape``, ``swapaxes``, ``.mT``, ``.T``,
+    ``transpose``, ``sum``, ``mean``, ``+``, ``-`` and the comparisons."""
 
     def __abs__(self):
         return _abs(self)
-
-    # comparisons compare the values: a boolean array, as numpy's (no derivative)
-    def __lt__(self, other):
-        return self.value < _value(other)
-
-    def __le__(self, other):
-        return self.value <= _value(other)
-
-    def __gt__(self, other):
-        return self.value > _value(other)
-
-    def __ge__(self, other):
-        return self.value >= _value(other)
-
-    def __eq__(self, other):
-        return self.value == _value(other)
-
-    def __ne__(self, other):
-        return self.value != _value(other)
-
-    __hash__ = None  # comparisons give arrays, as numpy's: no hash
 
     # --------------------------------------------------------------- yours: the derivative rules
 
@@ -271,73 +164,10 @@ def matmul(a, b) -> Jet:
 # --------------------------------------------------------------- given: more of numpy, from your rules
 
 
-def _value(x):
-    """The value of a Jet, or the constant as an array."""
-    return x.value if isinstance(x, Jet) else np.asarray(x, dtype=float)
-
-
-def _axes(axis, ndim: int) -> tuple:
-    """``axis`` (None, an int or a tuple) as a tuple of non-negative axes of ``ndim``."""
-    if axis is None:
-        return tuple(range(ndim))
-    return tuple(a % ndim for a in (axis if isinstance(axis, (tuple, list)) else (axis,)))
-
-
-def _k(operands) -> int:
-    """The number of directions of the Jets among ``operands`` (all alike)."""
-    ks = {a.k for a in operands if isinstance(a, Jet)}
-    if len(ks) != 1:
-        raise ValueError(f"Jets with different numbers of directions combined: k = {sorted(ks)}")
-    return ks.pop()
-
-
-def _jets(operands) -> list:
-    """Each operand as a Jet (a constant with a zero derivative)."""
-    k = _k(operands)
-    return [a if isinstance(a, Jet) else Jet.constant(a, k) for a in operands]
-
-
-def _stack(arrays, axis=0):
-    """``np.stack`` of Jets and constants: the derivatives stacked alike."""
-    jets = _jets(arrays)
-    axis = axis % (jets[0].ndim + 1)
-    return Jet(np.stack([j.value for j in jets], axis=axis), np.stack([j.grad for j in jets], axis=axis))
-
-
-def _concatenate(arrays, axis=0):
-    """``np.concatenate`` of Jets and constants along ``axis`` (None: flattened)."""
-    jets = _jets(arrays)
-    if axis is None:
-        jets, axis = [j.reshape(-1) for j in jets], 0
-    axis = axis % jets[0].ndim
-    return Jet(np.concatenate([j.value for j in jets], axis=axis),
-               np.concatenate([j.grad for j in jets], axis=axis))
-
-
-def _where(mask, a, b):
-    """``np.where(mask, a, b)``: the value and the derivative of the operand the mask picks."""
-    k = _k((a, b))
-    mask = np.asarray(mask, dtype=bool)
-    (av, ag), (bv, bg) = _parts(a), _parts(b)
-    ag = np.zeros(av.shape + (k,)) if ag is None else ag
-    bg = np.zeros(bv.shape + (k,)) if bg is None else bg
-    return Jet(np.where(mask, av, bv), np.where(mask[..., None], ag, bg))
-
-
 def _abs(x):
     """``|x|`` as ``x`` times its sign, decided by the value; at 0 the sign is + (derivative ``dx``)."""
     signed = x * np.where(x.value < 0.0, -1.0, 1.0)
     return Jet(np.abs(x.value), signed.grad)
-
-
-def _minimum(a, b):
-    """``np.minimum(a, b)``: the smaller operand; at a tie the first."""
-    return _where(~(_value(b) < _value(a)), a, b)
-
-
-def _maximum(a, b):
-    """``np.maximum(a, b)``: the larger operand; at a tie the first."""
-    return _where(~(_value(a) < _value(b)), a, b)
 
 
 def _sum(x, axis=None, keepdims=False):
@@ -354,15 +184,15 @@ def _transpose(x, axes=None):
 
 def _matmul(a, b):
     """``a @ b`` by your ``matmul``, a 1-D ``a`` (n,) taken as a row (1, n) and the axis dropped after."""
-    if np.ndim(_value(a)) != 1:
+    if np.ndim(value_of(a)) != 1:
         return matmul(a, b)
     out = matmul(a[None, :], b)
-    return out[0] if np.ndim(_value(b)) == 1 else out[..., 0, :]
+    return out[0] if np.ndim(value_of(b)) == 1 else out[..., 0, :]
 
 
 def _dot(a, b):
     """``np.dot(a, b)`` of 0-, 1- and 2-D operands: a product, ``a @ b`` or the scalar ``sum(a * b)``."""
-    na, nb = np.ndim(_value(a)), np.ndim(_value(b))
+    na, nb = np.ndim(value_of(a)), np.ndim(value_of(b))
     if na == 0 or nb == 0:
         return a * b if isinstance(a, Jet) else b * a
     if na > 2 or nb > 2:
@@ -382,7 +212,7 @@ def _einsum(subscripts, *operands, **kwargs):
     terms = inputs.split(",")
     if len(terms) != len(operands):
         raise ValueError(f"np.einsum: {len(terms)} operands in {subscripts!r}, {len(operands)} given")
-    ranks = [np.ndim(_value(x)) - len(s.replace("...", "")) for s, x in zip(terms, operands)]
+    ranks = [np.ndim(value_of(x)) - len(s.replace("...", "")) for s, x in zip(terms, operands)]
     spare = [c for c in "ABCDEFGHIJKLMNOPQRSTUVWXYZ" if c not in spec]
     wide = max(ranks) if any("..." in s for s in terms) else 0
     ellipsis = "".join(spare[:wide])
@@ -402,10 +232,10 @@ def _einsum(subscripts, *operands, **kwargs):
                 x = Jet(np.einsum(f"{s}->{unique}", x.value),
                         np.einsum(f"{s}{k_letter}->{unique}{k_letter}", x.grad))
             else:
-                x = np.einsum(f"{s}->{unique}", _value(x))
+                x = np.einsum(f"{s}->{unique}", value_of(x))
         present = [c for c in order if c in unique]
         x = x.transpose([unique.index(c) for c in present]) if isinstance(x, Jet) else \
-            np.transpose(_value(x), [unique.index(c) for c in present])
+            np.transpose(value_of(x), [unique.index(c) for c in present])
         shape = tuple(x.shape[present.index(c)] if c in present else 1 for c in order)
         laid.append(x.reshape(shape))
     product = laid[0]
@@ -423,7 +253,7 @@ def _norm(x, ord=None, axis=None, keepdims=False):
     if ord not in (None, 2, "fro"):
         raise TypeError(f"np.linalg.norm(..., ord={ord!r}) is not supported on Jets: the 2-norm only; write "
                         f"other norms with abs, np.sum and np.maximum")
-    axes = _axes(axis, x.ndim)
+    axes = axes_of(axis, x.ndim)
     scale = np.max(np.abs(x.value), axis=axes, keepdims=True) if x.value.size else np.ones(())
     scale = np.where(scale == 0.0, 1.0, scale)
     scaled = x * (1.0 / scale)
@@ -434,8 +264,8 @@ def _norm(x, ord=None, axis=None, keepdims=False):
 def _hypot(a, b):
     """``np.hypot(a, b)`` as ``s sqrt((a / s)^2 + (b / s)^2)``, ``s = max(|a|, |b|)``: no overflow; at (0, 0)
     the derivative is 0."""
-    value = np.hypot(_value(a), _value(b))
-    scale = np.maximum(np.abs(_value(a)), np.abs(_value(b)))
+    value = np.hypot(value_of(a), value_of(b))
+    scale = np.maximum(np.abs(value_of(a)), np.abs(value_of(b)))
     scale = np.where(scale == 0.0, 1.0, scale)
     a, b = a * (1.0 / scale), b * (1.0 / scale)
     return Jet(value, (sqrt(a * a + b * b) * scale).grad)
@@ -451,10 +281,6 @@ def _tanh(x):
     sign = np.where(x.value < 0.0, -1.0, 1.0)
     e = exp(x * (-2.0 * sign))
     return Jet(np.tanh(x.value), ((1.0 - e) / (1.0 + e) * sign).grad)
-
-
-def _compare(ufunc):
-    return lambda a, b: ufunc(_value(a), _value(b))
 
 
 #: what to write for a numpy function Jets do not have (the rest: :data:`_ANY`)
@@ -518,18 +344,18 @@ _UFUNCS = {
     np.arctan: _arctan,
     np.tanh: _tanh,
     np.hypot: _hypot,
-    np.minimum: _minimum,
-    np.maximum: _maximum,
-    np.less: _compare(np.less),
-    np.less_equal: _compare(np.less_equal),
-    np.greater: _compare(np.greater),
-    np.greater_equal: _compare(np.greater_equal),
-    np.equal: _compare(np.equal),
-    np.not_equal: _compare(np.not_equal),
+    np.minimum: minimum,
+    np.maximum: maximum,
+    np.less: compare(np.less),
+    np.less_equal: compare(np.less_equal),
+    np.greater: compare(np.greater),
+    np.greater_equal: compare(np.greater_equal),
+    np.equal: compare(np.equal),
+    np.not_equal: compare(np.not_equal),
 }
-_FUNCTIONS = {np.stack: _stack, np.concatenate: _concatenate, np.where: _where, np.sum: _sum, np.mean: _mean,
+_FUNCTIONS = {np.stack: stack, np.concatenate: concatenate, np.where: where, np.sum: _sum, np.mean: _mean,
               np.transpose: _transpose, np.dot: _dot, np.einsum: _einsum, np.linalg.norm: _norm,
-              np.shape: lambda x: np.shape(_value(x)), np.ndim: lambda x: np.ndim(_value(x))}
+              np.shape: lambda x: np.shape(value_of(x)), np.ndim: lambda x: np.ndim(value_of(x))}
 #: what Jets support, for the message of the rest
 _ANY = "write it with what Jets support: +, -, *, /, **, @, abs, comparisons, .T, " + ", ".join(sorted(
     {f"np.{f.__name__}" for f in _UFUNCS if f not in (np.add, np.subtract, np.multiply, np.true_divide, np.negative,

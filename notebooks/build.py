@@ -25,7 +25,8 @@ errors, wrong loop closures against least squares, a Cauchy kernel and GNC), cha
 on the factor graph with automatic differentiation (dual numbers and Jets, finite differences
 against Jets by the step size, the chain rule through a retraction, the generic block-sparse
 linearisation; then intel, sphere2500 and ladybug-49 as factor graphs: automatic against analytic
-Jacobians, the same minimum, the benchmark, and a GPS factor in five lines).
+Jacobians, the same minimum, the benchmark, a GPS factor in five lines, and range-only SLAM from the
+factor library against GTSAM's own factors).
 
 Each notebook's source is a jupytext py:percent file next to it (``chapter2_pose_graphs.py``
 for ``chapter2_pose_graphs.ipynb``); edit the source, then rebuild. A cell starts with

@@ -17,7 +17,8 @@
 #    checks as `python -m autograder --only ...`; before it, a cell checks your code where you work.
 # 2. **Experiments**: intel (in the full setting also sphere2500 and ladybug-49) as factor graphs:
 #    automatic against analytic Jacobians, the minimum each solve ends at, what the automatic Jacobians
-#    cost, and a new factor in five lines that the graph solves with no Jacobian written by hand.
+#    cost, a new factor in five lines that the graph solves with no Jacobian written by hand, and a new
+#    problem built from the factor library alone (range-only SLAM) against GTSAM's own factors.
 # 3. **Written questions.**
 #
 # Stuck on a derivation? `hint("jets", 1)` (or `python -m autograder hint NAME LEVEL` in a terminal)
@@ -268,6 +269,18 @@ edge = chapter7.se3_edge(seed=0, residual_angle=0.4)  # z, x_i, x_j stored (1, 1
 with todo_as_one_line():
     print(chapter7.chain_rule_text(chapter7.chain_rule(edge, chapter7.exercise("jets", IMPL).Jet), edge))
 
+# %% [markdown] id="plus-jacobian-md"
+# **Each kind's seed, printed.** What the factor graph hands your `tangent_jacobians` for a variable is its
+# kind's `plus_jacobian(x)`, $P = \partial\, \mathrm{vec}(x \boxplus \delta) / \partial \delta$ at $\delta = 0$
+# (Ceres' `Manifold::PlusJacobian`). For SE(2), moved by addition, $P = I_3$: the stored numbers are the
+# tangent coordinates, and a plain seed is the right one. For SE(3), the $12 \times 6$ derived above: rows
+# 0-2 (the translation) hold $R$ in the $\rho$ columns, rows 3-11 (R row by row) hold
+# $\partial R / \partial \phi_k = R\,[e_k]_\times$ in column $3 + k$, and the rest is zero. Each is checked
+# against central differences of its retraction at $\delta = 0$.
+
+# %% id="plus-jacobian"
+print(chapter7.plus_jacobian_text(chapter7.plus_jacobian_study()))
+
 # %% id="hint-tangent"
 hint("tangent_jacobians", 1)
 
@@ -437,6 +450,51 @@ with todo_as_one_line():
     print(f"the GPS factor's Jacobian at pose {int(drive.gps_keys[1, 0])}, by your Jets:\n{J[1]}")
 display(Image(plot.to_png(chapter7.drive_figure(drive, solved))))
 
+# %% [markdown] id="range-only-md"
+# ## 5. A new problem from the library: range-only SLAM
+#
+# The same loop of 80 poses, with no position fixes: four radio beacons stand at places nobody surveyed
+# well (their first guesses are off by metres), and at every pose the robot measures its distance to each
+# beacon within 14 m, standard deviation 0.1 m. Nothing in the graph is new code: the library's
+# `prior(SE2)`, `between(SE2)` and `RANGE_2D`, and `Vector(2)` variables for the beacons
+# (`chapter7.range_only_graph`, fifteen lines). The unknowns are the 80 poses and the 4 beacons, 248
+# numbers.
+#
+# **The range factor.** With $d = l - t$ the beacon seen from the pose's position,
+# $e = |d| - z$. Its derivative: $\partial |d| / \partial d = d^\top / |d|$, the unit vector towards the
+# beacon, so
+#
+# $$J_{\text{pose}} = \begin{pmatrix} -\dfrac{d^\top}{|d|} & 0 \end{pmatrix} \ (1 \times 3), \qquad
+#   J_{\text{beacon}} = \dfrac{d^\top}{|d|} \ (1 \times 2):$$
+#
+# a range says nothing of the heading (its column is 0: the heading comes from the odometry), and nothing
+# of the direction across the line of sight. One range puts the beacon on a circle around the pose; the
+# poses along the path draw many circles, and the beacon sits where they cross. That is why this problem
+# is **not convex** in the beacons: circles from a nearly straight stretch of path cross twice, in the
+# beacon's place and in its mirror image across the path, so the error has more than one minimum, and
+# which one a solve ends in depends on its start and on its steps. A start within a metre or two of the
+# truth, and a path that turns, are what make it well posed here. ($|d|$ at $d = 0$ is the cone of
+# section 3: `jetmath.sqrt` gives 0 for both the value and the derivative there; a robot never stands on
+# its beacon.)
+#
+# **The gauge.** Ranges and odometry are unchanged if the whole scene moves or turns: three free
+# directions. The prior on the first pose (what GTSAM users write where chapter 2 fixed a pose) removes
+# them, so nothing is fixed and Gauss-Newton or Levenberg-Marquardt sees a definite $H$.
+#
+# **Against GTSAM's own factors.** The same graph, from the same start, in GTSAM's native C++ factors:
+# `PriorFactorPose2`, `BetweenFactorPose2`, `RangeFactor2D` (a `Pose2` to a `Point2`), with
+# `noiseModel.Gaussian.Information` of our information (`course.backends.factorgraph.gtsam_native`). Its
+# pose errors are SE(2)'s log map, ours chapter 2's edge error: the two agree to first order and differ
+# by second-order terms, so the minima are a hair apart; both solutions are scored by our $\chi^2$, which
+# ours minimises, so ours ends at GTSAM's or below. The times are the solves alone, the faster of three.
+
+# %% id="range-only"
+ranging = chapter7.range_only()  # seed=4; try range_only(seed=2, survey_sigma=1.0) (question 6)
+range_runs = None
+with todo_as_one_line():
+    range_runs = chapter7.range_only_runs(ranging, IMPL)
+    print(chapter7.range_only_table(ranging, range_runs))
+
 # %% [markdown] id="questions-md"
 # ## Questions
 #
@@ -469,6 +527,12 @@ display(Image(plot.to_png(chapter7.drive_figure(drive, solved))))
 # **Question 5.** The drive of experiment 4 has no fixed pose, yet Gauss-Newton solves it; chapter 2's
 # graphs needed one. Why? How many fixes does the drive need at the least, and what goes wrong with one?
 # Compare the solution's distance from the truth with the odometry's and with the fixes' own noise.
+#
+# **Question 6.** In experiment 5, how many iterations and how much time did ours and GTSAM take, and why
+# can the two minima differ at all when both graphs hold the same measurements? Run
+# `chapter7.range_only(seed=2, survey_sigma=1.0)` through `chapter7.range_only_runs`: where does each end,
+# and what does the beacons' error say happened? Why does a range factor's Jacobian have a zero column for
+# the heading, and which factors make the heading observable?
 
 # %% [markdown] tags=["answer"] id="answer-1"
 # *Your answer to question 1.*
@@ -484,3 +548,6 @@ display(Image(plot.to_png(chapter7.drive_figure(drive, solved))))
 
 # %% [markdown] tags=["answer"] id="answer-5"
 # *Your answer to question 5.*
+
+# %% [markdown] tags=["answer"] id="answer-6"
+# *Your answer to question 6.*

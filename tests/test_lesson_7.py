@@ -7,6 +7,7 @@ is written."""
 import nbformat
 import numpy as np
 import pytest
+from conftest import needs
 from executed_notebooks import (
     assert_hints_and_checks_at_full_marks,
     assert_no_level_3_hint_line,
@@ -15,8 +16,10 @@ from executed_notebooks import (
     executed_small,
 )
 
+from course.core import peers
 from course.core.impl import REPO_ROOT
-from course.factorgraph import SE2, FactorType
+from course.factorgraph import SE2, FactorGraphProblem, FactorType
+from course.geometry.so3 import exp_many, skew
 from course.notebook_helpers import chapter7
 from notebooks import build
 from solutions.jets import Jet
@@ -232,6 +235,81 @@ def test_one_fix_leaves_the_rotation_free():
     assert np.isfinite(run.final_chi2)
 
 
+def test_the_range_only_graph_is_built_from_the_library_alone():
+    from course.factorgraph import RANGE_2D, between, prior
+
+    ranging = chapter7.range_only()
+    graph = chapter7.range_only_graph(ranging)
+    assert (graph.num_variables, len(ranging.ranges)) == (84, 143) and not graph.fixed and not graph.fixed_dofs
+    assert [g.type for g in graph.groups.values()] == [prior(SE2), between(SE2), RANGE_2D]
+    assert graph.keys[80:] == ["b0", "b1", "b2", "b3"]
+    # the ranges are the true distances plus noise of their sigma
+    pose, beacon = ranging.range_keys.T
+    truth = np.linalg.norm(ranging.drive.truth[pose, :2] - ranging.beacons[beacon], axis=1)
+    assert 0.05 < np.std(ranging.ranges - truth) < 0.15 and truth.max() <= 14.0
+    # the range's Jacobian: minus the unit vector to the beacon, 0 for the heading; plus it for the beacon
+    problem = FactorGraphProblem(graph)
+    _, (J_pose, J_beacon) = problem.factor_jacobians(problem.x0, list(graph.groups).index(RANGE_2D.name))
+    x = problem.x0
+    k, j = ranging.range_keys[0]
+    d = x[240 + 2 * j:242 + 2 * j] - x[3 * k:3 * k + 2]
+    np.testing.assert_allclose(J_pose[0], [[*(-d / np.linalg.norm(d)), 0.0]], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(J_beacon[0], [d / np.linalg.norm(d)], rtol=0, atol=1e-15)
+
+
+def test_range_only_slam_ours_ends_at_gtsams_minimum_or_below():
+    ranging = chapter7.range_only()
+    runs = chapter7.range_only_runs(ranging, "solutions", repeat=1)
+    ours = runs["ours"]
+    assert ours.final_chi2 == pytest.approx(137.7748943, rel=1e-8) and ours.initial_chi2 > 1e4
+    poses = ours.params[:240].reshape(-1, 3)
+    assert chapter7.position_error(poses, ranging.drive.truth) < 0.25 < 1.0 < chapter7.position_error(
+        chapter7.dead_reckoning(ranging.drive), ranging.drive.truth)
+    table = chapter7.range_only_table(ranging, runs)
+    if not peers.installed("gtsam"):
+        assert "gtsam is not installed here" in table
+        return
+    theirs = runs["gtsam"]
+    assert theirs.initial_chi2 == ours.initial_chi2  # the same start
+    assert ours.final_chi2 <= theirs.final_chi2 * (1 + 1e-12)
+    assert ours.final_chi2 == pytest.approx(theirs.final_chi2, rel=1e-8)
+    np.testing.assert_allclose(ours.params, theirs.params, rtol=0, atol=1e-4)
+    assert "ours - gtsam: -" in table
+
+
+@needs("gtsam")
+def test_gtsams_native_factors_name_what_they_cannot_take():
+    from course.backends.factorgraph import gtsam_native
+    from course.factorgraph import RANGE_BEARING, FactorGraph, Vector
+
+    graph = FactorGraph("g")
+    graph.add_variable("x0", SE2, [0.0, 0.0, 0.0])
+    graph.add_variable("l0", Vector(2), [1.0, 1.0])
+    graph.add(RANGE_BEARING, ["x0", "l0"], [1.4, 0.8])
+    with pytest.raises(ValueError, match="factor type 'range_bearing' has no GTSAM factor here"):
+        gtsam_native.build(graph)
+    graph.fix("x0")
+    with pytest.raises(ValueError, match=r"variable\(s\) \['x0'\] are fixed"):
+        gtsam_native.build(graph)
+    with pytest.raises(ValueError, match="unknown gtsam method"):
+        gtsam_native.solve(graph, "dogleg")
+
+
+def test_each_pose_kinds_seed_is_its_retractions_derivative_at_zero():
+    study = chapter7.plus_jacobian_study()
+    P2, diff2 = study["SE2"]
+    np.testing.assert_array_equal(P2, np.eye(3))
+    P3, diff3 = study["SE3"]
+    R = exp_many(np.array([[0.3, -0.2, 0.5]]))[0]
+    assert P3.shape == (12, 6) and diff2 < 1e-9 and diff3 < 1e-9
+    np.testing.assert_allclose(P3[:3, :3], R, rtol=0, atol=1e-15)  # d t / d rho = R
+    for k in range(3):  # d R / d phi_k = R [e_k]x, row by row
+        np.testing.assert_allclose(P3[3:, 3 + k].reshape(3, 3), R @ skew(np.eye(3)[k]), rtol=0, atol=1e-15)
+    assert not P3[:3, 3:].any() and not P3[3:, :3].any()
+    text = chapter7.plus_jacobian_text(study)
+    assert "SE3.plus_jacobian(x): d vec(x (+) delta) / d delta at delta = 0, 12 x 6" in text
+
+
 # ---------------------------------------------------------------- the notebook, quick setting
 
 
@@ -283,6 +361,17 @@ def test_the_lessons_figures_tables_and_numbers(executed):
     assert "sphere2500" not in text["minimum"] and "ladybug" not in text["cost"]  # the full setting only
     assert "medians of 1 interleaved rounds" in text["cost"] and "intel        ours-autodiff" in text["cost"]
     assert "80 poses, 89 factors" in text["gps-solve"] and "[[1. 0. 0.]\n [0. 1. 0.]]" in text["gps-solve"]
+    # the seeds: SE(2)'s identity, SE(3)'s 12 x 6, each against central differences of its retraction
+    assert "SE2.plus_jacobian(x): d vec(x (+) delta) / d delta at delta = 0, 3 x 3" in text["plus-jacobian"]
+    assert "[[1. 0. 0.]\n [0. 1. 0.]\n [0. 0. 1.]]" in text["plus-jacobian"]
+    assert "SE3.plus_jacobian(x): d vec(x (+) delta) / d delta at delta = 0, 12 x 6" in text["plus-jacobian"]
+    # range-only SLAM: ours and GTSAM's own factors at one minimum (ours at GTSAM's or below), the numbers
+    # the answer quotes
+    assert "80 poses, 4 beacons, 143 ranges (sigma 0.1 m); start chi2 14335.9" in text["range-only"]
+    assert "ours   chi2 137.77489" in text["range-only"]
+    assert "poses 0.213 m rms  beacons 0.171 m rms" in text["range-only"]
+    if peers.installed("gtsam"):
+        assert "gtsam  chi2 137.77489" in text["range-only"] and "ours - gtsam: -" in text["range-only"]
     # the numbers the answers quote are the run's
     study = chapter7.step_study("solutions")
     assert f"{study.best('forward')[0]:.1e} at h = {study.best('forward')[1]:.1e}" in text["figure-steps"]
@@ -291,12 +380,12 @@ def test_the_lessons_figures_tables_and_numbers(executed):
 def test_the_written_questions_and_their_answer_cells():
     nb = build.read(build.NOTEBOOKS[build.CHAPTER7])
     markdown = {c.id: c for c in nb.cells if c.cell_type == "markdown"}
-    assert list(markdown)[-6] == "questions-md"
-    for k in range(1, 6):
+    assert list(markdown)[-7] == "questions-md"
+    for k in range(1, 7):
         assert f"**Question {k}.**" in markdown["questions-md"].source
         cell = markdown[f"answer-{k}"]
         assert cell.metadata["tags"] == [build.ANSWER_TAG] and f"Your answer to question {k}" in cell.source
-    assert "**Question 6.**" not in markdown["questions-md"].source
+    assert "**Question 7.**" not in markdown["questions-md"].source
     title = markdown["title"].source
     for words in ("Theory", "Experiments", "Written questions", "hint(", "python -m autograder hint NAME LEVEL",
                   "Conventions", "translation first", "right", "retraction"):
@@ -311,7 +400,7 @@ def test_reference_answers_stay_out_of_the_student_tree():
 
     answers = (REPO_ROOT / "solutions" / "answers" / "chapter7.md").read_text()
     assert answers.startswith("# RELEASE: omit")
-    for k in range(1, 6):
+    for k in range(1, 7):
         assert f"## Question {k}:" in answers
     assert not [name for name in release.render(REPO_ROOT / "solutions") if name.startswith("answers")]
 

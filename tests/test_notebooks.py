@@ -58,8 +58,8 @@ def test_source_round_trips_with_ids_and_tags(path, tmp_path):
         expected = {f"answer-{k}" for k in range(1, 6)}
     if path == build.CHAPTER4:  # its lesson's five questions
         expected = {f"answer-{k}" for k in range(1, 6)}
-    if path == build.CHAPTER7:  # its lesson's five questions
-        expected = {f"answer-{k}" for k in range(1, 6)}
+    if path == build.CHAPTER7:  # its lesson's six questions
+        expected = {f"answer-{k}" for k in range(1, 7)}
     assert tagged == expected
     assert all(set(cell.metadata) <= {"tags"} for cell in nb.cells)
 

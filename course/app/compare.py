@@ -171,13 +171,13 @@ def _solve_or_row(solve, repeat, backend, method, unimplemented) -> RunResult:
         return RunResult.skipped(backend, method, failure_reason(exc))
 
 
-def factor_graph_run(graph, backend: str, method: str, impl, options, solver=None) -> RunResult:
+def factor_graph_run(graph, backend: str, method: str, impl, options, solver=None, callback=None) -> RunResult:
     """A factor graph (chapter 7) solved by ``backend``: our minimizer's ``method``, its Jacobians as
     ``FACTOR_GRAPH_BACKENDS`` says (the implementation's Jets, central differences, or JAX, compiled
     before the solve: ``compile_seconds``), or a factor graphs' peer (``registry.FACTOR_GRAPH_PEERS``:
     GTSAM on custom factors, ``options.max_iterations`` iterations at most). ``solver``: our sparse
-    solve (``course.solver.choice``; ``None``: ``auto``). ``PeerMissing`` when the back end's library
-    is not installed here."""
+    solve (``course.solver.choice``; ``None``: ``auto``); ``callback``: our minimizer's, after each step
+    attempt. ``PeerMissing`` when the back end's library is not installed here."""
     from course.core import peers
     from course.factorgraph import FactorGraphProblem
     from course.solver import minimize
@@ -194,7 +194,7 @@ def factor_graph_run(graph, backend: str, method: str, impl, options, solver=Non
         compile_seconds = problem.jacobians.compile_seconds
     else:
         problem = FactorGraphProblem(graph, impl, jacobians=FACTOR_GRAPH_BACKENDS[backend], solver=solver)
-    result = minimize(problem, method, impl=impl, options=options)
+    result = minimize(problem, method, impl=impl, options=options, callback=callback)
     result.backend, result.compile_seconds = backend, compile_seconds
     return result
 
@@ -473,8 +473,9 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
     plan = bal_plan(methods, backends)
 
     def ours(method, callback):
-        result = minimize(BundleAdjustmentProblem(problem, impl, fix_gauge=fix_gauge), method, impl=impl,
-                          options=options, callback=callback)
+        with steps_before_failure(callback) as watch:
+            result = minimize(BundleAdjustmentProblem(problem, impl, fix_gauge=fix_gauge), method, impl=impl,
+                              options=options, callback=watch)
         return BALRunResult.from_run(result, problem, peer_cost="ours: 0.5 sum |r|^2 over all observations")
 
     def peer(backend, method):
@@ -482,12 +483,42 @@ def run_bal(problem, impl=None, methods=None, backends=None, repeat=1, max_itera
             chapters.require("ch7", f"back end {backend}")
             from course.problems.bal.factor_graph import as_factor_graph
 
-            result = factor_graph_run(as_factor_graph(problem, fix_gauge=fix_gauge), backend, method, impl, options,
-                                      solver)
+            graph = as_factor_graph(problem, fix_gauge=fix_gauge)
+            if backend in registry.FACTOR_GRAPH_PEERS:
+                result = factor_graph_run(graph, backend, method, impl, options, solver)
+            else:
+                with steps_before_failure() as watch:
+                    result = factor_graph_run(graph, backend, method, impl, options, solver, callback=watch)
             return BALRunResult.from_run(result, problem, peer_cost="ours: 0.5 sum |r|^2 over all observations")
         return _run_peer("bal", backend, problem, method, max_iterations)
 
     return _run_pairs(plan, ours, peer, repeat, unimplemented, progress, failures=SingularSystemError, impl=impl)
+
+
+@contextlib.contextmanager
+def steps_before_failure(callback=None):
+    """A minimizer's callback (calling ``callback`` too) that records the chi2 of its steps, and a
+    context that adds them to a ``SingularSystemError`` raised inside: ``(after 2 steps, chi2 7.2e+09,
+    4.4e+18: the steps diverged first)`` says that the system went singular where the steps had
+    diverged (undamped Gauss-Newton from a far start), not at the start (a free gauge)."""
+    from course.core.errors import SingularSystemError
+
+    chi2: list = []
+
+    def watch(record):
+        if record.accepted:
+            chi2.append(record.chi2)
+        return callback(record) if callback is not None else None
+
+    try:
+        yield watch
+    except SingularSystemError as exc:
+        if not chi2:
+            raise
+        path = ", ".join(f"{c:.2g}" for c in chi2[-4:])
+        diverged = ": the steps diverged first" if len(chi2) > 1 and chi2[-1] > 10.0 * chi2[0] else ""
+        raise SingularSystemError(f"{exc} (after {len(chi2)} step{'s' * (len(chi2) != 1)}, chi2 "
+                                  f"{'..., ' * (len(chi2) > 4)}{path}{diverged})") from exc
 
 
 def is_bal_name(name: str) -> bool:
@@ -801,7 +832,7 @@ def advice(runs, kind: str, impl) -> list:
     Before them, whatever the implementation, the whole message of every other back end's failed row."""
     lines = []
     students = [r for r in runs if runs_students_code(r)]
-    others = [r for r in runs if r.backend != OURS and r.not_run.startswith("failed:")
+    others = [r for r in runs if (r.backend != OURS or str(impl) == "solutions") and r.not_run.startswith("failed:")
               and (not runs_students_code(r) or str(impl) == "solutions")]  # the reference's rows are never judged
     for backend in dict.fromkeys(r.backend for r in others):
         for reason in dict.fromkeys(r.not_run for r in others if r.backend == backend):

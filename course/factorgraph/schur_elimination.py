@@ -187,9 +187,10 @@ class SchurElimination:
             try:
                 factor = scipy.linalg.cho_factor(S, lower=True, check_finite=False)
             except np.linalg.LinAlgError:
-                raise SingularSystemError(f"{self.name}: the reduced system S is not positive definite: with no "
-                                          "variable fixed the gauge is free, and an undamped step meets it "
-                                          "(Levenberg-Marquardt and the dogleg damp it)") from None
+                raise SingularSystemError(f"{self.name}: the reduced system S is not positive definite: a "
+                                          "direction is free (the gauge where nothing holds it, or too few "
+                                          "observations), and an undamped step meets it (Levenberg-Marquardt and "
+                                          "the dogleg damp it)") from None
             kept = np.diag(factor[0]) ** 2 / np.diag(S)
             if not np.all(np.isfinite(kept)) or kept.min() <= nk * np.finfo(float).eps:
                 raise SingularSystemError(f"{self.name}: the reduced system S is numerically singular (a pivot "

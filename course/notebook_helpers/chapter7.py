@@ -24,6 +24,10 @@ rho, R Exp(phi))``, translation first); a factor's residual is written once for 
   experiments' automatic against analytic Jacobians, and the minima.
 * ``GpsDrive``, ``gps_drive``, ``odometry_graph``, ``dead_reckoning``, ``position_error``,
   ``drive_figure``: a drive with drifting odometry and a position fix every few poses.
+* ``RangeOnly``, ``range_only``, ``range_only_graph``, ``range_only_runs``, ``range_only_table``: range-only
+  SLAM (odometry and ranges to beacons at unknown places) from the factor library, ours against GTSAM's
+  own factors.
+* ``plus_jacobian_study``, ``plus_jacobian_text``: each pose kind's retraction derivative at 0, the Jets' seed.
 """
 
 from __future__ import annotations
@@ -36,13 +40,26 @@ import numpy as np
 from course.app import plot
 from course.core.errors import DatasetError
 from course.core.impl import not_implemented_reason
-from course.factorgraph import BETWEEN_SE2, RANGE_BEARING, SE2, SE3, FactorGraph, FactorGraphProblem, Vector, jetmath
+from course.factorgraph import (
+    BETWEEN_SE2,
+    RANGE_2D,
+    RANGE_BEARING,
+    SE2,
+    SE3,
+    FactorGraph,
+    FactorGraphProblem,
+    Vector,
+    between,
+    jetmath,
+    noise,
+    prior,
+)
 from course.factorgraph.factors import between_se2, between_se3
 from course.factorgraph.variables import se3_value
 from course.geometry.jacobian_check import JacobianCheck, check_jacobian
 from course.geometry.so3 import exp_many, skew
 from course.notebook_helpers.lesson import exercise, todo_as_one_line  # noqa: F401 (the cells call them here)
-from course.solver import minimize
+from course.solver import SolverOptions, minimize
 from course.solver.superlu import SuperLUSolver
 
 EPS = float(np.finfo(float).eps)
@@ -755,3 +772,138 @@ def drive_figure(drive: GpsDrive, solved=None):
     ax.set_title(f"a drive of {len(drive.truth)} poses, a fix every {int(np.diff(drive.gps_keys[:, 0])[0])}",
                  fontsize=9)
     return fig
+
+
+# ---------------------------------------------------------------- range-only SLAM, built from the library
+
+
+@dataclass
+class RangeOnly:
+    """The drive of :func:`gps_drive` with beacons in place of the fixes: ``beacons`` (B, 2) their true
+    positions, ``beacon_start`` (B, 2) where the solve starts them (a rough survey); ``range_keys`` (K, 2)
+    (pose, beacon) pairs, ``ranges`` (K,) the measured distances, noisy, with standard deviation
+    ``range_sigma``; ``prior_sigma`` (3,) that of the prior on the first pose."""
+
+    drive: GpsDrive
+    beacons: np.ndarray
+    beacon_start: np.ndarray
+    range_keys: np.ndarray
+    ranges: np.ndarray
+    range_sigma: float
+    prior_sigma: np.ndarray
+
+
+def range_only(seed=4, beacons=((6.0, 3.0), (-4.0, 10.0), (9.0, 14.0), (2.0, 20.0)), reach=14.0, range_sigma=0.1,
+               survey_sigma=1.5) -> RangeOnly:
+    """Range-only SLAM on the 80-pose loop of :func:`gps_drive` (no fixes): every pose ranges every beacon
+    within ``reach`` m; the beacons start ``survey_sigma`` m off (Gaussian)."""
+    rng = np.random.default_rng(seed)
+    drive = gps_drive(seed=seed)
+    drive = GpsDrive(drive.truth, drive.odometry, np.zeros((0, 1), dtype=np.int64), np.zeros((0, 2)),
+                     drive.odometry_sigma, drive.gps_sigma)
+    marks = np.asarray(beacons, dtype=float)
+    distance = np.linalg.norm(drive.truth[:, None, :2] - marks[None], axis=2)
+    keys = np.argwhere(distance <= reach)
+    ranges = distance[keys[:, 0], keys[:, 1]] + rng.normal(0.0, range_sigma, len(keys))
+    start = marks + rng.normal(0.0, survey_sigma, marks.shape)
+    return RangeOnly(drive, marks, start, keys, ranges, float(range_sigma), np.array([0.05, 0.05, 0.01]))
+
+
+def range_only_graph(problem: RangeOnly) -> FactorGraph:
+    """The factor graph of ``problem`` from the library alone: poses ``x<k>`` (SE2, at the dead reckoning)
+    and beacons ``b<j>`` (Vector(2), at their rough positions); ``prior(SE2)`` on ``x0`` at the true start,
+    ``between(SE2)`` the odometry, ``RANGE_2D`` the ranges. Nothing fixed: the prior holds the gauge."""
+    graph = FactorGraph("range-only SLAM")
+    for k, pose in enumerate(dead_reckoning(problem.drive)):
+        graph.add_variable(f"x{k}", SE2, pose)
+    for j, mark in enumerate(problem.beacon_start):
+        graph.add_variable(f"b{j}", Vector(2), mark)
+    graph.add(prior(SE2), ["x0"], problem.drive.truth[0], noise=noise.sigmas(problem.prior_sigma))
+    odometry = noise.sigmas(problem.drive.odometry_sigma)
+    for k, z in enumerate(problem.drive.odometry):
+        graph.add(between(SE2), [f"x{k}", f"x{k + 1}"], z, noise=odometry)
+    poses = len(problem.drive.truth)
+    graph.add_many(RANGE_2D, problem.range_keys + [0, poses], problem.ranges[:, None],
+                   noise=noise.isotropic(1, problem.range_sigma))
+    return graph
+
+
+def range_only_runs(problem: RangeOnly, impl="solutions", repeat=3) -> dict:
+    """``{"ours": run, "gtsam": run}``: the graph solved from the same start by our Levenberg-Marquardt
+    (Nielsen's rule, the implementation's Jets) and by GTSAM's on its own factors
+    (``course.backends.factorgraph.gtsam_native``); each run's ``seconds`` the fastest of ``repeat`` (the
+    solve alone, GTSAM's ``optimize()``), ``final_chi2`` our error on its solution. Without GTSAM installed
+    its entry is a line saying so."""
+    from course.core import peers
+
+    graph = range_only_graph(problem)
+    options = SolverOptions(max_iterations=100, cost_tolerance=1e-12)
+    runs: dict = {}
+    for _ in range(repeat):
+        run = minimize(FactorGraphProblem(graph, impl), "lm-type3", impl=impl, options=options)
+        if "ours" not in runs or run.seconds < runs["ours"].seconds:
+            runs["ours"] = run
+    if not peers.installed("gtsam"):
+        runs["gtsam"] = "gtsam is not installed here (pip install gtsam): its row is left out"
+        return runs
+    from course.backends.factorgraph import gtsam_native
+
+    for _ in range(repeat):
+        run = gtsam_native.solve(graph, "levenberg-marquardt", relative_error_tol=1e-12, absolute_error_tol=1e-12)
+        if "gtsam" not in runs or run.seconds < runs["gtsam"].seconds:
+            runs["gtsam"] = run
+    return runs
+
+
+def range_only_table(problem: RangeOnly, runs: dict) -> str:
+    """One line per solve: chi2 (ours, on each solution), iterations, time, and the error of poses and
+    beacons against the truth."""
+    poses = len(problem.drive.truth)
+    lines = [f"{poses} poses, {len(problem.beacons)} beacons, {len(problem.ranges)} ranges "
+             f"(sigma {problem.range_sigma:g} m); start chi2 "
+             f"{runs['ours'].initial_chi2:.6g}, odometry alone "
+             f"{position_error(dead_reckoning(problem.drive), problem.drive.truth):.2f} m rms"]
+    for name, run in runs.items():
+        if isinstance(run, str):
+            lines.append(f"{name:6s} {run}")
+            continue
+        x = np.asarray(run.params, dtype=float)
+        pose_error = position_error(x[:3 * poses].reshape(-1, 3), problem.drive.truth)
+        beacon_error = float(np.sqrt(np.mean(np.sum((x[3 * poses:].reshape(-1, 2) - problem.beacons) ** 2, axis=1))))
+        lines.append(f"{name:6s} chi2 {run.final_chi2:.10g}  {run.iterations:3d} iterations  "
+                     f"{1e3 * run.seconds:7.1f} ms  poses {pose_error:.3f} m rms  beacons {beacon_error:.3f} m rms")
+    if not isinstance(runs.get("gtsam"), str) and "gtsam" in runs:
+        ours, theirs = runs["ours"].final_chi2, runs["gtsam"].final_chi2
+        lines.append(f"ours - gtsam: {ours - theirs:+.3e} in chi2 ({(ours - theirs) / theirs:+.2e} relative; "
+                     "both on our error, which ours minimises)")
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- the retraction's derivative as the seed
+
+
+def plus_jacobian_study(pose2=(1.0, 2.0, 0.7), phi=(0.3, -0.2, 0.5), t=(1.0, 2.0, 3.0), h=1e-6) -> dict:
+    """Each pose kind's ``plus_jacobian(x)`` (the Jet seed, Ceres' ``Manifold::PlusJacobian``) beside the
+    central difference of its retraction at ``delta = 0``: ``{kind: (P (n, d), largest difference)}``."""
+    out = {}
+    pose3 = se3_value(np.asarray(t, dtype=float), exp_many(np.asarray(phi, dtype=float)[None])[0])
+    for kind, x in ((SE2, np.asarray(pose2, dtype=float)), (SE3, pose3)):
+        P = kind.plus_jacobian(x[None])[0]
+        numeric = np.zeros_like(P)
+        for j in range(kind.dim):
+            e = np.zeros((1, kind.dim))
+            e[0, j] = h
+            numeric[:, j] = (kind.retract(x[None], e)[0] - kind.retract(x[None], -e)[0]).ravel() / (2 * h)
+        out[kind.name] = (P, float(np.abs(P - numeric).max()))
+    return out
+
+
+def plus_jacobian_text(study: dict) -> str:
+    """The plus-Jacobians of :func:`plus_jacobian_study`, printed with their check."""
+    lines = []
+    with np.printoptions(precision=3, suppress=True, linewidth=110):
+        for name, (P, diff) in study.items():
+            lines.append(f"{name}.plus_jacobian(x): d vec(x (+) delta) / d delta at delta = 0, "
+                         f"{P.shape[0]} x {P.shape[1]} (central differences of the retraction agree to {diff:.1e})")
+            lines.append(str(P))
+    return "\n".join(lines)
