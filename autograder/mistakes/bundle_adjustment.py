@@ -182,8 +182,15 @@ def schur(call, *, damp_u=True, damp_v=True, s_sign=-1.0, rhs_sign=1.0, back_sig
     return {"dx_cam": dx_cam, "dx_point": dx_point}
 
 
+#: the largest reduced system (9C unknowns) whose slips are worked out: a slip shows on the small problem's
+#: calls already, and the five dense solves of the 112-camera call were most of a grading run's oracle time
+SLIP_UNKNOWNS = 500
+
+
 def schur_mistakes(call, ref):
     known = {name: [] for name in ref}
+    if 9 * len(call.args[0]) > SLIP_UNKNOWNS:
+        return known
     for slip, text in (({"damp_v": False}, "the damping is added to V as well as U, before the elimination: "
                                            "S = U + D_c - W (V + D_p)^-1 W^T"),
                        ({"damp_u": False}, "the damping D_c is missing from the camera blocks U"),
