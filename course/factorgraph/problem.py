@@ -39,6 +39,7 @@ from course.factorgraph.schur_elimination import SchurElimination
 from course.factorgraph.values import Values
 from course.solver import robust
 from course.solver.choice import choose
+from course.solver.cholmod import analyse_ahead
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
 from course.solver.superlu import checked_step
@@ -123,6 +124,17 @@ class FactorGraphProblem:
         self._solver, self.linear_solve = choose(solver, self.impl.module("sparse_solve"), solved)
         self._schur = None if kind is None else SchurElimination(
             dims, self._by_kind[kind][0], self._solver, graph.name, graph.keys)
+        if self._schur is None:  # H's pattern is fixed: its ordering found now, not in a run
+            analyse_ahead(self._solver, self._pattern)
+
+    def _pattern(self):
+        """An H of the assembler's pattern (upper triangle, CSC), from zero residuals and Jacobians."""
+        H, _, _ = self._assembler.assemble([(np.zeros((len(keys), ftype.dim)),
+                                             [np.zeros((len(keys), ftype.dim, kind.dim)) for kind in ftype.kinds])
+                                            for ftype, keys, _, _ in self._groups])
+        if len(self._partial_dof):
+            H, _ = self._hold_partial(H, getattr(self._assembler, "diagonal_positions", None))
+        return H
 
     # ------------------------------------------------------------ values
 
