@@ -68,15 +68,14 @@ class SparseAssembler3D:
         unique, inverse = unique_inverse(keys)  # np.unique(keys, return_inverse=True), faster here
         self._positions = inverse[: len(rows)]
         self.diagonal_positions = inverse[len(rows):]
-        # 32-bit indices, scipy's own type for them: a CSC matrix made of them is not checked and copied
-        self._indices = (unique % n).astype(np.int32)
-        self._indptr = np.searchsorted(unique // n, np.arange(n + 1)).astype(np.int32)
+        self._indices = unique % n
+        self._indptr = np.searchsorted(unique // n, np.arange(n + 1))
         self._shape, self.nnz = (n, n), len(unique)
         self._b_positions = np.concatenate([dof_i, dof_j], axis=1).ravel()
         fixed_dof = np.zeros(n, dtype=bool)
         fixed_dof[(6 * np.asarray(fixed, dtype=np.int64)[:, None] + local).ravel()] = True
-        self._fixed_dof = np.flatnonzero(fixed_dof)
-        self._dead = np.flatnonzero(fixed_dof[self._indices] | np.repeat(fixed_dof, np.diff(self._indptr)))
+        self._fixed_dof = fixed_dof
+        self._dead = fixed_dof[self._indices] | np.repeat(fixed_dof, np.diff(self._indptr))
         self._fixed_diagonal = self.diagonal_positions[fixed_dof]
         # END SOLUTION
 
@@ -93,15 +92,14 @@ class SparseAssembler3D:
         ua, ub = self.UPPER
         H_edges = np.concatenate([np.matmul(AT, OA)[:, ua, ub], np.matmul(AT, OB).reshape(len(A), 36),
                                   np.matmul(BT, OB)[:, ua, ub]], axis=1).ravel()  # (M * 78,)
-        Oe = np.einsum("mab,mb->ma", information, e)  # Omega e (M, 6): b's blocks and chi2 from it
-        g_edges = np.concatenate([np.einsum("mai,ma->mi", A, Oe), np.einsum("mai,ma->mi", B, Oe)],
+        g_edges = np.concatenate([np.einsum("mai,ma->mi", OA, e), np.einsum("mai,ma->mi", OB, e)],
                                  axis=1).ravel()  # [A^T Omega e, B^T Omega e] (M * 12,)
         data = np.bincount(self._positions, weights=H_edges, minlength=self.nnz)
         data[self._dead] = 0.0
         data[self._fixed_diagonal] = 1.0
         b = np.bincount(self._b_positions, weights=g_edges, minlength=self._shape[0])
         b[self._fixed_dof] = 0.0
-        chi2 = float(np.vdot(e, Oe))
+        chi2 = float(np.einsum("mi,mij,mj->", e, information, e))
         H = sp.csc_matrix((data, self._indices, self._indptr), shape=self._shape)
         return H, b, chi2
         # END SOLUTION
