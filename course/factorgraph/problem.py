@@ -12,7 +12,8 @@ whitened by the square root of the information, and all groups assembled
 by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pattern found once. The
 step comes from the sparse solve ``course.solver.choice`` picks (``solver``, default ``auto``: CHOLMOD
 on a large system where cvxopt is installed, else the implementation's sparse Cholesky solver of
-chapter 2, or SuperLU where qdldl is not installed; ``linear_solve`` names it); where one kind of
+chapter 2, or SuperLU where qdldl is not installed; ``linear_solve`` names it; CHOLMOD analyses H's
+pattern when the problem is made, ``course.solver.cholmod.analyse_ahead``); where one kind of
 variable is never joined to another of its kind by a factor (the points of bundle adjustment, the
 landmarks of SLAM), those are eliminated first (``course.factorgraph.schur_elimination``, chapter 4's
 Schur complement for any graph).

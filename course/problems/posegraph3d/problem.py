@@ -6,7 +6,7 @@ The point is ``x`` (12N,): per pose ``t`` (3) then ``R`` (9, row by row); the st
 ``pose_graph_3d.edge_errors_and_jacobians`` and ``pose_graph_3d_assembly.SparseAssembler3D``;
 the step comes from the sparse solve ``course.solver.choice`` picks (``auto``: CHOLMOD on a large
 graph, else its chapter-2 ``sparse_solve.SparseCholeskySolver``, or scipy's SuperLU where qdldl is
-not installed). ``chi2`` is always the framework's own
+not installed; CHOLMOD analyses H's pattern when the problem is made). ``chi2`` is always the framework's own
 (``course.geometry.se3``), so a wrong exercise cannot fake a low cost.
 
 Robust variants: ``weights`` (M,) scale every edge's information (GNC's inner problems,
