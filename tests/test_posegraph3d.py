@@ -321,6 +321,33 @@ def test_cholmod_keeps_its_analysis_for_a_pattern_and_redoes_it_for_another(data
     assert cholmod._symbolic is not symbolic
 
 
+@needs("cvxopt", "qdldl")
+def test_cholmod_analyses_a_problems_pattern_when_the_problem_is_made(data_folder):
+    """The ordering is found once, when the problem is made (as GTSAM's optimizer finds its ordering),
+    and the solves keep it; an H whose rows come unsorted within each column gives the same step."""
+    import scipy.sparse as sp
+
+    from solutions.sparse_solve import SparseCholeskySolver
+
+    problem = PoseGraph3DProblem(load_dataset("smallGrid3D"), solver="cholmod")
+    cholmod = problem._solver
+    symbolic = cholmod._symbolic
+    assert symbolic is not None  # analysed ahead of the first solve
+    lin = problem.linearize(problem.x0)
+    step = problem.solve(lin)
+    assert cholmod._symbolic is symbolic
+    np.testing.assert_allclose(step, SparseCholeskySolver().solve(lin.H, lin.b), rtol=1e-8, atol=1e-10)
+    H = lin.H
+    reverse = np.concatenate([np.arange(H.indptr[c + 1] - 1, H.indptr[c] - 1, -1) for c in range(H.shape[0])])
+    unsorted = sp.csc_matrix((H.data[reverse], H.indices[reverse], H.indptr), shape=H.shape)
+    assert not unsorted.has_sorted_indices
+    np.testing.assert_allclose(cholmod.solve(unsorted, lin.b), step, rtol=1e-12, atol=1e-14)
+    assert cholmod._symbolic is not symbolic  # another pattern as given: analysed again
+    np.testing.assert_allclose(cholmod.solve(unsorted, 2 * lin.b), 2 * step, rtol=1e-12, atol=1e-14)
+
+
+
+
 @needs("g2opy")
 def test_the_3d_benchmark_prints_each_of_our_solvers_against_g2o(data_folder):
     from course.app import benchmark_3d

@@ -12,7 +12,8 @@ whitened by the square root of the information, and all groups assembled
 by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pattern found once. The
 step comes from the sparse solve ``course.solver.choice`` picks (``solver``, default ``auto``: CHOLMOD
 on a large system where cvxopt is installed, else the implementation's sparse Cholesky solver of
-chapter 2, or SuperLU where qdldl is not installed; ``linear_solve`` names it); where one kind of
+chapter 2, or SuperLU where qdldl is not installed; ``linear_solve`` names it; CHOLMOD analyses H's
+pattern when the problem is made, ``course.solver.cholmod.analyse_ahead``); where one kind of
 variable is never joined to another of its kind by a factor (the points of bundle adjustment, the
 landmarks of SLAM), those are eliminated first (``course.factorgraph.schur_elimination``, chapter 4's
 Schur complement for any graph).
@@ -39,6 +40,7 @@ from course.factorgraph.schur_elimination import SchurElimination
 from course.factorgraph.values import Values
 from course.solver import robust
 from course.solver.choice import choose
+from course.solver.cholmod import analyse_ahead
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
 from course.solver.superlu import checked_step
@@ -123,6 +125,17 @@ class FactorGraphProblem:
         self._solver, self.linear_solve = choose(solver, self.impl.module("sparse_solve"), solved)
         self._schur = None if kind is None else SchurElimination(
             dims, self._by_kind[kind][0], self._solver, graph.name, graph.keys)
+        if self._schur is None:  # H's pattern is fixed: its ordering found now, not in a run
+            analyse_ahead(self._solver, self._pattern)
+
+    def _pattern(self):
+        """An H of the assembler's pattern (upper triangle, CSC), from zero residuals and Jacobians."""
+        H, _, _ = self._assembler.assemble([(np.zeros((len(keys), ftype.dim)),
+                                             [np.zeros((len(keys), ftype.dim, kind.dim)) for kind in ftype.kinds])
+                                            for ftype, keys, _, _ in self._groups])
+        if len(self._partial_dof):
+            H, _ = self._hold_partial(H, getattr(self._assembler, "diagonal_positions", None))
+        return H
 
     # ------------------------------------------------------------ values
 

@@ -6,7 +6,7 @@ The point is ``x`` (12N,): per pose ``t`` (3) then ``R`` (9, row by row); the st
 ``pose_graph_3d.edge_errors_and_jacobians`` and ``pose_graph_3d_assembly.SparseAssembler3D``;
 the step comes from the sparse solve ``course.solver.choice`` picks (``auto``: CHOLMOD on a large
 graph, else its chapter-2 ``sparse_solve.SparseCholeskySolver``, or scipy's SuperLU where qdldl is
-not installed). ``chi2`` is always the framework's own
+not installed; CHOLMOD analyses H's pattern when the problem is made). ``chi2`` is always the framework's own
 (``course.geometry.se3``), so a wrong exercise cannot fake a low cost.
 
 Robust variants: ``weights`` (M,) scale every edge's information (GNC's inner problems,
@@ -24,6 +24,7 @@ from course.geometry import se3
 from course.problems.posegraph3d.graph import PoseGraph3D
 from course.solver import robust
 from course.solver.choice import choose
+from course.solver.cholmod import analyse_ahead
 from course.solver.held_still import check_held_still
 from course.solver.linearization import Linearization
 from course.solver.superlu import checked_step
@@ -70,6 +71,12 @@ class PoseGraph3DProblem:
             graph.num_poses, graph.edges_i, graph.edges_j, graph.fixed)
         self._fixed_dof = (6 * graph.fixed[:, None] + np.arange(6)).ravel()
         self._held_checked = False
+        analyse_ahead(self._solver, self._pattern)  # H's pattern is fixed: its ordering found now, not in a run
+
+    def _pattern(self):
+        """An H of the assembler's pattern (upper triangle, CSC), from zero Jacobians."""
+        zero = np.zeros((self.graph.num_edges, 6, 6))
+        return self._assembler.assemble(zero[:, 0], zero, zero, self.information)[0]
 
     def squared_residuals(self, x) -> np.ndarray:
         """``s_k = e_k^T Omega_k e_k`` (M,) at x, with the graph's own information (no weights)."""
