@@ -75,7 +75,7 @@ def gradescope_zip(base: Path, target: Path, *release_args: str, timeout: float 
     a root for the autograder runs that the children's unprivileged uid can traverse (as /autograder on
     Gradescope) and a ``python3`` on PATH for ``run_autograder``. For a module-scoped fixture."""
     from course.core.impl import REPO_ROOT
-    from course.release import gradescope
+    from autograder.release import gradescope
 
     repo = base / "repo"
     repo.mkdir()

@@ -11,7 +11,7 @@ from autograder.__main__ import main as autograder_main
 from course.app.cli import main as course_main
 from course.core.hints import HintError, insert_hints, read_hints, record_level, recorded_level
 from course.core.impl import REPO_ROOT
-from course.release import stubs as rel
+from autograder.release import stubs as rel
 
 #: the exercises whose derived results are hints (their docstrings say what to derive)
 DERIVED = {

@@ -14,7 +14,7 @@ from course.geometry import se2 as geometry
 from course.problems.posegraph import dataset as datasets
 from course.problems.posegraph.graph import PoseGraph
 from course.problems.posegraph.problem import PoseGraphProblem
-from course.release.stubs import strip_solutions
+from autograder.release.stubs import strip_solutions
 from course.solver import minimize
 from solutions import initialisation as ini
 

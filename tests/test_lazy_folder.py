@@ -15,8 +15,8 @@ from autograder.checks import all_checks
 from autograder.course_config import load
 from autograder.grade import grade
 from course.core.impl import REPO_ROOT
-from course.release import assignment as handout
-from course.release.stubs import render, write_student_tree
+from autograder.release import assignment as handout
+from autograder.release.stubs import render, write_student_tree
 from student_variants.lazy import LAZY, NAMED, build_lazy, lazy_text
 
 CONTRACTS = load_contracts()

@@ -6,7 +6,7 @@ import pytest
 
 from course.app.cli import main
 from course.core.impl import REPO_ROOT
-from course.release import stubs as rel
+from autograder.release import stubs as rel
 
 
 @pytest.fixture

@@ -28,10 +28,10 @@ from course.app.cli import main
 from course.core.data import data_dir
 from course.core.impl import REPO_ROOT, not_implemented_reason
 from course.core.trace import RunResult
-from course.release import stubs as rel
+from autograder.release import stubs as rel
 from notebooks.build import NOTEBOOKS
 
-TEMPLATES = REPO_ROOT / "course" / "release" / "student_tree"
+TEMPLATES = REPO_ROOT / "autograder" / "release" / "student_tree"
 
 
 def _write_tree(target: Path) -> Path:
