@@ -12,9 +12,9 @@ import pytest
 
 from autograder.checks import all_checks
 from autograder.course_config import load
-from course.core.impl import REPO_ROOT
 from autograder.release import assignment as handout
 from autograder.release.stubs import render
+from course.core.impl import REPO_ROOT
 
 COURSE = load()
 

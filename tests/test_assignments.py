@@ -16,11 +16,11 @@ from conftest import gradescope_zip
 
 from autograder.course_config import load, parse
 from autograder.grade import grade
-from course.core import chapters
-from course.core.impl import REPO_ROOT
 from autograder.release import assignment as handout
 from autograder.release.carried_config import tomllib  # tomli on Python 3.10
 from autograder.release.stubs import render
+from course.core import chapters
+from course.core.impl import REPO_ROOT
 
 COURSE = load()
 LATER_THAN_CH3 = ("ch3b", "ch4", "ch5", "ch6")

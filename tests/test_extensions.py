@@ -17,10 +17,10 @@ from autograder import course_config
 from autograder.__main__ import main as grade_main
 from autograder.course_config import ConfigError, load, parse
 from autograder.late import CONFIGURED, GRANTED
-from course.core.impl import REPO_ROOT
 from autograder.release import assignment as handout
 from autograder.release.carried_config import config_text, has_personal, tomllib
 from autograder.release.stubs import render
+from course.core.impl import REPO_ROOT
 
 #: the students the configuration below names: an e-mail, a sid, a Gradescope user id
 EMAIL, SID, USER_ID = "s007@uni.edu", "8675309", "4417021"

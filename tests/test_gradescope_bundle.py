@@ -14,8 +14,8 @@ import pytest
 from conftest import gradescope_zip
 
 from autograder import submission as uploads
-from course.core.impl import REPO_ROOT
 from autograder.release import gradescope
+from course.core.impl import REPO_ROOT
 
 SCRIPTS = ("setup.sh", "run_autograder", "requirements.txt")
 PINS = ("numpy==", "scipy==", "qdldl==", "pyceres==", "threadpoolctl==")

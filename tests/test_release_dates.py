@@ -7,9 +7,9 @@ from datetime import datetime, timedelta, timezone
 import pytest
 
 from autograder.course_config import ConfigError, load, parse
+from autograder.release.release_date import early_release, handed_out
 from course.app.cli import main as cli
 from course.core.impl import REPO_ROOT
-from autograder.release.release_date import early_release, handed_out
 
 COURSE = load()
 CET = timezone(timedelta(hours=1))

@@ -24,11 +24,11 @@ import nbformat
 import pytest
 from executed_notebooks import chapter_1_student_build
 
+from autograder.release import stubs as rel
 from course.app.cli import main
 from course.core.data import data_dir
 from course.core.impl import REPO_ROOT, not_implemented_reason
 from course.core.trace import RunResult
-from autograder.release import stubs as rel
 from notebooks.build import NOTEBOOKS
 
 TEMPLATES = REPO_ROOT / "autograder" / "release" / "student_tree"

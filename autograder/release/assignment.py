@@ -30,11 +30,11 @@ import json
 import shutil
 from pathlib import Path
 
+from autograder.release.carried_config import config_text
+from autograder.release.stubs import BEGIN, END
 from course.core import chapters
 from course.core.hints import HINTS_FILE
 from course.core.impl import REPO_ROOT
-from autograder.release.carried_config import config_text
-from autograder.release.stubs import BEGIN, END
 
 
 def released(source: str) -> str:

@@ -58,8 +58,8 @@ def add_arguments(release: argparse.ArgumentParser) -> None:
 def run(args) -> int:
     """``release``: regenerate (or ``--check``) ``exercises/`` and the public checks' data; optionally
     write a student tree and the Gradescope zip, of the whole course or of one ``--assignment``."""
-    from course.core.impl import REPO_ROOT
     from autograder.release.stubs import release
+    from course.core.impl import REPO_ROOT
 
     root = Path(args.root) if args.root else REPO_ROOT
     if not (root / "solutions").is_dir():

@@ -25,8 +25,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from course.core.impl import REPO_ROOT
 from autograder.release.stubs import BEGIN, END
+from course.core.impl import REPO_ROOT
 
 SOLUTIONS = REPO_ROOT / "solutions"
 
@@ -153,7 +153,8 @@ def measure(seeds: Sequence[int | None] | None = None) -> Reach:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m autograder.release.input_reach", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m autograder.release.input_reach",
+                                     description=__doc__.split("\n")[0])
     parser.add_argument("--json", action="store_true", help="print the figures and the misses as JSON")
     options = parser.parse_args(argv)
     reach = measure()

@@ -312,7 +312,8 @@ def _versions(versions: Mapping[str, str], names: Iterable[str]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Print the README's table (``--table``) or resolve every target; 1 when one fails, else 0."""
-    parser = argparse.ArgumentParser(prog="python -m autograder.release.platforms", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m autograder.release.platforms",
+                                     description=__doc__.split("\n\n")[0])
     parser.add_argument("--table", action="store_true", help="print the Markdown requirements table (no network)")
     parser.add_argument("--workers", type=int, default=4, help="resolvers at a time (default: 4)")
     options = parser.parse_args(argv)

@@ -234,8 +234,9 @@ def student_pyproject(text: str) -> str:
     for start, end in tables:
         if not lines[start].strip().startswith("[project.entry-points."):
             continue
-        entries = [n for n in range(start + 1, end) if ENTRY_POINT.match(lines[n])]
-        gone = [n for n in entries if _instructor_only_module(ENTRY_POINT.match(lines[n]).group(1))]
+        modules = {n: found.group(1) for n in range(start + 1, end) if (found := ENTRY_POINT.match(lines[n]))}
+        entries = list(modules)
+        gone = [n for n, module in modules.items() if _instructor_only_module(module)]
         drop.update(gone)
         if gone and len(gone) == len(entries):
             drop.update(range(start, end))

@@ -117,7 +117,8 @@ def build_parser(plugins=None) -> argparse.ArgumentParser:
     listing = sub.add_parser("datasets", help="list the named datasets, their sizes and where each comes from")
     listing.set_defaults(func=cmd_datasets)
 
-    for plugin in command_plugins.registered() if plugins is None else plugins:  # the instructor's tree: release (exercises, student tree, zip)
+    # registered from above the framework: the instructor's tree has release (exercises, student tree, zip)
+    for plugin in command_plugins.registered() if plugins is None else plugins:
         plugin.add_parser(sub)
 
     bench = sub.add_parser("benchmark", help="our time per iteration and to solution against the peers' on pose "
