@@ -3,7 +3,9 @@
 or a whole class: ``python -m autograder batch SUBMISSIONS --out DIR``, ``python -m autograder
 merge PART... --out DIR`` and ``python -m autograder export DIR... --canvas|--moodle OUT.csv``
 (:mod:`autograder.classroom`); an exercise's hints, one level at a time:
-``python -m autograder hint NAME [LEVEL]`` (:mod:`autograder.hints`).
+``python -m autograder hint NAME [LEVEL]`` (:mod:`autograder.hints`); in the instructor's tree, the release:
+``python -m autograder release ...``, the same as ``python -m course release ...``
+(:mod:`autograder.release.command`).
 
 Exit status 0 whenever grading ran, whatever the score; 2 for usage errors.
 """
@@ -98,6 +100,16 @@ def main(argv=None) -> int:
         from autograder.classroom import merge
 
         return merge.main(argv[1:])
+    if argv[:1] == ["release"]:  # the instructor's tree alone holds autograder/release
+        try:
+            from autograder.release import command
+        except ModuleNotFoundError as exc:
+            if exc.name not in ("autograder.release", "autograder.release.command"):
+                raise
+            print("error: this tree has no release (autograder/release is the instructor's): it is a student's "
+                  "tree, released from the course's repository", file=sys.stderr)
+            return 2
+        return command.main(argv[1:])
     p = parser()
     args = p.parse_args(argv)
     from autograder.checks import SelectionError, all_checks, select

@@ -35,7 +35,7 @@ source). A released tree carries a copy holding its one assignment, and the file
     "student@example.edu" = 2027-02-08T23:59:00+01:00   # by Gradescope user id, sid or e-mail
 
 Extensions are the instructor's: a student tree's copy of this file has none
-(:mod:`course.release.carried_config`); the Gradescope zip keeps its assignment's and also takes
+(:mod:`autograder.release.carried_config`); the Gradescope zip keeps its assignment's and also takes
 the extensions granted on Gradescope (a user's own due date in ``submission_metadata.json``),
 whichever is later. An extension before its assignment's due date is an error.
 

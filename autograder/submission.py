@@ -6,7 +6,7 @@ other files beside them (a zip's ``__MACOSX``, caches, a virtual environment).
 :func:`locate_submission` picks the folder holding the most files named like a module of
 ``exercises/``; :func:`stage_submission` copies only those (regular files, never symlinks)
 and the unwritten stub for every module the student did not send. Used for one submission
-on Gradescope (``course.release.gradescope``) and for a whole class
+on Gradescope (``autograder.release.gradescope``) and for a whole class
 (:mod:`autograder.classroom`). Standard library only.
 """
 

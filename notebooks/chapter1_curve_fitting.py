@@ -37,10 +37,10 @@ if str(root) not in sys.path:
 import numpy as np
 from IPython.display import Image, display
 
+from autograder.lesson import check, hint
 from course.app import compare, plot
 from course.notebook_helpers import chapter1
 from course.notebook_helpers.common import ran
-from course.notebook_helpers.lesson import check, hint
 from course.problems.curve.problem import CurveProblem, generate
 from course.problems.curve.source_data import source_data
 from course.solver import SolverOptions, minimize

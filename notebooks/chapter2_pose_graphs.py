@@ -51,11 +51,11 @@ if str(root) not in sys.path:
 import numpy as np
 from IPython.display import Image, Markdown, display
 
+from autograder.lesson import check, hint
 from course import check_jacobian
 from course.app import benchmark, compare, plot
 from course.notebook_helpers import chapter2
 from course.notebook_helpers.common import load, median_time, one_thread, outcome, ran, time_split, where
-from course.notebook_helpers.lesson import check, hint
 from course.problems.posegraph import dataset as datasets
 from course.problems.posegraph.problem import PoseGraphProblem
 from course.solver import minimize

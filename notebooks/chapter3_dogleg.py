@@ -47,6 +47,7 @@ if str(root) not in sys.path:
 
 from IPython.display import Image, Markdown, display
 
+from autograder.lesson import check, hint
 from course.app import compare, plot
 from course.notebook_helpers import chapter3
 from course.notebook_helpers.common import (
@@ -57,7 +58,6 @@ from course.notebook_helpers.common import (
     ran,
     use_eleven_colours,
 )
-from course.notebook_helpers.lesson import check, hint
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);
 # by default this tree's own: "exercises" in a student tree

@@ -51,6 +51,7 @@ if str(root) not in sys.path:
 
 from IPython.display import Image, Markdown, display
 
+from autograder.lesson import check, hint
 from course.app import compare, plot
 from course.app.starts import INITIALISERS
 from course.notebook_helpers import chapter3b
@@ -61,7 +62,6 @@ from course.notebook_helpers.common import (
     not_run_note,
     time_to_solution_table,
 )
-from course.notebook_helpers.lesson import check, hint
 from course.problems.posegraph import dataset as datasets
 
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);

@@ -55,6 +55,7 @@ if str(root) not in sys.path:
 
 from IPython.display import Image, display
 
+from autograder.lesson import check, hint
 from course import check_jacobian
 from course.app import benchmark_bal, compare, parallel_speedup, plot
 from course.notebook_helpers import chapter4
@@ -80,7 +81,7 @@ from course.notebook_helpers.bal import (
     sparsity_counts,
     sparsity_figure,
 )
-from course.notebook_helpers.lesson import check, hint, todo_as_one_line
+from course.notebook_helpers.lesson import todo_as_one_line
 from course.problems.bal import outliers
 from course.problems.bal.dataset import load_bal
 

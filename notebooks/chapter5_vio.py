@@ -53,10 +53,10 @@ if str(root) not in sys.path:
 
 from IPython.display import Image, display
 
+from autograder.lesson import check, hint
 from course import check_jacobian
 from course.app import plot
 from course.notebook_helpers import chapter5
-from course.notebook_helpers.lesson import check, hint
 from course.notebook_helpers.vio import (
     ape_curves,
     ape_figure,

@@ -44,12 +44,12 @@ if str(root) not in sys.path:
 import numpy as np
 from IPython.display import Image, display
 
+from autograder.lesson import check, hint
 from course import check_jacobian
 from course.app import compare, outliers3d, plot
 from course.notebook_helpers import chapter6
 from course.notebook_helpers.chapter6 import todo_as_one_line
 from course.notebook_helpers.common import not_run_note
-from course.notebook_helpers.lesson import check, hint
 from course.notebook_helpers.posegraph3d import (
     load3d,
     outlier_table,

@@ -48,13 +48,13 @@ if str(root) not in sys.path:
 import numpy as np
 from IPython.display import Image, display
 
+from autograder.lesson import check, hint
 from course import check_jacobian
 from course.app import benchmark_autodiff, compare, plot
 from course.core.errors import DatasetError
 from course.factorgraph import SE2, SE3, FactorType
 from course.notebook_helpers import chapter7
 from course.notebook_helpers.chapter7 import todo_as_one_line
-from course.notebook_helpers.lesson import check, hint
 
 SMALL = os.environ.get("COURSE_NOTEBOOK_SMALL") == "1"
 # "solutions", "exercises" or a path to your own copy (python -m notebooks.build --impl sets it);

@@ -74,8 +74,8 @@ def gradescope_zip(base: Path, target: Path, *release_args: str, timeout: float 
     step rewrites nothing here), with ``release_args``; yield ``{"zip", "roots", "bin", "stdout"}``:
     a root for the autograder runs that the children's unprivileged uid can traverse (as /autograder on
     Gradescope) and a ``python3`` on PATH for ``run_autograder``. For a module-scoped fixture."""
+    from autograder.release import gradescope
     from course.core.impl import REPO_ROOT
-    from course.release import gradescope
 
     repo = base / "repo"
     repo.mkdir()

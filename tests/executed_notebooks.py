@@ -80,9 +80,9 @@ def chapter_1_student_build(python: str) -> dict:
     import shutil
     import subprocess
 
+    from autograder.release import stubs as release
     from course.core.data import data_dir
     from course.core.impl import REPO_ROOT
-    from course.release import stubs as release
 
     folder = _shared_folder() or Path(tempfile.mkdtemp(prefix="course-chapter-1-build-"))
 

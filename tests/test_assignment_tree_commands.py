@@ -12,9 +12,9 @@ import pytest
 
 from autograder.checks import all_checks
 from autograder.course_config import load
+from autograder.release import assignment as handout
+from autograder.release.stubs import render
 from course.core.impl import REPO_ROOT
-from course.release import assignment as handout
-from course.release.stubs import render
 
 COURSE = load()
 

@@ -16,11 +16,11 @@ from conftest import gradescope_zip
 
 from autograder.course_config import load, parse
 from autograder.grade import grade
+from autograder.release import assignment as handout
+from autograder.release.carried_config import tomllib  # tomli on Python 3.10
+from autograder.release.stubs import render
 from course.core import chapters
 from course.core.impl import REPO_ROOT
-from course.release import assignment as handout
-from course.release.carried_config import tomllib  # tomli on Python 3.10
-from course.release.stubs import render
 
 COURSE = load()
 LATER_THAN_CH3 = ("ch3b", "ch4", "ch5", "ch6")

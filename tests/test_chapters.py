@@ -13,10 +13,10 @@ import pytest
 
 from autograder.checks import ORDER
 from autograder.course_config import load
+from autograder.release import assignment as handout
+from autograder.release.stubs import render
 from course.core import chapters
 from course.core.impl import REPO_ROOT
-from course.release import assignment as handout
-from course.release.stubs import render
 
 COURSE = load()
 #: what a ch2 tree must not hold (the issue's list), and what it must

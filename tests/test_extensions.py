@@ -17,10 +17,10 @@ from autograder import course_config
 from autograder.__main__ import main as grade_main
 from autograder.course_config import ConfigError, load, parse
 from autograder.late import CONFIGURED, GRANTED
+from autograder.release import assignment as handout
+from autograder.release.carried_config import config_text, has_personal, tomllib
+from autograder.release.stubs import render
 from course.core.impl import REPO_ROOT
-from course.release import assignment as handout
-from course.release.carried_config import config_text, has_personal, tomllib
-from course.release.stubs import render
 
 #: the students the configuration below names: an e-mail, a sid, a Gradescope user id
 EMAIL, SID, USER_ID = "s007@uni.edu", "8675309", "4417021"
@@ -173,7 +173,7 @@ def test_the_checker_prints_dates_late_policy_and_extensions(tmp_path):
 def test_the_whole_course_s_student_tree_names_no_student(tmp_path):
     """``release --student DIR`` without an assignment copies the repository: its configuration is
     rewritten without extensions (here from a small repository holding the configuration alone)."""
-    from course.release.stubs import write_student_tree
+    from autograder.release.stubs import write_student_tree
 
     root = tmp_path / "repo"
     (root / "autograder").mkdir(parents=True)
@@ -186,7 +186,7 @@ def test_the_whole_course_s_student_tree_names_no_student(tmp_path):
 
 
 def test_a_commented_out_extension_does_not_reach_a_student_tree(tmp_path):
-    from course.release.stubs import write_student_tree
+    from autograder.release.stubs import write_student_tree
 
     root = tmp_path / "repo"
     (root / "autograder").mkdir(parents=True)

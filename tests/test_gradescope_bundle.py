@@ -14,8 +14,8 @@ import pytest
 from conftest import gradescope_zip
 
 from autograder import submission as uploads
+from autograder.release import gradescope
 from course.core.impl import REPO_ROOT
-from course.release import gradescope
 
 SCRIPTS = ("setup.sh", "run_autograder", "requirements.txt")
 PINS = ("numpy==", "scipy==", "qdldl==", "pyceres==", "threadpoolctl==")
@@ -85,8 +85,8 @@ def test_members(bundle):
     assert not any(name.endswith(".pyc") or ".egg-info" in name for name in names)
     for needed in ("solutions/damping.py", "exercises/damping.py", "exercises/__init__.py",
                    "autograder/oracle.py", "autograder/mistakes/damping.py", "autograder/expected/damping.json",
-                   "autograder/__main__.py", "course/release/gradescope.py",
-                   "course/release/gradescope_bundle/run_autograder"):
+                   "autograder/__main__.py", "autograder/release/gradescope.py",
+                   "autograder/release/gradescope_bundle/run_autograder"):
         assert needed in names, needed
     pins = [line.strip() for line in requirements.splitlines() if line.strip() and not line.startswith("#")]
     for pin in PINS:
@@ -172,7 +172,7 @@ for _path in (_ROOT + "/results/results.json", _ROOT + "/results/other.json"):
             _handle.write('{"score": 1000, "output": "pwned", "tests": []}')
     except OSError as _exc:
         print("could not write", _path, _exc)
-for _path in (_ROOT + "/source/course/release/gradescope.py", _ROOT + "/source/autograder/report.py"):
+for _path in (_ROOT + "/source/autograder/release/gradescope.py", _ROOT + "/source/autograder/report.py"):
     try:
         with open(_path, "a") as _handle:
             _handle.write("\\nraise SystemExit('pwned')\\n")
@@ -227,7 +227,7 @@ def test_hostile_submission_gets_what_it_deserves(bundle, stub_runs):
         [t["name"] for t in results["tests"] if t["score"] and t not in damping]
     assert not (root / "results" / "other.json").exists()
     with zipfile.ZipFile(bundle["zip"]) as archive:
-        for name in ("course/release/gradescope.py", "autograder/report.py"):
+        for name in ("autograder/release/gradescope.py", "autograder/report.py"):
             assert (root / "source" / name).read_bytes() == archive.read(name), name
 
 

@@ -1,4 +1,4 @@
-"""The offline grader's image (course/release/gradescope_bundle/Dockerfile) is Gradescope's: the
+"""The offline grader's image (autograder/release/gradescope_bundle/Dockerfile) is Gradescope's: the
 same Ubuntu and Python as setup.sh says, the same pinned wheels as requirements.txt (both lists
 parsed here), nothing of theirs overridden, and the guide's docker commands build it and run the
 guide's own ``batch`` in it. Docker itself is not needed: nothing here builds or runs the image."""
@@ -10,7 +10,7 @@ from packaging.requirements import Requirement
 
 from course.core.impl import REPO_ROOT
 
-BUNDLE = REPO_ROOT / "course" / "release" / "gradescope_bundle"
+BUNDLE = REPO_ROOT / "autograder" / "release" / "gradescope_bundle"
 DOCKERFILE = BUNDLE / "Dockerfile"
 GUIDE = REPO_ROOT / "docs" / "teaching.md"
 #: the CPython each Ubuntu release installs as python3

@@ -8,10 +8,10 @@ import pytest
 
 from autograder import hints as hint_cli
 from autograder.__main__ import main as autograder_main
+from autograder.release import stubs as rel
 from course.app.cli import main as course_main
 from course.core.hints import HintError, insert_hints, read_hints, record_level, recorded_level
 from course.core.impl import REPO_ROOT
-from course.release import stubs as rel
 
 #: the exercises whose derived results are hints (their docstrings say what to derive)
 DERIVED = {

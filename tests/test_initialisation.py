@@ -6,6 +6,7 @@ import statistics
 import numpy as np
 import pytest
 
+from autograder.release.stubs import strip_solutions
 from course.app import compare
 from course.app.starts import INITIALISERS, initialise
 from course.core.errors import DatasetError
@@ -14,7 +15,6 @@ from course.geometry import se2 as geometry
 from course.problems.posegraph import dataset as datasets
 from course.problems.posegraph.graph import PoseGraph
 from course.problems.posegraph.problem import PoseGraphProblem
-from course.release.stubs import strip_solutions
 from course.solver import minimize
 from solutions import initialisation as ini
 

@@ -1,4 +1,4 @@
-"""course.release.input_reach: the checks' inputs reach the reference's graded branches."""
+"""autograder.release.input_reach: the checks' inputs reach the reference's graded branches."""
 
 import json
 import subprocess
@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from conftest import needs
 
-from course.release.input_reach import error_lines, graded_lines
+from autograder.release.input_reach import error_lines, graded_lines
 
 ROOT = Path(__file__).resolve().parent.parent
 #: the share of the graded statements and branches (between the solution markers) some input reaches
@@ -33,7 +33,7 @@ def test_error_lines_are_raises_and_except_clauses(tmp_path):
 @needs("pyceres", "qdldl")
 def test_the_checks_inputs_reach_the_graded_branches():
     # a fresh process: the oracle remembers outputs, and a call it does not run again is not measured
-    done = subprocess.run([sys.executable, "-m", "course.release.input_reach", "--json"], cwd=ROOT,
+    done = subprocess.run([sys.executable, "-m", "autograder.release.input_reach", "--json"], cwd=ROOT,
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     reach = json.loads(done.stdout)

@@ -184,14 +184,17 @@ def test_the_reference_is_unreadable(tmp_path):
 def test_the_staged_framework_holds_no_omitted_module(tmp_path):
     impl = hostile(tmp_path, """
         import os
+        import autograder
         import course
-        release = os.path.join(os.path.dirname(course.__file__), "release")
-        left = [name for folder in (release, os.path.join(release, "__pycache__")) if os.path.isdir(folder)
-                for name in os.listdir(folder) if name.startswith("input_reach.")]
+        omitted = ("input_reach.", "oracle.", "reference.", "rounding.")
+        left = [os.path.join(folder, name) for package in (course, autograder)
+                for folder, _, names in os.walk(os.path.dirname(package.__file__))
+                for name in names if name.startswith(omitted)]
         if left:
             raise RuntimeError("staged: " + ", ".join(left))
     """)
-    assert (ROOT / "course" / "release" / "input_reach.py") in isolation.reference_paths()
+    assert {ROOT / "autograder" / "release" / "input_reach.py", ROOT / "autograder" / "oracle.py"} \
+        <= set(isolation.reference_paths())
     result = run(impl)
     assert outcome(result).fields["value"].tolist() == RIGHT, outcome(result).error
 

@@ -100,6 +100,8 @@ def test_the_import_contracts_hold():
     ("course/problems/bal/gauge.py", "from course.problems.vio import sim", "problem families do not import"),
     ("course/solver/options.py", "import solutions.damping", "only the implementation loader"),
     ("course/solver/options.py", "from course.solver import minimizer", "no import cycles"),
+    ("course/notebook_helpers/lesson.py", "from autograder.lesson import check", "course does not import autograder"),
+    ("autograder/report.py", "from course.app import cli", "the grader stands on the framework's lower layers"),
 ])
 def test_a_broken_contract_fails_the_lint(tmp_path, module, line, contract):
     """Each contract, broken in a copy of the tree by one import, fails ``lint-imports``."""

@@ -14,9 +14,9 @@ from autograder.allowed_imports import load_contracts, refusals, shown
 from autograder.checks import all_checks
 from autograder.course_config import load
 from autograder.grade import grade
+from autograder.release import assignment as handout
+from autograder.release.stubs import render, write_student_tree
 from course.core.impl import REPO_ROOT
-from course.release import assignment as handout
-from course.release.stubs import render, write_student_tree
 from student_variants.lazy import LAZY, NAMED, build_lazy, lazy_text
 
 CONTRACTS = load_contracts()

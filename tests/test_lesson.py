@@ -3,7 +3,7 @@ sandboxed children) and prints its table; ``hint(NAME, LEVEL)`` prints one level
 
 import pytest
 
-from course.notebook_helpers.lesson import check, hint
+from autograder.lesson import check, hint
 
 
 def test_check_grades_the_reference_with_full_marks(capsys):

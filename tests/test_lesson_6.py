@@ -241,7 +241,7 @@ def test_the_written_questions_and_their_answer_cells():
 
 
 def test_reference_answers_of_every_question_stay_out_of_the_student_tree():
-    from course.release import stubs as release
+    from autograder.release import stubs as release
 
     answers = (REPO_ROOT / "solutions" / "answers" / "chapter6.md").read_text()
     assert answers.startswith("# RELEASE: omit")

@@ -396,7 +396,7 @@ def test_the_written_questions_and_their_answer_cells():
 
 
 def test_reference_answers_stay_out_of_the_student_tree():
-    from course.release import stubs as release
+    from autograder.release import stubs as release
 
     answers = (REPO_ROOT / "solutions" / "answers" / "chapter7.md").read_text()
     assert answers.startswith("# RELEASE: omit")

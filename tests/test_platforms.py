@@ -1,4 +1,4 @@
-"""course.release.platforms: the markers per target, the README's requirements table, and (slow) the index."""
+"""autograder.release.platforms: the markers per target, the README's requirements table, and (slow) the index."""
 
 import dataclasses
 import os
@@ -11,8 +11,8 @@ from urllib.parse import urlparse
 import pytest
 from packaging.utils import canonicalize_name
 
-from course.release import platforms
-from course.release.platforms import (
+from autograder.release import platforms
+from autograder.release.platforms import (
     TARGETS,
     ResolutionError,
     applicable,
@@ -23,7 +23,7 @@ from course.release.platforms import (
 )
 
 ROOT = Path(__file__).resolve().parent.parent
-STUDENT_README = ROOT / "course" / "release" / "student_tree" / "README.md"
+STUDENT_README = ROOT / "autograder" / "release" / "student_tree" / "README.md"
 
 
 def names(requirement_strings):
@@ -140,7 +140,7 @@ def test_the_student_readme_carries_the_requirements_table():
     table = requirements_table()
     assert table in STUDENT_README.read_text(encoding="utf-8"), (
         f"{STUDENT_README.relative_to(ROOT)} does not carry the current requirements table: paste the output of "
-        '`python -m course.release.platforms --table` into its "Requirements" section (the table is built from the '
+        '`python -m autograder.release.platforms --table` into its "Requirements" section (the table is built from the '
         "markers of pyproject.toml)"
     )
 

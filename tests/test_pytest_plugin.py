@@ -20,7 +20,7 @@ from autograder.report import total
 pytest_plugins = ["pytester"]
 
 REPO = Path(__file__).resolve().parents[1]
-INI = REPO / "course" / "release" / "student_tree" / "pytest.ini"
+INI = REPO / "autograder" / "release" / "student_tree" / "pytest.ini"
 PUBLIC_DAMPING = ("-k", "damping", "--autograder-set", "public")
 DAMPING = select(all_checks(), ["damping"])
 
@@ -173,5 +173,5 @@ def test_m_selects_one_exercise_exactly_where_k_takes_every_name_that_contains_i
     assert any("pose_graph_3d" in line for line in loose) and len(loose) > len(exact)
     result = pytester.runpytest("-m", "damping", "--autograder-set", "public")
     result.assert_outcomes(failed=len(DAMPING), deselected=len(all_checks()) - len(DAMPING))
-    readme = (REPO / "course" / "release" / "student_tree" / "README.md").read_text()
+    readme = (REPO / "autograder" / "release" / "student_tree" / "README.md").read_text()
     assert ".venv/bin/pytest -m damping " in readme

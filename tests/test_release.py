@@ -4,9 +4,9 @@ import shutil
 
 import pytest
 
+from autograder.release import stubs as rel
 from course.app.cli import main
 from course.core.impl import REPO_ROOT
-from course.release import stubs as rel
 
 
 @pytest.fixture

@@ -7,9 +7,9 @@ from datetime import datetime, timedelta, timezone
 import pytest
 
 from autograder.course_config import ConfigError, load, parse
+from autograder.release.release_date import early_release, handed_out
 from course.app.cli import main as cli
 from course.core.impl import REPO_ROOT
-from course.release.release_date import early_release, handed_out
 
 COURSE = load()
 CET = timezone(timedelta(hours=1))
@@ -69,7 +69,7 @@ def test_release_refuses_before_release_after_without_force(tmp_path, capsys):
 
 def test_release_with_force_writes_the_tree_and_says_what_it_hands_out(tmp_path, capsys, monkeypatch):
     from autograder import oracle
-    from course.release import stubs
+    from autograder.release import stubs
 
     monkeypatch.setattr(oracle, "release_expected", lambda check=False: [])  # this tree's data is not at stake
     monkeypatch.setattr(stubs, "release", lambda **kwargs: [])

@@ -24,14 +24,14 @@ import nbformat
 import pytest
 from executed_notebooks import chapter_1_student_build
 
+from autograder.release import stubs as rel
 from course.app.cli import main
 from course.core.data import data_dir
 from course.core.impl import REPO_ROOT, not_implemented_reason
 from course.core.trace import RunResult
-from course.release import stubs as rel
 from notebooks.build import NOTEBOOKS
 
-TEMPLATES = REPO_ROOT / "course" / "release" / "student_tree"
+TEMPLATES = REPO_ROOT / "autograder" / "release" / "student_tree"
 
 
 def _write_tree(target: Path) -> Path:
@@ -61,7 +61,7 @@ def _files(tree):
 
 def test_tree_leaves_out_the_instructors_files(tree):
     for rel_path in ("solutions", "tests", ".ci", ".git", ".venv", "out", "autograder/mistakes",
-                     "autograder/oracle.py"):
+                     "autograder/oracle.py", "autograder/release"):
         assert not (tree / rel_path).exists(), rel_path
     assert not list(tree.rglob("__pycache__")) and not list(tree.rglob("*.egg-info"))
     for path in _files(tree):
@@ -366,7 +366,7 @@ def test_what_a_student_reads_has_no_instructor_words(tree):
         for number, line in enumerate(text.splitlines(), start=1):
             found += [f"{path.relative_to(tree)}:{number}: {word!r}" for word in INSTRUCTOR_WORDS if word in line]
     assert not found, "\n".join(found)
-    assert not (tree / "course" / "release").exists()  # the release tooling is the instructor's
+    assert not (tree / "autograder" / "release").exists()  # the release tooling is the instructor's
     assert (tree / "exercises" / "__init__.py").read_text().startswith('"""Your implementations')
 
 
@@ -376,6 +376,23 @@ def test_the_students_command_line_has_no_release(tree, python, tmp_path):
     assert "release" not in out.stdout and "compare" in out.stdout
     assert "release" in subprocess.run([sys.executable, "-m", "course", "--help"], cwd=REPO_ROOT,
                                        capture_output=True, text=True).stdout
+    direct = _run(python, tree, "-m", "autograder", "release")
+    assert direct.returncode == 2 and "the instructor's" in direct.stderr, direct.stderr
+    assert "--gradescope" in subprocess.run([sys.executable, "-m", "autograder", "release", "--help"], cwd=REPO_ROOT,
+                                            capture_output=True, text=True).stdout
+
+
+def test_the_students_pyproject_registers_no_release(tree):
+    """The instructor's ``pyproject.toml`` registers ``release`` (an entry point of ``course.commands``); the
+    student's, every other line the same, registers nothing a student tree does not hold."""
+    from autograder.release.carried_config import tomllib
+
+    ours = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())
+    theirs = tomllib.loads((tree / "pyproject.toml").read_text())
+    assert ours["project"]["entry-points"]["course.commands"]["release"] == "autograder.release.command:add_parser"
+    assert "entry-points" not in theirs["project"]
+    ours["project"].pop("entry-points")
+    assert ours == theirs
 
 
 def test_missing_data_says_how_to_get_it_and_what_works_without(tree, python, tmp_path):

@@ -17,9 +17,9 @@ import pytest
 from autograder.classroom import export, gradebook, marks, overrides, questions, rubric, written
 from autograder.course_config import load
 from autograder.late import LatePolicy, lateness
+from autograder.release import assignment as handout
+from autograder.release import stubs as release
 from course.core.impl import REPO_ROOT
-from course.release import assignment as handout
-from course.release import stubs as release
 
 COURSE = load()
 CH1 = COURSE.assignment("ch1")

@@ -1,4 +1,6 @@
-"""Command line: ``python -m course {demo,compare,datasets,benchmark,release,ape,vio} ...``.
+"""Command line: ``python -m course {demo,compare,datasets,benchmark,ape,vio} ...``, and the subcommands
+registered from above the framework (:mod:`course.app.command_plugins`; the instructor's tree registers
+``release``).
 
 ``main(argv=None) -> int`` is cheap to import: every subcommand imports what it needs
 (numpy, pyceres, matplotlib, ...) when it runs. Exit codes: 0 success, 1 a failed
@@ -10,6 +12,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from course.app import command_plugins
 from course.app.starts import INITIALISERS, PEER_INITIALISERS
 from course.backends import registry
 from course.core import chapters
@@ -69,7 +72,9 @@ def _add_run_arguments(parser):
                              "(default: file)")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(plugins=None) -> argparse.ArgumentParser:
+    """The command line; ``plugins``: the registered subcommands (default
+    :func:`course.app.command_plugins.registered`)."""
     parser = argparse.ArgumentParser(
         prog="python -m course",
         description="SLAM back ends from the inside: run our solvers and the peers (Ceres, scipy, g2o, GTSAM).",
@@ -112,9 +117,9 @@ def build_parser() -> argparse.ArgumentParser:
     listing = sub.add_parser("datasets", help="list the named datasets, their sizes and where each comes from")
     listing.set_defaults(func=cmd_datasets)
 
-    release = _release_command()
-    if release is not None:  # the instructor's tree: exercises from solutions, the student tree, the zip
-        release.add_parser(sub)
+    # registered from above the framework: the instructor's tree has release (exercises, student tree, zip)
+    for plugin in command_plugins.registered() if plugins is None else plugins:
+        plugin.add_parser(sub)
 
     bench = sub.add_parser("benchmark", help="our time per iteration and to solution against the peers' on pose "
                                              "graphs, bundle adjustment and the VIO window, medians "
@@ -178,18 +183,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _release_command():
-    """``course.release.command`` (the ``release`` subcommand) where this tree has it: the instructor's
-    does, a student tree (``course/release`` is the instructor's alone) does not."""
-    try:
-        from course.release import command
-    except ImportError:
-        return None
-    return command
-
-
 def main(argv=None) -> int:
-    parser = build_parser()
+    plugins = command_plugins.registered()
+    unregistered = command_plugins.unregistered(sys.argv[1:] if argv is None else list(argv),
+                                                [plugin.name for plugin in plugins])
+    if unregistered:
+        print(f"error: {unregistered}", file=sys.stderr)
+        return 2
+    parser = build_parser(plugins)
     args = parser.parse_args(argv)
     args.command = shlex.join(["python", "-m", "course", *(sys.argv[1:] if argv is None else argv)])
     from course.core.errors import CourseError

@@ -13,13 +13,16 @@ Hints (``course.core.hints``): ``render(..., hints=N)`` prints levels 1 to N of 
 with the level the committed exercises were released with.
 
 ``write_student_tree`` writes the tree a student receives: the repository without
-``solutions/``, ``tests/``, ``.ci/``, ``autograder/mistakes/``, ``course/release/`` (this tooling),
+``solutions/``, ``tests/``, ``.ci/``, ``autograder/mistakes/``, ``autograder/release/`` (this tooling),
 omitted files and local clutter (``.git``, ``.venv``, ``out``, caches), with the student's ``README.md``
-and ``Makefile`` from ``course/release/student_tree/`` in place of the instructor's.
+and ``Makefile`` from ``autograder/release/student_tree/`` in place of the instructor's, and the
+instructor's ``pyproject.toml`` without the entry points into what it leaves out (:func:`student_pyproject`:
+the ``release`` command).
 """
 
 import ast
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -39,7 +42,7 @@ BEGIN, END, OMIT = "# BEGIN SOLUTION", "# END SOLUTION", "# RELEASE: omit"
 #: the student's README.md and Makefile, copied over the instructor's
 STUDENT_TEMPLATES = Path(__file__).resolve().parent / "student_tree"
 #: paths (relative to the repository) that are the instructor's alone
-INSTRUCTOR_ONLY = ("solutions", "tests", ".ci", "autograder/mistakes", "CONTRIBUTING.md", "course/release",
+INSTRUCTOR_ONLY = ("solutions", "tests", ".ci", "autograder/mistakes", "CONTRIBUTING.md", "autograder/release",
                    "docs/teaching.md")
 #: the docstring of the student's ``exercises/__init__.py`` (the reference's speaks of the release)
 STUDENT_INIT = ('"""Your implementations of the course\'s exercises: replace each '
@@ -48,6 +51,12 @@ STUDENT_INIT = ('"""Your implementations of the course\'s exercises: replace eac
 #: names skipped at any depth: version control, environments, outputs, caches
 LOCAL_CLUTTER = (".git", ".venv", "out", "build", "__pycache__", ".pytest_cache", ".mypy_cache",
                  ".import_linter_cache", ".ruff_cache", ".ipynb_checkpoints", "*.egg-info", "*.pyc")
+
+
+#: a TOML table's header line, e.g. ``[project.entry-points."course.commands"]``
+TABLE = re.compile(r"^\s*\[")
+#: an entry point's line, ``name = "package.module:attr"``
+ENTRY_POINT = re.compile(r"""^\s*[\w.-]+\s*=\s*["']([\w.]+)(?::[\w.]+)?["']""")
 
 
 class ReleaseError(ValueError):
@@ -204,10 +213,44 @@ def _student_ignore(root: Path):
     return ignore
 
 
+def _instructor_only_module(module: str) -> bool:
+    """Whether the dotted ``module`` lies in a path the student tree leaves out (``autograder.release.command``)."""
+    parts = module.split(".")
+    return any("/".join(parts[:n]) in INSTRUCTOR_ONLY for n in range(1, len(parts) + 1))
+
+
+def student_pyproject(text: str) -> str:
+    """The instructor's ``pyproject.toml`` text for a student tree: every entry point whose module the tree
+    leaves out is dropped (``release`` of ``course.commands``), and a ``[project.entry-points.*]`` table left
+    empty goes with the comment lines just above it; every other line is kept as it is."""
+    lines = text.splitlines(keepends=True)
+    tables: list = []  # [header index, end index] of each table
+    for number, line in enumerate(lines):
+        if TABLE.match(line):
+            tables.append([number, len(lines)])
+            if len(tables) > 1:
+                tables[-2][1] = number
+    drop: set = set()
+    for start, end in tables:
+        if not lines[start].strip().startswith("[project.entry-points."):
+            continue
+        modules = {n: found.group(1) for n in range(start + 1, end) if (found := ENTRY_POINT.match(lines[n]))}
+        entries = list(modules)
+        gone = [n for n, module in modules.items() if _instructor_only_module(module)]
+        drop.update(gone)
+        if gone and len(gone) == len(entries):
+            drop.update(range(start, end))
+            above = start - 1
+            while above >= 0 and lines[above].lstrip().startswith("#"):
+                drop.add(above)
+                above -= 1
+    return "".join(line for number, line in enumerate(lines) if number not in drop)
+
+
 def _without_personal_data(config: Path) -> None:
     """Rewrite the tree's course configuration without extensions or rosters (and without its
     comments, where an instructor may have left one commented out)."""
-    from course.release.carried_config import config_text
+    from autograder.release.carried_config import config_text
 
     if config.is_file():
         config.write_text(config_text(config))
@@ -219,7 +262,7 @@ def write_student_tree(target: Path, exercise_files: dict, root: Path) -> None:
     No ``solutions/`` (no reference answers, no reference code), no ``tests/`` or
     ``.ci/`` (they test the reference), no ``autograder/mistakes/`` and no file marked
     ``# RELEASE: omit`` (e.g. ``autograder/oracle.py``, the reference side of grading); the
-    course configuration without personal data (:mod:`course.release.carried_config`).
+    course configuration without personal data (:mod:`autograder.release.carried_config`).
     ``exercises/`` is ``exercise_files``; ``README.md`` and ``Makefile`` are the student's.
     Students grade the public checks themselves (``python -m autograder``, from the data
     in ``autograder/expected/``); the hidden checks run on the course's side."""
@@ -232,6 +275,8 @@ def write_student_tree(target: Path, exercise_files: dict, root: Path) -> None:
     shutil.copytree(root, target, ignore=_student_ignore(root))
     write(target / "exercises", exercise_files)
     _without_personal_data(target / "autograder" / "course.toml")
+    if (target / "pyproject.toml").is_file():
+        (target / "pyproject.toml").write_text(student_pyproject((target / "pyproject.toml").read_text()))
     for template in sorted(STUDENT_TEMPLATES.iterdir()):
         if template.is_file() and template.name != "__init__.py":
             shutil.copyfile(template, target / template.name)

@@ -1,15 +1,34 @@
 """``python -m course release``: ``exercises/`` from ``solutions/``, the public checks' data, the student
-tree (``--student DIR``) and the Gradescope zip (``--gradescope FILE.zip``). The command line
-(``course.app.cli``) offers it where this package is, in the instructor's tree; the student tree
-leaves ``course/release`` out (``course.release.stubs.INSTRUCTOR_ONLY``)."""
+tree (``--student DIR``) and the Gradescope zip (``--gradescope FILE.zip``).
 
+The framework's command line offers it through the entry point ``release`` of the group
+``course.commands`` (``pyproject.toml``; :mod:`course.app.command_plugins`), which names
+:func:`add_parser`; ``python -m autograder release`` (:func:`main`) runs it without that registration.
+Both exist in the instructor's tree only: the student tree leaves ``autograder/release`` out
+(``autograder.release.stubs.INSTRUCTOR_ONLY``) and its ``pyproject.toml`` registers no ``release``."""
+
+import argparse
 import sys
 from pathlib import Path
 
+HELP = "regenerate exercises/ from solutions/"
+
 
 def add_parser(sub) -> None:
-    """Add the ``release`` subcommand to the command line's subparsers ``sub``."""
-    release = sub.add_parser("release", help="regenerate exercises/ from solutions/")
+    """Add the ``release`` subcommand to the command line's subparsers ``sub`` (the entry point)."""
+    add_arguments(sub.add_parser("release", help=HELP))
+
+
+def main(argv=None) -> int:
+    """``python -m autograder release ...``: the same command, with the same arguments."""
+    parser = argparse.ArgumentParser(prog="python -m autograder release", description=HELP)
+    add_arguments(parser)
+    args = parser.parse_args(argv)
+    return int(args.func(args) or 0)
+
+
+def add_arguments(release: argparse.ArgumentParser) -> None:
+    """The ``release`` command's arguments, on ``release`` (a subparser or a parser of its own)."""
     release.add_argument("--check", action="store_true",
                          help="only check: exit 1 and list the stale files when exercises/ is out of date")
     release.add_argument("--student", metavar="DIR", help="also write a student tree (no solutions/) to DIR")
@@ -39,8 +58,8 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     """``release``: regenerate (or ``--check``) ``exercises/`` and the public checks' data; optionally
     write a student tree and the Gradescope zip, of the whole course or of one ``--assignment``."""
+    from autograder.release.stubs import release
     from course.core.impl import REPO_ROOT
-    from course.release.stubs import release
 
     root = Path(args.root) if args.root else REPO_ROOT
     if not (root / "solutions").is_dir():
@@ -57,7 +76,7 @@ def run(args) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return 2
         if args.student and not args.check:
-            from course.release.release_date import early_release
+            from autograder.release.release_date import early_release
 
             early = early_release(course, assignment)
             if early and not args.force:
@@ -73,8 +92,8 @@ def run(args) -> int:
     stale = release(check=args.check, student_dir=None if assignment else args.student, root=root, hints=args.hints)
     overlay = None
     if assignment is not None:
-        from course.release import assignment as handout
-        from course.release.stubs import ReleaseError, hints_level, render
+        from autograder.release import assignment as handout
+        from autograder.release.stubs import ReleaseError, hints_level, render
 
         stubs = render(root / "solutions", hints_level(root) if args.hints is None else args.hints)
         overlay = handout.bundle_overlay(course, assignment, stubs, root)
@@ -107,10 +126,10 @@ def run(args) -> int:
 
 
 def _write_gradescope(target, root, hidden_seed=None, overlay=None, what="") -> int:
-    """``release --gradescope FILE.zip``: the autograder bundle (``course.release.gradescope``)."""
+    """``release --gradescope FILE.zip``: the autograder bundle (``autograder.release.gradescope``)."""
     if not target:
         return 0
-    from course.release.gradescope import BundleError, build_bundle
+    from autograder.release.gradescope import BundleError, build_bundle
 
     try:
         bundle = build_bundle(target, root, hidden_seed, overlay)

@@ -11,7 +11,7 @@ whole files (given helpers and their argument checks included) is reported besid
 Coverage's own formula: (statements run + branches taken) / (statements + branches), a branch
 counted where its source line is. A development tool (coverage.py is a dev dependency)::
 
-    python -m course.release.input_reach          # the figures, then every line or branch not reached
+    python -m autograder.release.input_reach          # the figures, then every line or branch not reached
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from autograder.release.stubs import BEGIN, END
 from course.core.impl import REPO_ROOT
-from course.release.stubs import BEGIN, END
 
 SOLUTIONS = REPO_ROOT / "solutions"
 
@@ -153,7 +153,8 @@ def measure(seeds: Sequence[int | None] | None = None) -> Reach:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m course.release.input_reach", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m autograder.release.input_reach",
+                                     description=__doc__.split("\n")[0])
     parser.add_argument("--json", action="store_true", help="print the figures and the misses as JSON")
     options = parser.parse_args(argv)
     reach = measure()

@@ -10,8 +10,8 @@ alone into the Markdown table of the student README's "Requirements" section.
 
 This is a development tool, run on Python >= 3.11 (it reads ``pyproject.toml`` with ``tomllib``)::
 
-    python -m course.release.platforms           # resolve every target on the index, one line each
-    python -m course.release.platforms --table   # print the README's table (markers only, no network)
+    python -m autograder.release.platforms           # resolve every target on the index, one line each
+    python -m autograder.release.platforms --table   # print the README's table (markers only, no network)
 """
 
 from __future__ import annotations
@@ -312,7 +312,8 @@ def _versions(versions: Mapping[str, str], names: Iterable[str]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Print the README's table (``--table``) or resolve every target; 1 when one fails, else 0."""
-    parser = argparse.ArgumentParser(prog="python -m course.release.platforms", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m autograder.release.platforms",
+                                     description=__doc__.split("\n\n")[0])
     parser.add_argument("--table", action="store_true", help="print the Markdown requirements table (no network)")
     parser.add_argument("--workers", type=int, default=4, help="resolvers at a time (default: 4)")
     options = parser.parse_args(argv)

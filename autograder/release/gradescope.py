@@ -1,6 +1,6 @@
 """The Gradescope autograder bundle: ``python -m course release --gradescope FILE.zip``.
 
-The zip holds, at its top level, the three scripts of ``course/release/gradescope_bundle/``
+The zip holds, at its top level, the three scripts of ``autograder/release/gradescope_bundle/``
 (``setup.sh``, ``run_autograder``, ``requirements.txt``) and the grader's source:
 ``course/``, ``autograder/`` (all of it, the reference side included), ``solutions/``,
 ``exercises/`` and ``pyproject.toml``; no tests, notebooks, version control or caches.
@@ -10,12 +10,12 @@ builds the image (it installs ``requirements.txt``: what grading imports, pinned
 releases with CPython 3.10 wheels, the Python of Gradescope's Ubuntu 22.04 image), then
 ``run_autograder`` for each submission. ``run_autograder`` calls this module twice:
 
-* ``python3 -m course.release.gradescope stage``: find the folder of the submission that holds
+* ``python3 -m autograder.release.gradescope stage``: find the folder of the submission that holds
   the exercise files (:func:`autograder.submission.locate_submission`) and copy it into a fresh package
   (:func:`autograder.submission.stage_submission`): only regular files named like a module of ``exercises/``,
   the unwritten stub for each module the student did not send, ``exercises/__init__.py``
   when the student sent none;
-* ``python3 -m course.release.gradescope finish``: after ``python3 -m autograder --impl STAGED
+* ``python3 -m autograder.release.gradescope finish``: after ``python3 -m autograder --impl STAGED
   --json results.json``, check that results.json is the grader's and well formed, put in
   front of its ``output`` what was graded, or, when grading did not finish, write a
   results.json with score 0 and the error (:func:`finish`), so that Gradescope always
@@ -116,7 +116,7 @@ def build_bundle(target, root: Path = REPO_ROOT, hidden_seed=None, overlay=None)
     so the hidden inputs differ from the repository's default (which anyone can read) and
     from every other bundle. ``run_autograder`` exports it as ``AUTOGRADER_HIDDEN_SEED``.
 
-    ``overlay`` (``{member: text}``, an assignment's: :func:`course.release.assignment.bundle_overlay`)
+    ``overlay`` (``{member: text}``, an assignment's: :func:`autograder.release.assignment.bundle_overlay`)
     adds or replaces members; when it holds ``exercises/`` files, they are the zip's whole ``exercises/``.
     """
     overlay = dict(overlay or {})
@@ -235,7 +235,7 @@ def finish(results, note: str, status: str, log=None, started=None) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python3 -m course.release.gradescope",
+    parser = argparse.ArgumentParser(prog="python3 -m autograder.release.gradescope",
                                      description="the two steps of run_autograder around the grading")
     sub = parser.add_subparsers(dest="command", required=True)
     stage = sub.add_parser("stage", help="find the exercise files in the submission and stage them as a package")

@@ -9,7 +9,7 @@ student tree of assignment NAME holds, beside the framework:
   may still write them); ``hints.json``, the hints of those stubs. No file of a later assignment.
 * ``autograder/``: the public data (``expected/``) of NAME's check modules only; no check module or
   task of a later assignment; ``course.toml`` holding NAME alone and no personal data (no extensions:
-  :mod:`course.release.carried_config`); ``ASSIGNMENT`` naming it, so that
+  :mod:`autograder.release.carried_config`); ``ASSIGNMENT`` naming it, so that
   ``python -m autograder``, ``make check`` and ``pytest`` grade NAME with its points; ``given/``, the
   solved files the grader composes with the student's (:func:`autograder.grade.compose`).
 * the framework of the chapters up to the latest one NAME or an earlier assignment hands out exercises
@@ -30,11 +30,11 @@ import json
 import shutil
 from pathlib import Path
 
+from autograder.release.carried_config import config_text
+from autograder.release.stubs import BEGIN, END
 from course.core import chapters
 from course.core.hints import HINTS_FILE
 from course.core.impl import REPO_ROOT
-from course.release.carried_config import config_text
-from course.release.stubs import BEGIN, END
 
 
 def released(source: str) -> str:
@@ -54,7 +54,7 @@ def _check_owner(course) -> dict:
 
 def exercise_files(course, assignment, stubs: dict, root: Path = REPO_ROOT) -> dict:
     """``{file name: text}`` of the assignment's ``exercises/`` (see the module docstring); ``stubs``
-    is :func:`course.release.stubs.render` of ``solutions/``."""
+    is :func:`autograder.release.stubs.render` of ``solutions/``."""
     earlier = set(course.earlier(assignment.name))
     owners = _owner_files(course)
     files = {"__init__.py": stubs["__init__.py"]}
@@ -157,7 +157,7 @@ def readme_section(assignment, course=None) -> str:
 
 def write_student_tree(target, course, assignment, stub_files: dict, root: Path = REPO_ROOT) -> None:
     """The student tree of ``assignment`` at the new directory ``target`` (see the module docstring)."""
-    from course.release.stubs import write_student_tree as write_tree
+    from autograder.release.stubs import write_student_tree as write_tree
 
     target, root = Path(target), Path(root).resolve()
     write_tree(target, exercise_files(course, assignment, stub_files, root), root)
