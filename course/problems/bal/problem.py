@@ -99,6 +99,9 @@ class BundleAdjustmentProblem:
         self._split = 9 * self.num_cameras
         # camera parameters held fixed
         self.fixed = gauge_parameters(problem) if fix_gauge else np.zeros((self.num_cameras, 9), dtype=bool)
+        # the rows (observation k, parameter j) of W that a fixed parameter zeroes, found once (a boolean mask
+        # over all K x 9 rows at every linearization cost more than the zeroing)
+        self._fixed_rows = np.nonzero(self.fixed[problem.camera_index])
 
     def unpack(self, x):
         """``(cameras (C, 9), points (P, 3))`` of a state vector x."""
@@ -145,7 +148,7 @@ class BundleAdjustmentProblem:
             U[cams, params, :] = 0.0
             U[cams, :, params] = 0.0
             U[cams, params, params] = 1.0
-            W[self.fixed[p.camera_index]] = 0.0
+            W[self._fixed_rows] = 0.0
             g_cam[self.fixed] = 0.0
         b = np.concatenate([g_cam.ravel(), check_array(g_point, (P, 3), where, "g_point").ravel()])
         chi2 = float(chi2) if robust_chi2 is None else robust_chi2
