@@ -105,9 +105,14 @@ def check_inputs(num_poses, edges_i, edges_j, measurements, information=None, an
     if not touched.all():
         isolated = np.flatnonzero(~touched)
         raise ValueError(f"disconnected graph: {len(isolated)} vertex(es) with no edge at all: {_listed(isolated)}")
-    adjacency = sp.coo_matrix((np.ones(m), (edges_i, edges_j)), shape=(num_poses, num_poses)).tocsr()
+    # every edge in both directions, as CSR arrays built directly: a directed search of this graph is the
+    # undirected search of the edges, without scipy's checks and symmetrisation (fr079: 0.07 against 0.18 ms)
+    heads, tails = np.concatenate([edges_i, edges_j]), np.concatenate([edges_j, edges_i])
+    order = np.argsort(heads, kind="stable")
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(heads, minlength=num_poses))]).astype(np.int32)
+    adjacency = sp.csr_matrix((np.ones(2 * m), tails[order].astype(np.int32), indptr), shape=(num_poses, num_poses))
     reached = np.zeros(num_poses, dtype=bool)
-    reached[csgraph.breadth_first_order(adjacency, anchor, directed=False, return_predecessors=False)] = True
+    reached[csgraph.breadth_first_order(adjacency, anchor, directed=True, return_predecessors=False)] = True
     if not reached.all():
         lost = np.flatnonzero(~reached)
         raise ValueError(f"disconnected graph: {len(lost)} vertex(es) not reached from the anchor {anchor} "

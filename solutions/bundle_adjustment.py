@@ -106,7 +106,9 @@ def reprojection_residuals_and_jacobians(cameras, points, camera_index, point_in
     A = np.matmul(dpred_dp, dp_dP)
     AR = np.matmul(A, R)  # d predicted / d X
     J_cam = np.empty((K, 2, 9))
-    J_cam[:, :, :3] = -np.matmul(AR, np.matmul(skew(X), Jr))  # A d(RX)/dw, d(RX)/dw = -R [X]_x J_r
+    # A d(RX)/dw with d(RX)/dw = -R [X]_x J_r; a row a^T [X]_x is (a x X)^T, so (AR) [X]_x is a cross product
+    # per row: no (K, 3, 3) [X]_x and one batched product fewer (ladybug-49: 3.6 against 7.4 ms)
+    J_cam[:, :, :3] = -np.matmul(np.cross(AR, X[:, None, :]), Jr)
     J_cam[:, :, 3:6] = A
     J_cam[:, :, 6] = d[:, None] * p
     J_cam[:, :, 7] = (f * n)[:, None] * p
@@ -196,7 +198,13 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
         raise SingularSystemError(f"schur_solve: V[{bad}] (point {bad}, plus damping) is not positive definite "
                                   f"(eigenvalues {lowest[bad]}): is the point seen by fewer than 2 cameras, "
                                   "or from one place, undamped?") from None
-    L_inv = np.linalg.inv(L)
+    # L^-1 of every lower-triangular 3x3 factor by forward substitution, written out: one pass over the points
+    # instead of a LAPACK call per point (ladybug-49's 7,776 points: 0.2 against 2.5 ms)
+    L_inv = np.zeros_like(L)
+    L_inv[:, 0, 0], L_inv[:, 1, 1], L_inv[:, 2, 2] = 1.0 / L[:, 0, 0], 1.0 / L[:, 1, 1], 1.0 / L[:, 2, 2]
+    L_inv[:, 1, 0] = -L[:, 1, 0] * L_inv[:, 0, 0] * L_inv[:, 1, 1]
+    L_inv[:, 2, 1] = -L[:, 2, 1] * L_inv[:, 1, 1] * L_inv[:, 2, 2]
+    L_inv[:, 2, 0] = -(L[:, 2, 0] * L_inv[:, 0, 0] + L[:, 2, 1] * L_inv[:, 1, 0]) * L_inv[:, 2, 2]
     V_inv = np.matmul(L_inv.transpose(0, 2, 1), L_inv)
 
     # sum over pairs of W_k V_p^-1 W_l^T: Ys @ Ws.T as the hint says, by camera pair (the framework's

@@ -105,9 +105,14 @@ def check_inputs(num_poses, edges_i, edges_j, measurements, information=None, an
     if not touched.all():
         isolated = np.flatnonzero(~touched)
         raise ValueError(f"disconnected graph: {len(isolated)} vertex(es) with no edge at all: {_listed(isolated)}")
-    adjacency = sp.coo_matrix((np.ones(m), (edges_i, edges_j)), shape=(num_poses, num_poses)).tocsr()
+    # every edge in both directions, as CSR arrays built directly: a directed search of this graph is the
+    # undirected search of the edges, without scipy's checks and symmetrisation (fr079: 0.07 against 0.18 ms)
+    heads, tails = np.concatenate([edges_i, edges_j]), np.concatenate([edges_j, edges_i])
+    order = np.argsort(heads, kind="stable")
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(heads, minlength=num_poses))]).astype(np.int32)
+    adjacency = sp.csr_matrix((np.ones(2 * m), tails[order].astype(np.int32), indptr), shape=(num_poses, num_poses))
     reached = np.zeros(num_poses, dtype=bool)
-    reached[csgraph.breadth_first_order(adjacency, anchor, directed=False, return_predecessors=False)] = True
+    reached[csgraph.breadth_first_order(adjacency, anchor, directed=True, return_predecessors=False)] = True
     if not reached.all():
         lost = np.flatnonzero(~reached)
         raise ValueError(f"disconnected graph: {len(lost)} vertex(es) not reached from the anchor {anchor} "
@@ -331,11 +336,12 @@ def chordal_translations(num_poses, edges_i, edges_j, measurements, information,
 
     if not np.any(o01) and np.array_equal(o00, o11):  # W = a I: x and y share one Laplacian
         diagonal = np.bincount(edges_i, o00, minlength=n) + np.bincount(edges_j, o00, minlength=n)
-        rows = np.concatenate([unknown[others], ui[both], uj[both]])
-        cols = np.concatenate([unknown[others], uj[both], ui[both]])
-        data = np.concatenate([diagonal[others], -o00[both], -o00[both]])
+        # H's upper triangle is all the solve reads: an edge's entry at (min, max) of its two unknowns
+        rows = np.concatenate([unknown[others], np.minimum(ui[both], uj[both])])
+        cols = np.concatenate([unknown[others], np.maximum(ui[both], uj[both])])
+        data = np.concatenate([diagonal[others], -o00[both]])
         H = sp.coo_matrix((data, (rows, cols)), shape=(n - 1, n - 1)).tocsc()
-        t[others] = spd_solve(H, g[others])
+        t[others] = spd_solve(H, g[others], upper=True)
         return t
 
     def blocks(p, q, b00, b01, b11):  # entries of the symmetric 2x2 blocks at block (p, q)
@@ -346,12 +352,17 @@ def chordal_translations(num_poses, edges_i, edges_j, measurements, information,
     def at_vertices(values):  # sum over the edges at each vertex, (N,)
         return np.bincount(edges_i, values, minlength=n) + np.bincount(edges_j, values, minlength=n)
 
-    entries = [blocks(unknown[others], unknown[others], *(at_vertices(v)[others] for v in (w00, w01, w11))),
-               blocks(ui[both], uj[both], -w00[both], -w01[both], -w11[both]),
-               blocks(uj[both], ui[both], -w00[both], -w01[both], -w11[both])]
-    rows, cols, data = (np.concatenate(parts) for parts in zip(*entries))
+    # H's upper triangle is all the solve reads: a vertex's diagonal block on and above the diagonal, an
+    # edge's whole (symmetric) block at (min, max) of its two unknowns
+    k = unknown[others]
+    d00, d01, d11 = (at_vertices(v)[others] for v in (w00, w01, w11))
+    edge_rows, edge_cols, edge_data = blocks(np.minimum(ui[both], uj[both]), np.maximum(ui[both], uj[both]),
+                                             -w00[both], -w01[both], -w11[both])
+    rows = np.concatenate([2 * k, 2 * k, 2 * k + 1, edge_rows])
+    cols = np.concatenate([2 * k, 2 * k + 1, 2 * k + 1, edge_cols])
+    data = np.concatenate([d00, d01, d11, edge_data])
     H = sp.coo_matrix((data, (rows, cols)), shape=(2 * n - 2, 2 * n - 2)).tocsc()
-    t[others] = spd_solve(H, g[others].ravel()).reshape(-1, 2)
+    t[others] = spd_solve(H, g[others].ravel(), upper=True).reshape(-1, 2)
     return t
     # END SOLUTION
 

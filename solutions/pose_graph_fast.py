@@ -92,8 +92,10 @@ class SparseAssembler:
         unique, inverse = unique_inverse(keys)  # np.unique(keys, return_inverse=True), faster here
         self._positions = inverse[: len(rows)]
         self.diagonal_positions = inverse[len(rows):]
-        self._indices = unique % n
-        self._indptr = np.searchsorted(unique // n, np.arange(n + 1))
+        # scipy keeps 32-bit indices where they fit: given them, csc_matrix neither scans nor copies
+        index = np.int32 if max(n, len(unique)) < np.iinfo(np.int32).max else np.int64
+        self._indices = (unique % n).astype(index)
+        self._indptr = np.searchsorted(unique // n, np.arange(n + 1)).astype(index)
         self._shape, self.nnz = (n, n), len(unique)
         self._b_positions = dof.ravel()
         fixed_dof = np.zeros(n, dtype=bool)
@@ -112,7 +114,7 @@ class SparseAssembler:
         # BEGIN SOLUTION
         J = np.concatenate([A, B], axis=2)
         JT = J.transpose(0, 2, 1)
-        H_edges = np.matmul(np.matmul(JT, information), J)[:, self.UPPER[0], self.UPPER[1]]
+        H_edges = np.matmul(JT, np.matmul(information, J))[:, self.UPPER[0], self.UPPER[1]]
         Oe = np.matmul(information, e[:, :, None])  # (M, 3, 1)
         g_edges = np.matmul(JT, Oe)
         data = np.bincount(self._positions, weights=H_edges.ravel(), minlength=self.nnz)

@@ -332,6 +332,38 @@ def test_fixed_gauge_lets_gauss_newton_converge():
     np.testing.assert_array_equal(cameras[problem.fixed], p.cameras[problem.fixed])
 
 
+def test_the_fixed_rows_of_W_are_zeroed_and_a_view_the_implementation_keeps_is_left_alone():
+    """The gauge's fixed parameters' rows of W are zero in the linearization: zeroed in place in the
+    implementation's fresh W, on a copy when W is a (read-only) view of an array the implementation keeps."""
+    from types import SimpleNamespace
+
+    p = synthetic(5, 40, seed=6, noise=0.5)
+    problem = BundleAdjustmentProblem(p, fix_gauge=True)
+    fixed_rows = problem.fixed[p.camera_index]  # (K, 9)
+    r, J_cam, J_point = ba.reprojection_residuals_and_jacobians(*problem.unpack(problem.x0), *_args(p))
+    raw_W = ba.normal_equations(r, J_cam, J_point, p.camera_index, p.point_index, p.num_cameras,
+                                p.num_points)[2]
+    assert np.abs(raw_W[fixed_rows]).max() > 0  # the gauge's rows are not zero before
+    lin = problem.linearize(problem.x0)
+    assert not lin.W[fixed_rows].any()
+    np.testing.assert_array_equal(lin.W[~fixed_rows], raw_W[~fixed_rows])
+
+    kept = {}
+
+    def keeping(*args):  # W handed over as a read-only view of an array kept between calls
+        U, V, W, g_cam, g_point, chi2 = ba.normal_equations(*args)
+        kept["W"] = W
+        view = W[:]
+        view.flags.writeable = False
+        return U, V, view, g_cam, g_point, chi2
+
+    problem.ba = SimpleNamespace(reprojection_residuals_and_jacobians=ba.reprojection_residuals_and_jacobians,
+                                 normal_equations=keeping)
+    lin = problem.linearize(problem.x0)
+    assert not lin.W[fixed_rows].any()
+    np.testing.assert_array_equal(kept["W"], raw_W)  # untouched
+
+
 def test_a_nearly_dense_reduced_system_is_solved_densely(monkeypatch):
     """9C above DENSE_LIMIT but S nearly dense: the dense factorization, the same step."""
     import scipy.sparse.linalg as spla

@@ -247,6 +247,10 @@ def test_spd_solve_agrees_with_a_dense_solve(monkeypatch, qdldl_installed):
     expected = np.linalg.solve(H.toarray(), rhs)
     np.testing.assert_allclose(spd_solve(H, rhs), expected, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(spd_solve(H, rhs[:, 1]), expected[:, 1], rtol=1e-10, atol=1e-12)
+    # given its upper triangle alone, the same solve; the lower triangle is then never read
+    upper = sp.triu(H, format="csc")
+    np.testing.assert_allclose(spd_solve(upper, rhs, upper=True), expected, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(spd_solve(upper, rhs[:, 1], upper=True), expected[:, 1], rtol=1e-10, atol=1e-12)
 
 
 @pytest.mark.parametrize("keys", [np.array([], dtype=np.int64), np.array([5]), np.array([3, 3, 3]),

@@ -14,17 +14,20 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 
-def spd_solve(H, rhs):
-    """``H^-1 rhs`` for ``H`` sparse (n, n), symmetric positive definite (both triangles
-    stored), ``rhs`` (n,) or (n, k)."""
+def spd_solve(H, rhs, upper=False):
+    """``H^-1 rhs`` for ``H`` sparse (n, n), symmetric positive definite, both triangles stored
+    (``upper=True``: only its upper triangle, diagonal included, which saves qdldl taking it:
+    fr079's chordal translations 0.25 ms of 1.0), ``rhs`` (n,) or (n, k)."""
     rhs = np.asarray(rhs, dtype=float)
     try:
         import qdldl
     except ImportError:
-        factor = splu(sp.csc_matrix(H), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                      options={"SymmetricMode": True})
+        H = sp.csc_matrix(H)
+        if upper:
+            H = (H + sp.triu(H, k=1, format="csc").T).tocsc()
+        factor = splu(H, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         return factor.solve(rhs)
-    factor = qdldl.Solver(sp.triu(H, format="csc"), upper=True)
+    factor = qdldl.Solver(sp.csc_matrix(H) if upper else sp.triu(H, format="csc"), upper=True)
     if rhs.ndim == 1:
         return factor.solve(rhs)
     return np.column_stack([factor.solve(np.ascontiguousarray(column)) for column in rhs.T])

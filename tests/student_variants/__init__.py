@@ -583,7 +583,7 @@ BUGS_BUNDLE_ADJUSTMENT = {
         "bundle_adjustment.py", [], "d = 1.0 + k1 * n + k2 * n * n", "d = np.ones_like(n)",
         {BA_R, BA_JC, BA_JP}, "the radial distortion d = 1 + k1 |p|^2 + k2 |p|^4 is missing"),
     "ba_small_angle_rotation_jacobian": V(
-        "bundle_adjustment.py", [], "J_cam[:, :, :3] = -np.matmul(AR, np.matmul(skew(X), Jr))",
+        "bundle_adjustment.py", [], "J_cam[:, :, :3] = -np.matmul(np.cross(AR, X[:, None, :]), Jr)",
         "J_cam[:, :, :3] = -np.matmul(A, skew(np.matmul(R, X[:, :, None])[:, :, 0]))",
         {BA_JC}, "holds only at w = 0"),
     "ba_no_distortion_derivative": V(
@@ -1373,7 +1373,7 @@ ALTERNATIVES_DERIVED = {
         "pose_graph_3d.py", [], "A[:, 3:, 3:] = -np.matmul(Jr_inv, np.matmul(Rj.transpose(0, 2, 1), Ri))",
         "A[:, 3:, 3:] = -np.matmul(Jr_inv, np.matmul(D_R.transpose(0, 2, 1), RzT))", set()),
     "derived_ba_left_jacobian": V(
-        "bundle_adjustment.py", [], "J_cam[:, :, :3] = -np.matmul(AR, np.matmul(skew(X), Jr))",
+        "bundle_adjustment.py", [], "J_cam[:, :, :3] = -np.matmul(np.cross(AR, X[:, None, :]), Jr)",
         "J_cam[:, :, :3] = -np.matmul(A, np.matmul(skew(np.matmul(R, X[:, :, None])[:, :, 0]), "
         "(eye + b[:, None, None] * Wx + c[:, None, None] * Wx2)[camera_index]))", set()),
     "derived_cauchy_second_from_first": V(

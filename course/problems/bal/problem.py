@@ -99,6 +99,9 @@ class BundleAdjustmentProblem:
         self._split = 9 * self.num_cameras
         # camera parameters held fixed
         self.fixed = gauge_parameters(problem) if fix_gauge else np.zeros((self.num_cameras, 9), dtype=bool)
+        # the rows (observation k, parameter j) of W that a fixed parameter zeroes, found once (a boolean mask
+        # over all K x 9 rows at every linearization cost more than the zeroing)
+        self._fixed_rows = np.nonzero(self.fixed[problem.camera_index])
 
     def unpack(self, x):
         """``(cameras (C, 9), points (P, 3))`` of a state vector x."""
@@ -140,12 +143,16 @@ class BundleAdjustmentProblem:
         W = check_array(W, (K, 9, 3), where, "W")
         g_cam = check_array(g_cam, (C, 9), where, "g_cam")
         if self.fixed.any():  # zero rows and columns of the fixed parameters, unit diagonal: their step is 0
-            U, W, g_cam = U.copy(), W.copy(), g_cam.copy()
+            U, g_cam = U.copy(), g_cam.copy()
+            # W (K, 9, 3), the largest output, is zeroed where it lies when the implementation handed over an
+            # array of its own (its fresh result; ladybug-49: a 7.6 MB copy saved), copied first otherwise (a view)
+            if not (W.flags.owndata and W.flags.writeable):
+                W = W.copy()
             cams, params = np.nonzero(self.fixed)
             U[cams, params, :] = 0.0
             U[cams, :, params] = 0.0
             U[cams, params, params] = 1.0
-            W[self.fixed[p.camera_index]] = 0.0
+            W[self._fixed_rows] = 0.0
             g_cam[self.fixed] = 0.0
         b = np.concatenate([g_cam.ravel(), check_array(g_point, (P, 3), where, "g_point").ravel()])
         chi2 = float(chi2) if robust_chi2 is None else robust_chi2
