@@ -37,6 +37,12 @@ release: $(STAMP)
 notebooks: $(STAMP)
 	$(PY) -m notebooks.build --execute
 
+# the course as a static website in out/site/html (docs/site.md): every lesson executed in a student tree
+.PHONY: site
+site: $(STAMP)
+	$(PY) -m pip install --quiet -e ".[site]"
+	$(PY) -m notebooks.site
+
 benchmark: $(STAMP)
 	$(PY) -m course benchmark
 

@@ -80,6 +80,7 @@ def build(out: Path = DEFAULT_OUT, assignment: str | None = None, only=None, sma
     sphinx_config.write_conf(src, _title(REPO_ROOT))
     start = time.perf_counter()
     warnings = sphinx_config.run_sphinx(src, out / "html", out / "doctrees")
+    (out / "html" / ".nojekyll").write_text("")  # GitHub Pages serves the folders starting with "_" as they are
     for line in warnings:
         log(line)
     log(f"sphinx: {len(warnings)} warning line(s), {time.perf_counter() - start:.0f} s; the site: {out / 'html'}")
