@@ -108,7 +108,8 @@ def _solution_lines() -> list:
     ``# BEGIN SOLUTION`` and ``# END SOLUTION`` in solutions/*.py that the stubs do not hold too."""
     found = []
     for path in sorted((REPO_ROOT / "solutions").glob("*.py")):
-        stub = (REPO_ROOT / "exercises" / path.name).read_text() if (REPO_ROOT / "exercises" / path.name).is_file() else ""
+        stub_path = REPO_ROOT / "exercises" / path.name
+        stub = stub_path.read_text() if stub_path.is_file() else ""
         inside = False
         for line in path.read_text().splitlines():
             if "# BEGIN SOLUTION" in line:
@@ -248,7 +249,8 @@ def test_every_page_reads_right_in_the_browser(served, browser):
     root, base = served
     shots = OUT / "screenshots"
     shots.mkdir(parents=True, exist_ok=True)
-    wanted = [root / "index.html", *sorted((root / "notebooks").glob("*.html")), *sorted((root / "chapters").glob("*.html"))]
+    wanted = [root / "index.html", *sorted((root / "notebooks").glob("*.html")),
+              *sorted((root / "chapters").glob("*.html"))]
     assert root / "notebooks" / "chapter2_pose_graphs.html" in wanted
     for page in wanted:
         rel = page.relative_to(root).as_posix()
@@ -270,7 +272,11 @@ def test_every_page_reads_right_in_the_browser(served, browser):
                 assert unquote(parts.fragment) in _ids(target), (rel, link)
         if page.parent.name == "notebooks":
             assert seen["maths"] > 20 and len(seen["images"]) >= 4, (rel, seen["maths"], seen["images"])
-        browser.save_screenshot(str(shots / (rel.replace("/", "-")[:-5] + ".png")))
+        name = rel.replace("/", "-")[:-5]
+        browser.save_screenshot(str(shots / f"{name}.png"))
+        if page.parent.name == "notebooks":  # and its first figure, in view
+            browser.execute_script("document.images[0].scrollIntoView({block: 'center'});")
+            browser.save_screenshot(str(shots / f"{name}-figure.png"))
     assert (shots / "index.png").stat().st_size > 10_000
     assert (shots / "notebooks-chapter2_pose_graphs.png").stat().st_size > 10_000
 

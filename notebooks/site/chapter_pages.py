@@ -83,7 +83,8 @@ def _assignment_section(name: str, root: Path) -> list:
         lines.append(f"- Handed out solved: {', '.join(f'`{e}`' for e in assignment.solved)}")
     late = assignment.late
     if late.per_day or late.per_hour:
-        lines.append(f"- Late: {late.per_day * 100:g}% a day" if late.per_day else f"- Late: {late.per_hour * 100:g}% an hour")
+        lines.append(f"- Late: {late.per_day * 100:g}% a day" if late.per_day
+                     else f"- Late: {late.per_hour * 100:g}% an hour")
     lines += ["", f"In the assignment's tree, `make check` (or `python -m autograder`) grades the public checks; "
               f"the course's staff hand out the tree with `python -m course release --assignment {assignment.name} "
               "--student DIR`.", ""]

@@ -63,7 +63,8 @@ def write_student_tree(target: Path) -> Path:
     return target
 
 
-def _run_in_tree(tree: Path, stems: list, small: bool, out: Path, log) -> None:
+def _run_in_tree(tree: Path, stems: list, small: bool, out: Path, log, on_written) -> None:
+    """``python -m notebooks.build --execute`` in ``tree`` for ``stems``; ``on_written(path)`` as each is written."""
     from course.core.data import data_dir
 
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "COURSE_IMPL"))}
@@ -74,13 +75,20 @@ def _run_in_tree(tree: Path, stems: list, small: bool, out: Path, log) -> None:
     if small:
         argv.append("--small")
     log(f"executing {', '.join(stems)} in a student tree{' (small setting)' if small else ''}")
-    done = subprocess.run(argv, cwd=tree, env=env, capture_output=True, text=True)
-    lines = [line for line in done.stderr.splitlines() if line.startswith(("wrote ", "not written", "failed"))]
-    for line in lines:
-        log(line)
-    if done.returncode != 0:
-        raise LessonError(f"python -m notebooks.build in the student tree exited {done.returncode}:\n"
-                          + "\n".join(lines or done.stderr.splitlines()[-20:]))
+    tail: list = []
+    with subprocess.Popen(argv, cwd=tree, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                          text=True) as run:
+        assert run.stderr is not None
+        for line in run.stderr:
+            line = line.rstrip("\n")
+            tail = (tail + [line])[-20:]
+            if line.startswith(("wrote ", "not written", "failed")):
+                log(line)
+            if line.startswith("wrote "):
+                on_written(Path(line[len("wrote "):].split(":")[0]))
+    if run.returncode != 0:
+        raise LessonError(f"python -m notebooks.build in the student tree exited {run.returncode}:\n"
+                          + "\n".join(tail))
 
 
 def executed(notebooks, cache: Path, small: bool = False, log=print) -> dict:
@@ -95,17 +103,22 @@ def executed(notebooks, cache: Path, small: bool = False, log=print) -> dict:
         if nb not in missing:
             log(f"{nb.name}: executed before (cached {wanted[nb].name})")
     if missing:
+        failed: list = []
+
+        def keep(path: Path) -> None:  # into the cache as soon as it is written: a stopped build resumes
+            nb = next(nb for nb in missing if nb.name == path.name)
+            found = notebook_build.failures(nbformat.read(path, as_version=4))
+            bad = found["todo"] + found["after_todo"] + found["error"]
+            if bad:
+                failed.append(f"{nb.name}: cell {bad[0][0]} failed in the student tree: {bad[0][1]}")
+                return
+            for old in cache.glob(f"{nb.stem}-*.ipynb"):
+                old.unlink()
+            shutil.copyfile(path, wanted[nb])
+
         with tempfile.TemporaryDirectory(prefix="course-site-") as tmp:
             tree = write_student_tree(Path(tmp) / "tree")
-            out = Path(tmp) / "executed"
-            _run_in_tree(tree, [nb.stem for nb in missing], small, out, log)
-            for nb in missing:
-                ran = nbformat.read(out / nb.name, as_version=4)
-                found = notebook_build.failures(ran)
-                bad = found["todo"] + found["after_todo"] + found["error"]
-                if bad:
-                    raise LessonError(f"{nb.name}: cell {bad[0][0]} failed in the student tree: {bad[0][1]}")
-                for old in cache.glob(f"{nb.stem}-*.ipynb"):
-                    old.unlink()
-                shutil.copyfile(out / nb.name, wanted[nb])
+            _run_in_tree(tree, [nb.stem for nb in missing], small, Path(tmp) / "executed", log, keep)
+        if failed:
+            raise LessonError("\n".join(failed))
     return wanted

@@ -17,7 +17,8 @@ from pathlib import Path
 from course.core.impl import REPO_ROOT
 
 #: ``[text](target "title")`` and ``![alt](target)``: a markdown inline link or image
-LINK = re.compile(r"(?P<bang>!?)\[(?P<text>(?:[^\[\]\n]|\[[^\[\]\n]*\])*)\]\((?P<target>[^()\s]+)(?P<title>\s+\"[^\"]*\")?\)")
+LINK = re.compile(r"(?P<bang>!?)\[(?P<text>(?:[^\[\]\n]|\[[^\[\]\n]*\])*)\]"
+                  r"\((?P<target>[^()\s]+)(?P<title>\s+\"[^\"]*\")?\)")
 #: ``` or ~~~ opening or closing a fenced block
 FENCE = re.compile(r"^\s*(```|~~~)")
 #: inline code spans, left untouched
