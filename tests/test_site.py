@@ -289,10 +289,11 @@ def _guide_commands() -> list:
     return [line.strip() for block in blocks for line in block.splitlines() if line.strip()]
 
 
-def test_every_command_of_the_publishing_guide_runs(built, tmp_path):
-    """Each ``python -m notebooks.site ...`` of docs/site.md runs into this test's folder on chapter 2 in the quick
-    setting (``--out``, ``--only ch2 --small`` added: the whole course takes minutes), from the execution cached
-    for it; ``python -m http.server ...`` serves the site built (stopped once it answers)."""
+def test_every_command_of_the_publishing_guide_runs(built):
+    """Each ``python -m notebooks.site ...`` of docs/site.md runs on chapter 2 in the quick setting into the
+    folder of the site built above (``--out``, ``--only ch2 --small`` added: the whole course takes minutes): the
+    execution is cached there and Sphinx reads again only the pages that changed; ``python -m http.server ...``
+    serves the site built (stopped once it answers)."""
     commands = _guide_commands()
     assert any(c.startswith("python -m notebooks.site") for c in commands)
     assert any(c.startswith("python -m http.server") for c in commands)
@@ -300,8 +301,7 @@ def test_every_command_of_the_publishing_guide_runs(built, tmp_path):
     for line in commands:
         argv = [sys.executable] + line.split()[1:]
         if line.startswith("python -m notebooks.site"):
-            out = tmp_path / "site"
-            shutil.copytree(OUT / "executed", out / "executed", dirs_exist_ok=True)
+            out = OUT
             done = subprocess.run([*argv, "--out", str(out), "--only", "ch2", "--small"], cwd=REPO_ROOT, env=env,
                                   capture_output=True, text=True, timeout=600)
             assert done.returncode == 0, (line, done.stderr[-3000:])
@@ -316,7 +316,7 @@ def test_every_command_of_the_publishing_guide_runs(built, tmp_path):
             with socket.socket() as probe:
                 probe.bind(("127.0.0.1", 0))
                 port = probe.getsockname()[1]
-            argv = [str(port) if a.isdigit() else str(tmp_path / "site" / Path(a).relative_to("out/site"))
+            argv = [str(port) if a.isdigit() else str(OUT / Path(a).relative_to("out/site"))
                     if a.startswith("out/site") else a for a in argv] + ["--bind", "127.0.0.1"]
             server = subprocess.Popen(argv, cwd=REPO_ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             try:

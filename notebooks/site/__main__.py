@@ -58,26 +58,22 @@ def build(out: Path = DEFAULT_OUT, assignment: str | None = None, only=None, sma
     executed = lessons.executed([nb for nb in notebooks if nb in notebook_build.NOTEBOOKS], out / "executed",
                                 small=small, log=log)
     log(f"lessons ready in {time.perf_counter() - start:.0f} s")
-    src = out / "src"
-    shutil.rmtree(src, ignore_errors=True)
-    src.mkdir(parents=True)
     staged = dict(pages.guide_pages())
     staged.update({rel: rel for rel in lessons_of.values() if rel})
     chapter_paths = {one.name: f"chapters/{one.name}.md" for one in picked}
-    guides = pages.stage_guides(src, staged, source_url)
+    files = pages.stage_guides(staged, source_url)
+    guides = [rel for rel in pages.guide_pages().values() if rel != "index.md"]
     for nb, path in executed.items():
-        target = src / nb.relative_to(REPO_ROOT)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(path, target)
-    (src / "chapters").mkdir()
+        files[nb.relative_to(REPO_ROOT).as_posix()] = path.read_bytes()
     for one in picked:
-        (src / chapter_paths[one.name]).write_text(
-            chapter_pages.chapter_page(one, lessons_of[one.name], source_url), encoding="utf-8")
-    index = src / "index.md"
-    index.write_text(index.read_text(encoding="utf-8")
-                     + _toctree("Chapters", [p[:-3] for p in chapter_paths.values()])
-                     + _toctree("Guides", [g[:-3] for g in guides if g != "index.md"]), encoding="utf-8")
-    sphinx_config.write_conf(src, _title(REPO_ROOT))
+        files[chapter_paths[one.name]] = chapter_pages.chapter_page(one, lessons_of[one.name], source_url).encode()
+    files["index.md"] += (_toctree("Chapters", [p[:-3] for p in chapter_paths.values()])
+                          + _toctree("Guides", [g[:-3] for g in guides])).encode()
+    files["conf.py"] = sphinx_config.conf_text(_title(REPO_ROOT)).encode()
+    src = out / "src"
+    src.mkdir(parents=True, exist_ok=True)
+    pages.sync(src, files)
+    shutil.rmtree(out / "html", ignore_errors=True)  # no page of an earlier build (a later chapter) stays
     start = time.perf_counter()
     warnings = sphinx_config.run_sphinx(src, out / "html", out / "doctrees")
     (out / "html" / ".nojekyll").write_text("")  # GitHub Pages serves the folders starting with "_" as they are
@@ -105,8 +101,8 @@ def main(argv=None) -> int:
     try:
         index = build(Path(args.out), args.assignment, args.only, args.small, args.source_url,
                       log=lambda line: print(line, file=sys.stderr, flush=True))
-    except (lessons.LessonError, KeyError, RuntimeError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    except (lessons.LessonError, KeyError, ValueError, RuntimeError) as exc:  # ValueError: the course configuration
+        print(f"error: {exc.args[0] if isinstance(exc, KeyError) else exc}", file=sys.stderr)
         return 1
     print(f"built {index} in {time.perf_counter() - start:.0f} s")
     return 0

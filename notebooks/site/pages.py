@@ -90,23 +90,33 @@ def _rewrite_line(line: str, page: str, staged: dict, source_url: str | None) ->
     return "".join(pieces)
 
 
-def stage_guides(src: Path, staged: dict, source_url: str | None, root: Path = REPO_ROOT) -> list:
-    """Write each guide of ``guide_pages`` into ``src`` at its site path, links rewritten against
-    ``staged`` (every page the site has); returns the site paths written."""
-    import shutil
-
-    written = []
+def stage_guides(staged: dict, source_url: str | None, root: Path = REPO_ROOT) -> dict:
+    """``{site path: content}`` of each guide of ``guide_pages``, links rewritten against ``staged`` (every
+    page the site has; an image of the repository a guide shows is added to it, and to the result)."""
+    files: dict = {}
     for repo_path, site_path in guide_pages(root).items():
         text = (root / repo_path).read_text(encoding="utf-8")
         for match in LINK.finditer(text):  # an image of the repository is copied beside the page
             image = posixpath.normpath(posixpath.join(posixpath.dirname(repo_path), match["target"].partition("#")[0]))
             if match["bang"] and not _is_external(match["target"]) and (root / image).is_file() \
                     and not image.startswith("../"):
-                (src / image).parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(root / image, src / image)
+                files[image] = (root / image).read_bytes()
                 staged.setdefault(image, image)
-        target = src / site_path
-        target.parent.mkdir(parents=True, exist_ok=True)
-        target.write_text(rewrite_links(text, repo_path, staged, source_url), encoding="utf-8")
-        written.append(site_path)
-    return written
+        files[site_path] = rewrite_links(text, repo_path, staged, source_url).encode("utf-8")
+    return files
+
+
+def sync(src: Path, files: dict) -> None:
+    """Make the folder ``src`` hold ``files`` (``{relative path: bytes}``) and nothing else, writing only the
+    files whose content changed (Sphinx reads again only those)."""
+    for rel, content in files.items():
+        target = src / rel
+        if not (target.is_file() and target.read_bytes() == content):
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(content)
+    for path in sorted(src.rglob("*"), reverse=True):
+        rel = path.relative_to(src).as_posix()
+        if path.is_file() and rel not in files:
+            path.unlink()
+        elif path.is_dir() and not any(path.iterdir()):
+            path.rmdir()

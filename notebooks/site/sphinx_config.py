@@ -37,13 +37,11 @@ def settings(title: str) -> dict:
     }
 
 
-def write_conf(src: Path, title: str) -> Path:
-    """``src/conf.py`` holding :func:`settings`."""
+def conf_text(title: str) -> str:
+    """The text of ``conf.py``: :func:`settings`, one line each."""
     lines = ['"""Written by python -m notebooks.site (notebooks/site/sphinx_config.py): edit that file."""', ""]
     lines += [f"{key} = {value!r}" for key, value in settings(title).items()]
-    path = src / "conf.py"
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path
+    return "\n".join(lines) + "\n"
 
 
 def run_sphinx(src: Path, html: Path, doctrees: Path, log=print) -> list:
