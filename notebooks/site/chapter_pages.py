@@ -72,9 +72,9 @@ def _assignment_section(name: str, root: Path) -> list:
     lines = ["## The assignment", "", f"**{assignment.title}** (`{assignment.name}` in the course configuration)", ""]
     if assignment.due is not None:
         lines.append(f"- Due: {assignment.due.isoformat(sep=' ', timespec='minutes')}")
-    total = sum(float(p) for p in dict(assignment.points).values())
-    if total:
-        lines.append(f"- Points: {total:g} in all, public and hidden checks")
+    if assignment.maximum():
+        lines.append(f"- Points: {assignment.maximum():g} (the public checks, which a student's tree grades: "
+                     f"{assignment.maximum('public'):g})")
     graded = ", ".join(f"[`{e}`](#{e})" for e in assignment.exercises)
     lines.append(f"- Graded: {graded}")
     if assignment.optional:
@@ -103,6 +103,10 @@ def chapter_page(chapter, lesson_site_path: str | None, source_url: str | None =
         lines += [f"The lesson: [the theory, the figures and the experiments]({lesson}), as a student's tree "
                   "runs it once the exercises are written.", ""]
         lines += ["```{toctree}", ":hidden:", "", lesson[:-len(".ipynb")], "```", ""]
+    assignment = _assignment_section(chapter.name, root)
+    exercises = ", ".join(f"[`{name}`](#{name})" for name in chapter.exercises)
+    lines += [f"On this page: the exercises ({exercises}), each with its hints 1 and 2"
+              + (", and [the assignment](#the-assignment)." if assignment else "."), ""]
     lines += ["## The exercises", "",
               "Each exercise is a file of `exercises/` with a TODO to write; `python -m autograder --only NAME` "
               "grades one, `python -m autograder hint NAME LEVEL` prints its hints (level 3, the result, "
@@ -117,5 +121,5 @@ def chapter_page(chapter, lesson_site_path: str | None, source_url: str | None =
             for level in SHOWN_LEVELS:
                 lines += [f"**Hint {level} ({LEVELS[level]}), `{where}`**", "", _fence(_hint_text(levels[level - 1])),
                           ""]
-    lines += _assignment_section(chapter.name, root)
+    lines += assignment
     return "\n".join(lines).rstrip() + "\n"
