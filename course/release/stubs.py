@@ -40,7 +40,7 @@ BEGIN, END, OMIT = "# BEGIN SOLUTION", "# END SOLUTION", "# RELEASE: omit"
 STUDENT_TEMPLATES = Path(__file__).resolve().parent / "student_tree"
 #: paths (relative to the repository) that are the instructor's alone
 INSTRUCTOR_ONLY = ("solutions", "tests", ".ci", "autograder/mistakes", "CONTRIBUTING.md", "course/release",
-                   "docs/teaching.md")
+                   "docs/teaching.md", "docs/site.md", "notebooks/site")
 #: the docstring of the student's ``exercises/__init__.py`` (the reference's speaks of the release)
 STUDENT_INIT = ('"""Your implementations of the course\'s exercises: replace each '
                 '``raise NotImplementedError("TODO ...")``\nwith your code and keep the signatures; '

@@ -1,4 +1,3 @@
-# RELEASE: omit (the instructor's: builds the course's website)
 """The course as a static website: ``python -m notebooks.site`` (``make site``).
 
 Sphinx with MyST-NB builds it from what this repository holds at build time:
@@ -17,4 +16,7 @@ staged page stays a link, a link to any other file of the repository becomes a l
 ``--source-url``, or plain text without one). The site needs no network: MathJax comes from the
 ``sphinx-mathjax-offline`` package and is served from ``_static/mathjax/``, and the page loads
 nothing from elsewhere (:mod:`notebooks.site.sphinx_config`).
+
+It is the instructor's: a student tree leaves it out, with its guide ``docs/site.md``
+(``course.release.stubs.INSTRUCTOR_ONLY``).
 """

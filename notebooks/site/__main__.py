@@ -1,4 +1,3 @@
-# RELEASE: omit (the instructor's: builds the course's website)
 """``python -m notebooks.site``: build the course's website into ``out/site/html/`` (see the package's docstring).
 
     python -m notebooks.site                      # the whole course, every lesson executed (cached)

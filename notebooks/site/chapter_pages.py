@@ -1,4 +1,3 @@
-# RELEASE: omit (the instructor's: builds the course's website)
 """A page per chapter: its lesson, its exercises with hints 1 and 2, and its assignment.
 
 The chapters and their exercises are :data:`course.core.chapters.CHAPTERS`; an exercise's summary is

@@ -1,4 +1,3 @@
-# RELEASE: omit (the instructor's: builds the course's website)
 """The lessons executed as a student's tree runs them, each execution cached.
 
 A student tree (``course.release.stubs.release(check=True, student_dir=...)``: what ``python -m course

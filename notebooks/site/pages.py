@@ -1,4 +1,3 @@
-# RELEASE: omit (the instructor's: builds the course's website)
 """The guides staged for Sphinx: ``README.md`` as ``index.md``, every ``docs/*.md`` as it is, their links
 rewritten.
 

@@ -1,4 +1,3 @@
-# RELEASE: omit (the instructor's: builds the course's website)
 """The Sphinx configuration of the site, written as ``conf.py`` into the staged sources, and the build.
 
 MyST-NB reads the guides (``.md``) and the executed lessons (``.ipynb``) without executing them again
