@@ -34,11 +34,17 @@ class LessonError(CourseError):
 
 
 def sources_digest(root: Path = REPO_ROOT) -> str:
-    """A hash of the ``.py`` and ``.toml`` files under ``DEPENDS_ON`` (paths and contents)."""
+    """A hash of the ``.py`` and ``.toml`` files under ``DEPENDS_ON`` (paths and contents), but those a student
+    tree leaves out (``INSTRUCTOR_ONLY``: the release itself, the known mistakes), which no lesson runs."""
+    from course.release.stubs import INSTRUCTOR_ONLY
+
+    skipped = tuple(f"{rel}/" for rel in INSTRUCTOR_ONLY if rel != "solutions")
     digest = hashlib.sha256()
     for folder in DEPENDS_ON:
         where = Path(root, folder)
         for path in sorted(where.rglob("*")) if where.is_dir() else [where]:
+            if path.relative_to(root).as_posix().startswith(skipped):
+                continue
             if path.suffix in (".py", ".toml") and "__pycache__" not in path.parts:
                 digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
     return digest.hexdigest()
