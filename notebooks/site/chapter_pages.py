@@ -84,9 +84,8 @@ def _assignment_section(name: str, root: Path) -> list:
     if late.per_day or late.per_hour:
         lines.append(f"- Late: {late.per_day * 100:g}% a day" if late.per_day
                      else f"- Late: {late.per_hour * 100:g}% an hour")
-    lines += ["", f"In the assignment's tree, `make check` (or `python -m autograder`) grades the public checks; "
-              f"the course's staff hand out the tree with `python -m course release --assignment {assignment.name} "
-              "--student DIR`.", ""]
+    lines += ["", "In the assignment's tree, `make check` (or `python -m autograder`) grades the public checks; "
+              "the hidden checks, with inputs of their own, run where you hand it in.", ""]
     return lines
 
 
