@@ -1,6 +1,7 @@
 """``python -m notebooks.site``: build the course's website into ``out/site/html/`` (see the package's docstring).
 
-    python -m notebooks.site                      # the whole course, every lesson executed (cached)
+    python -m notebooks.site --small              # the whole course, every lesson in its quick setting (make site)
+    python -m notebooks.site                      # every lesson in its full setting (an hour or more)
     python -m notebooks.site --assignment ch2     # the chapters up to assignment ch2's
     python -m notebooks.site --only ch2 --small   # one chapter, its lesson in the quick setting
     python -m notebooks.site --source-url https://github.com/OWNER/REPO/blob/main   # link source files
