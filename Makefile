@@ -37,6 +37,13 @@ release: $(STAMP)
 notebooks: $(STAMP)
 	$(PY) -m notebooks.build --execute
 
+# the course as a static website in out/site/html (docs/site.md): every lesson executed in a student tree, in
+# its quick setting (minutes; without --small the full setting takes an hour or more on two cores)
+.PHONY: site
+site: $(STAMP)
+	$(PY) -m pip install --quiet -e ".[site]"
+	$(PY) -m notebooks.site --small
+
 benchmark: $(STAMP)
 	$(PY) -m course benchmark
 

@@ -42,8 +42,9 @@ BEGIN, END, OMIT = "# BEGIN SOLUTION", "# END SOLUTION", "# RELEASE: omit"
 #: the student's README.md and Makefile, copied over the instructor's
 STUDENT_TEMPLATES = Path(__file__).resolve().parent / "student_tree"
 #: paths (relative to the repository) that are the instructor's alone
+#: (the guides under docs/ are written for this repository; the student tree's README is the student's guide)
 INSTRUCTOR_ONLY = ("solutions", "tests", ".ci", "autograder/mistakes", "CONTRIBUTING.md", "autograder/release",
-                   "docs/teaching.md")
+                   "docs", "notebooks/site")
 #: the docstring of the student's ``exercises/__init__.py`` (the reference's speaks of the release)
 STUDENT_INIT = ('"""Your implementations of the course\'s exercises: replace each '
                 '``raise NotImplementedError("TODO ...")``\nwith your code and keep the signatures; '
