@@ -21,7 +21,9 @@ LINK = re.compile(r"(?P<bang>!?)\[(?P<text>(?:[^\[\]\n]|\[[^\[\]\n]*\])*)\]"
 #: ``` or ~~~ opening or closing a fenced block
 FENCE = re.compile(r"^\s*(```|~~~)")
 #: inline code spans, left untouched
-CODE_SPAN = re.compile(r"(`+)(?:(?!\1).)+?\1")
+CODE_SPAN = re.compile(r"(?P<ticks>`+)(?:(?!(?P=ticks)).)+?(?P=ticks)")
+#: a link (whose text may hold code spans) or a code span, whichever starts first
+LINK_OR_CODE = re.compile(f"{LINK.pattern}|{CODE_SPAN.pattern}")
 
 
 def guide_pages(root: Path = REPO_ROOT) -> dict:
@@ -80,13 +82,8 @@ def _rewrite_line(line: str, page: str, staged: dict, source_url: str | None) ->
             return match["text"] if not match["bang"] else match["text"] or ""
         return f"{match['bang']}[{match['text']}]({target}{match['title'] or ''})"
 
-    pieces, last = [], 0
-    for span in CODE_SPAN.finditer(line):  # links outside code spans only
-        pieces.append(LINK.sub(one, line[last:span.start()]))
-        pieces.append(span.group(0))
-        last = span.end()
-    pieces.append(LINK.sub(one, line[last:]))
-    return "".join(pieces)
+    # links outside code spans only; a link's text may hold code spans ([`name`](target))
+    return LINK_OR_CODE.sub(lambda match: one(match) if match["target"] else match.group(0), line)
 
 
 def stage_guides(staged: dict, source_url: str | None, root: Path = REPO_ROOT) -> dict:
