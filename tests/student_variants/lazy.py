@@ -10,6 +10,7 @@ runs and the folder scores what the stubs score (``tests/test_lazy_folder.py``).
 not all be right: the grade must not depend on them.
 """
 
+import ast
 from pathlib import Path
 
 #: module -> (the delegating imports, {TODO name: body replacing the stub's raise, at its indentation})
@@ -129,10 +130,10 @@ NAMED = {
 
 
 def _insert_imports(text: str, imports: str) -> str:
-    """``text`` with ``imports`` after its first block of import lines."""
+    """``text`` with ``imports`` after its last top-level import statement (which may span lines)."""
     lines = text.splitlines(keepends=True)
-    last = max(k for k, line in enumerate(lines) if line.startswith(("import ", "from ")))
-    return "".join(lines[:last + 1]) + imports + "\n" + "".join(lines[last + 1:])
+    last = max(node.end_lineno for node in ast.parse(text).body if isinstance(node, (ast.Import, ast.ImportFrom)))
+    return "".join(lines[:last]) + imports + "\n" + "".join(lines[last:])
 
 
 def lazy_text(stub: str, module: str) -> str:
