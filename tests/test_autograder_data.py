@@ -141,7 +141,8 @@ def test_a_lookup_table_of_public_answers_loses_the_hidden_points(tmp_path):
 
 @needs("pyceres", "qdldl")
 @pytest.mark.slow
-@pytest.mark.parametrize("first", range(0, 100, 25))  # 100 seeds in four parts, for pytest-xdist
+# 60 seeds in four parts: an input the reference fails on 2% of the seeds shows with probability 70%
+@pytest.mark.parametrize("first", range(0, 60, 15))
 def test_the_reference_answers_the_hidden_inputs_of_any_seed(first, monkeypatch):
     """A Gradescope bundle draws its hidden seed at random: every check's hidden inputs must
     be ones the reference answers, whatever the seed (the curve's Gauss-Newton from (0, 0, 0)
@@ -151,6 +152,6 @@ def test_the_reference_answers_the_hidden_inputs_of_any_seed(first, monkeypatch)
     monkeypatch.setattr(parallel_task, "STAGGER_FLOOR", 0.0)
     monkeypatch.setattr(parallel_task, "STAGGER_SECONDS", 0.0)
     modules = module_of()
-    for seed in range(first, first + 25):
+    for seed in range(first, first + 15):
         for check in all_checks():
             oracle.compute(check, modules[check.name], 10_000 + seed)
