@@ -7,12 +7,12 @@ the page is the same on every machine of one Python version (argparse's layout m
 versions: the page names the one that wrote it). ``--check`` exits 1 when the page is stale.
 """
 
-import argparse
 import os
 import re
 import subprocess
 import sys
 
+from course.app import generated_page
 from course.core.impl import REPO_ROOT
 
 PAGE = REPO_ROOT / "docs" / "commands.md"
@@ -92,18 +92,9 @@ def anchor(heading: str) -> str:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog=COMMAND, description="write docs/commands.md from every command's --help")
-    parser.add_argument("--check", action="store_true", help="write nothing; exit 1 when the page is stale")
-    args = parser.parse_args(argv)
-    text = render()
-    if args.check:
-        if PAGE.is_file() and PAGE.read_text(encoding="utf-8") == text:
-            return 0
-        print(f"{PAGE.relative_to(REPO_ROOT)} is not the commands' help: run `{COMMAND}`", file=sys.stderr)
-        return 1
-    PAGE.write_text(text, encoding="utf-8")
-    print(f"wrote {PAGE.relative_to(REPO_ROOT)}")
-    return 0
+    return generated_page.main(argv, PAGE, render, command=COMMAND,
+                               description="write docs/commands.md from every command's --help",
+                               source="the commands' help")
 
 
 if __name__ == "__main__":

@@ -11,12 +11,11 @@ measured in the same run, the median of the repeats' ratios with their min and m
 notes on what the figures led to). ``--check`` exits 1 when the page is not the render of the files.
 """
 
-import argparse
 import shlex
 import sys
 from pathlib import Path
 
-from course.app import benchmark_suite
+from course.app import benchmark_suite, generated_page
 from course.core.impl import REPO_ROOT
 
 FOLDER = REPO_ROOT / "docs" / "measured"
@@ -116,19 +115,9 @@ def render(folder: Path = FOLDER) -> str:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog=COMMAND, description="write docs/measured.md from docs/measured/")
-    parser.add_argument("--check", action="store_true", help="write nothing; exit 1 when the page is stale")
-    args = parser.parse_args(argv)
-    text = render()
-    if args.check:
-        if PAGE.is_file() and PAGE.read_text(encoding="utf-8") == text:
-            return 0
-        print(f"{PAGE.relative_to(REPO_ROOT)} is not the render of docs/measured/: run `{COMMAND}`", file=sys.stderr)
-        return 1
-    PAGE.write_text(text, encoding="utf-8")
-    print(f"wrote {PAGE.relative_to(REPO_ROOT)}")
-    return 0
-
+    return generated_page.main(argv, PAGE, render, command=COMMAND,
+                               description='write docs/measured.md from docs/measured/',
+                               source='docs/measured/')
 
 if __name__ == "__main__":
     sys.exit(main())
