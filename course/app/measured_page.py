@@ -119,5 +119,6 @@ def main(argv=None) -> int:
                                description='write docs/measured.md from docs/measured/',
                                source='docs/measured/')
 
+
 if __name__ == "__main__":
     sys.exit(main())
