@@ -31,7 +31,7 @@ class SparseAssembler3D:
 
     ``__init__`` finds, once, the pattern of H's upper triangle (every diagonal entry present) and
     where in ``H.data`` each entry of each edge's blocks that the upper triangle needs goes;
-    ``assemble`` then costs batched products and one ``np.bincount``. Which entries of
+    ``assemble`` then costs batched products and one sum into those places (a sparse product). Which entries of
     ``J^T Omega J`` (12, 12) are needed, and where do they go? Derive it from the edges' indices
     (``python -m autograder hint SparseAssembler3D 1``, then 2 and 3).
 

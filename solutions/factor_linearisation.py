@@ -46,8 +46,11 @@ class BlockSparseAssembler:
         offsets = np.concatenate([[0], np.cumsum(dims)])
         n = int(offsets[-1])
         self._shape = (n, n)
-        rows, cols = [], []
-        self._plan = []  # per group, per (a, c) slot pair with a <= c: which entries of the block are kept
+        rows, cols, weights, entries = [], [], [], []
+        # per group, per slot pair (a, c) with a <= c: where in ``assemble``'s values its blocks go, their shape,
+        # and the variables' grouping (below); the values are every pair's blocks, one pair after the other
+        self._plan = []
+        size = 0
         # a variable's own block of H is summed variable by variable (one product of its factors' rows
         # stacked) where the variables of a slot are in at least this many factors each, on average
         many = 8
@@ -55,7 +58,7 @@ class BlockSparseAssembler:
             key = np.asarray(key, dtype=np.int64)
             pairs = []
             for a in range(key.shape[1]):
-                for c in range(key.shape[1]):
+                for c in range(a, key.shape[1]):
                     da, dc = int(dims[key[0, a]]), int(dims[key[0, c]])
                     variables, groups = key[:, a], None
                     if a == c:  # a variable's own block: by variable where each is in many factors
@@ -67,23 +70,30 @@ class BlockSparseAssembler:
                     r = offsets[variables][:, None, None] + np.arange(da)[None, :, None]
                     q = offsets[variables if a == c else key[:, c]][:, None, None] + np.arange(dc)[None, None, :]
                     r, q = np.broadcast_arrays(r, q)
-                    keep = r <= q  # the upper triangle of H
-                    if not keep.any():  # the pair (c, a) holds this block's transpose
-                        continue
-                    rows.append(r[keep])
-                    cols.append(q[keep])
-                    pairs.append((a, c, None if keep.all() else np.flatnonzero(keep), groups))
+                    # J_c^T J_a is the transpose of J_a^T J_c: an entry of the pair below H's diagonal is stored
+                    # at its mirror; a variable's own block (a == c) is symmetric, its upper triangle suffices;
+                    # two slots on one variable put a diagonal entry there twice (J_a^T J_c and J_c^T J_a)
+                    used = r <= q if a == c else np.ones(r.shape, dtype=bool)
+                    rows.append(np.minimum(r, q)[used])
+                    cols.append(np.maximum(r, q)[used])
+                    weights.append(np.where((a != c) & (r == q), 2.0, 1.0)[used])
+                    entries.append(size + np.flatnonzero(used))
+                    pairs.append((a, c, slice(size, size + r.size), r.shape, groups))
+                    size += r.size
             self._plan.append(pairs)
         rows.append(np.arange(n))  # every diagonal entry is in the pattern (the damping adds to it)
         cols.append(np.arange(n))
         rows, cols = np.concatenate(rows), np.concatenate(cols)
         linear = cols * n + rows  # column-major order: CSC
         unique, inverse = np.unique(linear, return_inverse=True)
-        self._positions = inverse[: len(linear) - n]
         self._indices = (unique % n).astype(np.int32)
         self._indptr = np.searchsorted(unique // n, np.arange(n + 1)).astype(np.int32)
         self.nnz = len(unique)
         self.diagonal_positions = inverse[len(linear) - n:]
+        # H.data = S @ values: S (nnz, size) holds each value's weight at (its position in H.data, its index)
+        self._size = size
+        self._sum = sp.csr_matrix((np.concatenate(weights), (inverse[: len(linear) - n], np.concatenate(entries))),
+                                  shape=(self.nnz, size))
         fixed_dof = np.zeros(n, dtype=bool)
         for v in np.asarray(fixed, dtype=np.int64):
             fixed_dof[offsets[v]:offsets[v + 1]] = True
@@ -92,6 +102,9 @@ class BlockSparseAssembler:
         self._dead = np.flatnonzero(fixed_dof[self._indices] | fixed_dof[column])
         self._offsets = offsets
         self._keys = [np.asarray(key, dtype=np.int64) for key in keys]
+        # per group, per slot: the entries of b its factors' J_a^T r go to (M * d_a,)
+        self._b_index = [[(offsets[key[:, a]][:, None] + np.arange(int(dims[key[0, a]]))).ravel()
+                          for a in range(key.shape[1])] for key in self._keys]
         # END SOLUTION
 
     def assemble(self, blocks):
@@ -101,26 +114,26 @@ class BlockSparseAssembler:
         """
         # BEGIN SOLUTION
         n = self._shape[0]
-        values = []
+        values = np.empty(self._size)  # every pair's blocks, written in place by the products
         b = np.zeros(n)
         chi2 = 0.0
-        for key, pairs, (r, J) in zip(self._keys, self._plan, blocks):
-            for a, c, keep, groups in pairs:
-                if groups is None:  # one block per factor
-                    block = np.matmul(J[a].transpose(0, 2, 1), J[c]).ravel()
+        for b_index, pairs, (r, J) in zip(self._b_index, self._plan, blocks):
+            for a, c, where, shape, groups in pairs:
+                out = values[where].reshape(shape)
+                if groups is None:  # one block per factor; J_a^T J_a of a copy: numpy hands a product of an
+                    # array with its own transpose to BLAS (syrk) one small block at a time, 3x slower here
+                    np.matmul(J[a].transpose(0, 2, 1), J[c] if c != a else J[c].copy(), out=out)
                 else:  # one per variable: the rows of its factors stacked, J^T J in one product
                     order, bounds = groups
                     stacked = J[a][order].reshape(-1, J[a].shape[2])
                     m = J[a].shape[1]
-                    block = np.stack([stacked[m * lo:m * hi].T @ stacked[m * lo:m * hi]
-                                      for lo, hi in zip(bounds[:-1], bounds[1:])]).ravel()
-                values.append(block if keep is None else block[keep])
-            for a in range(len(J)):
+                    for k, (lo, hi) in enumerate(zip(bounds[:-1], bounds[1:])):
+                        np.matmul(stacked[m * lo:m * hi].T, stacked[m * lo:m * hi], out=out[k])
+            for a, index in enumerate(b_index):
                 g = np.einsum("mra,mr->ma", J[a], r)
-                idx = self._offsets[key[:, a]][:, None] + np.arange(J[a].shape[2])
-                b += np.bincount(idx.ravel(), weights=g.ravel(), minlength=n)
+                b += np.bincount(index, weights=g.ravel(), minlength=n)
             chi2 += float(np.vdot(r, r))
-        data = np.bincount(self._positions, weights=np.concatenate(values) if values else None, minlength=self.nnz)
+        data = self._sum @ values  # each entry of H.data, the sum of its contributions
         data[self._dead] = 0.0
         data[self.diagonal_positions[self._fixed_dof]] = 1.0
         b[self._fixed_dof] = 0.0
@@ -139,15 +152,22 @@ HINTS = {
         sums them into those positions.""",
         """Row ``offsets[key[f, a]] + i``, column ``offsets[key[f, c]] + j`` gets ``(J_a^T J_c)[i, j]``; in
         CSC order an entry's key is ``column * n + row``, so ``np.unique(keys, return_inverse=True)``
-        gives the pattern (sorted) and every contribution's position; ``np.bincount(positions, weights)``
-        sums them. A pair (a, c) whose variables come in the other order lands below the diagonal:
-        its transpose, from the pair (c, a), is the one above.""",
-        """``__init__``: for each group and each slot pair (a, c), the (M, d_a, d_c) arrays of rows and
-        columns; ``keep = rows <= cols``; concatenate the kept ones and the diagonal (every diagonal entry
+        gives the pattern (sorted) and every contribution's position. The sums are one product with a
+        fixed sparse matrix ``S`` (a row per position, a column per computed value, 1 where the value goes;
+        ``np.bincount(positions, weights)`` sums the same). ``J_c^T J_a`` is the transpose of ``J_a^T J_c``:
+        compute the pairs ``a <= c`` only; where a factor's variables come in the other order, an entry
+        lands below the diagonal: store it at its mirror ``(column, row)``. Of a variable's own block
+        (``a == c``) the upper triangle suffices.""",
+        """``__init__``: for each group and each slot pair (a, c) with ``a <= c``, the (M, d_a, d_c) arrays of
+        rows and columns; ``used = rows <= cols`` where ``a == c``, every entry where ``a < c``; concatenate
+        ``minimum(rows, cols)[used]``, ``maximum(rows, cols)[used]`` and the diagonal (every diagonal entry
         in the pattern, for the damping); ``unique, inverse = np.unique(cols * n + rows, return_inverse=True)``;
-        ``indices = unique % n``, ``indptr = searchsorted(unique // n, arange(n + 1))``. ``assemble``:
-        ``values = (J_a^T J_c)[keep]`` per pair, ``data = bincount(positions, values)``; ``b`` by
-        ``bincount`` of ``J_a^T r`` at slot a's offsets; ``chi2 = sum r^T r``; then the fixed rows and
-        columns zeroed, their diagonal set to 1, their entries of b zeroed.""",
+        ``indices = unique % n``, ``indptr = searchsorted(unique // n, arange(n + 1))``;
+        ``S = csr_matrix((1s, (inverse of the used entries, their index among all values)))``, with 2 for a
+        diagonal entry of a pair ``a < c`` whose two slots hold one variable (``J_a^T J_c`` and its transpose
+        both put it there). ``assemble``: ``J_a^T J_c`` of each pair into its part of one array of values
+        (``matmul``'s ``out=``), ``data = S @ values``; ``b`` by ``bincount`` of ``J_a^T r`` at slot a's
+        offsets; ``chi2 = sum r^T r``; then the fixed rows and columns zeroed, their diagonal set to 1,
+        their entries of b zeroed.""",
     ),
 }

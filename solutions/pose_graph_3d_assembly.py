@@ -31,7 +31,7 @@ class SparseAssembler3D:
 
     ``__init__`` finds, once, the pattern of H's upper triangle (every diagonal entry present) and
     where in ``H.data`` each entry of each edge's blocks that the upper triangle needs goes;
-    ``assemble`` then costs batched products and one ``np.bincount``. Which entries of
+    ``assemble`` then costs batched products and one sum into those places (a sparse product). Which entries of
     ``J^T Omega J`` (12, 12) are needed, and where do they go? Derive it from the edges' indices
     (``python -m autograder hint SparseAssembler3D 1``, then 2 and 3).
 
@@ -53,29 +53,34 @@ class SparseAssembler3D:
         edges_i, edges_j = np.asarray(edges_i, dtype=np.int64), np.asarray(edges_j, dtype=np.int64)
         if np.any(edges_i == edges_j):
             raise ValueError(f"self-loop edge at index {np.flatnonzero(edges_i == edges_j)[0]}")
-        n = 6 * num_poses
-        # global row and column of the 78 entries of every edge that H's upper triangle needs, in the
-        # order ``assemble`` lists them: A^T Omega A's upper 21, A^T Omega B's 36, B^T Omega B's upper 21;
-        # where pose i comes after pose j, A^T Omega B lies below H's diagonal: store its mirror
+        n, m = 6 * num_poses, len(edges_i)
+        # global row and column of every entry of the three blocks ``assemble`` computes per edge, laid out as
+        # it stores them, (3, M, 6, 6): A^T Omega A, A^T Omega B, B^T Omega B
         local = np.arange(6)
         dof_i, dof_j = 6 * edges_i[:, None] + local, 6 * edges_j[:, None] + local  # (M, 6)
-        a, b = self.UPPER
-        r = np.concatenate([dof_i[:, a], np.repeat(dof_i, 6, axis=1), dof_j[:, a]], axis=1)  # (M, 78)
-        c = np.concatenate([dof_i[:, b], np.tile(dof_j, (1, 6)), dof_j[:, b]], axis=1)
-        rows, cols = np.minimum(r, c).ravel(), np.maximum(r, c).ravel()
+        r = np.broadcast_to(np.stack([dof_i, dof_i, dof_j])[..., None], (3, m, 6, 6))
+        c = np.broadcast_to(np.stack([dof_i, dof_j, dof_j])[..., None, :], (3, m, 6, 6))
+        # H's upper triangle needs the upper 21 entries of the diagonal blocks and all 36 of A^T Omega B;
+        # where pose i comes after pose j, A^T Omega B lies below H's diagonal: store its mirror
+        needed = np.ones((3, 1, 6, 6), dtype=bool)
+        needed[0, 0] = needed[2, 0] = local[:, None] <= local
+        entries = np.flatnonzero(np.broadcast_to(needed, r.shape))  # of the 3 * 36 M computed, 78 M are summed
+        rows, cols = np.minimum(r, c).ravel()[entries], np.maximum(r, c).ravel()[entries]
         diagonal = np.arange(n)
         keys = np.concatenate([cols * n + rows, diagonal * n + diagonal])  # CSC order: column, then row
         unique, inverse = unique_inverse(keys)  # np.unique(keys, return_inverse=True), faster here
-        self._positions = inverse[: len(rows)]
+        positions = inverse[: len(rows)]
         self.diagonal_positions = inverse[len(rows):]
-        self._indices = unique % n
-        self._indptr = np.searchsorted(unique // n, np.arange(n + 1))
+        self._indices = (unique % n).astype(np.int32)  # the index type scipy keeps: no copy per matrix
+        self._indptr = np.searchsorted(unique // n, np.arange(n + 1)).astype(np.int32)
         self._shape, self.nnz = (n, n), len(unique)
+        # H.data = S @ (the computed entries, raveled): S (nnz, 3 * 36 M) holds a 1 at (position, entry)
+        self._sum = sp.csr_matrix((np.ones(len(entries)), (positions, entries)), shape=(self.nnz, 3 * 36 * m))
         self._b_positions = np.concatenate([dof_i, dof_j], axis=1).ravel()
         fixed_dof = np.zeros(n, dtype=bool)
         fixed_dof[(6 * np.asarray(fixed, dtype=np.int64)[:, None] + local).ravel()] = True
         self._fixed_dof = fixed_dof
-        self._dead = fixed_dof[self._indices] | np.repeat(fixed_dof, np.diff(self._indptr))
+        self._dead = np.flatnonzero(fixed_dof[self._indices] | np.repeat(fixed_dof, np.diff(self._indptr)))
         self._fixed_diagonal = self.diagonal_positions[fixed_dof]
         # END SOLUTION
 
@@ -89,17 +94,19 @@ class SparseAssembler3D:
         # the three blocks H needs, not the whole J^T Omega J (12, 12): a third less to compute and move
         OA, OB = np.matmul(information, A), np.matmul(information, B)  # (M, 6, 6)
         AT, BT = A.transpose(0, 2, 1), B.transpose(0, 2, 1)
-        ua, ub = self.UPPER
-        H_edges = np.concatenate([np.matmul(AT, OA)[:, ua, ub], np.matmul(AT, OB).reshape(len(A), 36),
-                                  np.matmul(BT, OB)[:, ua, ub]], axis=1).ravel()  # (M * 78,)
-        g_edges = np.concatenate([np.einsum("mai,ma->mi", OA, e), np.einsum("mai,ma->mi", OB, e)],
-                                 axis=1).ravel()  # [A^T Omega e, B^T Omega e] (M * 12,)
-        data = np.bincount(self._positions, weights=H_edges, minlength=self.nnz)
+        blocks = np.empty((3,) + A.shape)  # batched products into one array: no copies to gather them
+        np.matmul(AT, OA, out=blocks[0])
+        np.matmul(AT, OB, out=blocks[1])
+        np.matmul(BT, OB, out=blocks[2])
+        data = self._sum @ blocks.ravel()  # each entry of H.data, the sum of its contributions
         data[self._dead] = 0.0
         data[self._fixed_diagonal] = 1.0
+        Oe = np.einsum("mij,mj->mi", information, e)  # Omega e (M, 6)
+        g_edges = np.concatenate([np.einsum("mai,ma->mi", A, Oe), np.einsum("mai,ma->mi", B, Oe)],
+                                 axis=1).ravel()  # [A^T Omega e, B^T Omega e] (M * 12,)
         b = np.bincount(self._b_positions, weights=g_edges, minlength=self._shape[0])
         b[self._fixed_dof] = 0.0
-        chi2 = float(np.einsum("mi,mij,mj->", e, information, e))
+        chi2 = float(np.vdot(e, Oe))
         H = sp.csc_matrix((data, self._indices, self._indptr), shape=self._shape)
         return H, b, chi2
         # END SOLUTION
@@ -119,25 +126,29 @@ HINTS = {
         transpose and never needed: 21 + 36 + 21 = 78 per edge. Where ``i > j`` the block ``A^T Omega B``
         lies below the diagonal: store entry ``(r, c)`` at ``(min(r, c), max(r, c))``. CSC order is the
         order of the key ``column * 6N + row``; ``np.unique(keys, return_inverse=True)`` gives the sorted
-        pattern and each entry's slot, and ``np.bincount`` sums the entries that share a slot.""",
+        pattern and each entry's slot. Summing the entries that share a slot is a product with a fixed
+        0/1 matrix ``S`` (a row per slot, a column per computed entry), built once as a ``scipy.sparse``
+        matrix (``np.bincount(slots, weights)`` sums the same).""",
         """::
 
             dof_i, dof_j = 6 edges_i + arange(6), 6 edges_j + arange(6)            (M, 6) each
-            a, b = triu_indices(6)
-            r = [dof_i[:, a], repeat(dof_i, 6, axis=1), dof_j[:, a]]               (M, 78)
-            c = [dof_i[:, b], tile(dof_j, (1, 6)),      dof_j[:, b]]
-            rows, cols = minimum(r, c).ravel(), maximum(r, c).ravel()
+            blocks [A^T Omega A, A^T Omega B, B^T Omega B]                         (3, M, 6, 6)
+            r = [dof_i, dof_i, dof_j] down each block's rows, c = [dof_i, dof_j, dof_j] along its columns
+            entries = the flat indices of the needed ones: the upper triangle of blocks 0 and 2, all of 1
+            rows, cols = minimum(r, c).ravel()[entries], maximum(r, c).ravel()[entries]
             keys = concatenate([cols * 6N + rows, arange(6N) * 6N + arange(6N)])
             unique, inverse = unique_inverse(keys)
-            positions, diagonal_positions = inverse[:78 M], inverse[78 M:]
+            slots, diagonal_positions = inverse[:78 M], inverse[78 M:]
             indices, indptr = unique % 6N, searchsorted(unique // 6N, arange(6N + 1))
+            S = csr_matrix((ones(78 M), (slots, entries)), shape=(nnz, 3 * 36 M))
             dead = fixed_dof[indices] | repeat(fixed_dof, diff(indptr))
 
             assemble:  OA, OB = Omega A, Omega B
-                       H_edges = [(A^T OA)[:, a, b], (A^T OB).reshape(M, 36), (B^T OB)[:, a, b]]   (M, 78)
-                       data = bincount(positions, H_edges.ravel(), minlength=nnz)
+                       blocks = [A^T OA, A^T OB, B^T OB]       (matmul, each into its part of one array)
+                       data = S @ blocks.ravel()
                        data[dead] = 0;  data[diagonal_positions[fixed_dof]] = 1
-                       b = bincount([dof_i, dof_j].ravel(), [OA^T e, OB^T e].ravel(), minlength=6N);  b[fixed_dof] = 0
-                       chi2 = sum_k e_k^T Omega_k e_k;  H = csc_matrix((data, indices, indptr), (6N, 6N))""",
+                       Oe = Omega e;  b = bincount([dof_i, dof_j].ravel(), [A^T Oe, B^T Oe].ravel(), minlength=6N)
+                       b[fixed_dof] = 0;  chi2 = sum_k e_k . Oe_k
+                       H = csc_matrix((data, indices, indptr), shape=(6N, 6N))""",
     ),
 }

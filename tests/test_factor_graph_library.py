@@ -2,6 +2,8 @@
 minimum; a user's factor type reaches all three by itself; noise models; partial fixing (some dofs
 held) and bundle adjustment's gauge fixed as chapter 4 fixes it."""
 
+import re
+
 import numpy as np
 import pytest
 from conftest import needs
@@ -442,7 +444,10 @@ def test_ladybug_49s_gauss_newton_rows_fail_alike_after_the_same_diverging_steps
 
     rows = compare.run_bal(load_bal("ladybug-49"), methods=["gauss-newton"], backends=["ours", "ours-autodiff"])
     for row in rows:
-        assert row.not_run.endswith("(after 2 steps, chi2 7.2e+09, 4.4e+18: the steps diverged first)"), row.not_run
+        # the second chi2 is where two diverging steps led: its digits are rounding's (4.3e+18 or 4.4e+18
+        # as the Jacobians' sums are ordered), its size is not
+        found = re.search(r"\(after 2 steps, chi2 7\.2e\+09, (\S+): the steps diverged first\)$", row.not_run)
+        assert found and 1e18 <= float(found[1]) < 1e19, row.not_run
     assert "the gauge is free" not in rows[1].not_run
 
 

@@ -90,11 +90,8 @@ def stack(arrays, axis=-1):
 
 
 def concatenate(arrays):
-    """``np.concatenate(arrays, axis=-1)``: on Jets column by column (the Jet has ``stack`` only)."""
-    xp = namespace(*arrays)
-    if xp is not np:
-        return xp.concatenate(arrays, axis=-1)
-    return np.stack([a[..., i] for a in arrays for i in range(a.shape[-1])], axis=-1)
+    """``np.concatenate(arrays, axis=-1)`` of arrays, Jets (and constants) or JAX arrays."""
+    return namespace(*arrays).concatenate(arrays, axis=-1)
 
 
 def where(mask, a, b):
@@ -152,8 +149,11 @@ def skew(v):
 
 def vee(W):
     """The vector (..., 3) of the antisymmetric part of ``W`` (..., 3, 3): ``vee((W - W^T) / 2)``."""
-    return 0.5 * stack([W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0],
-                           W[..., 1, 0] - W[..., 0, 1]], axis=-1)
+    return 0.5 * (W[..., _VEE_ROWS, _VEE_COLUMNS] - W[..., _VEE_COLUMNS, _VEE_ROWS])
+
+
+#: the entries ``(2, 1), (0, 2), (1, 0)`` of ``[w]_x`` that hold ``w``'s components (:func:`vee`)
+_VEE_ROWS, _VEE_COLUMNS = np.array([2, 0, 1]), np.array([1, 2, 0])
 
 
 def matvec(A, v):

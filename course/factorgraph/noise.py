@@ -39,11 +39,38 @@ def whitening(information, dim: int, count: int, where: str) -> np.ndarray | Non
     return np.ascontiguousarray(L.transpose(0, 2, 1))
 
 
-def whiten(W, r, J):
-    """``(W r, [W J_a])`` for ``W`` (M, m, m) or None (unit)."""
+def diagonal(W) -> np.ndarray | None:
+    """The diagonal (M, m) of ``W`` (M, m, m) where every ``W`` is diagonal (independent noise), else None."""
     if W is None:
-        return r, J
-    return np.einsum("mab,mb->ma", W, r), [np.matmul(W, block) for block in J]
+        return None
+    d = np.diagonal(W, axis1=1, axis2=2)
+    return np.ascontiguousarray(d) if np.count_nonzero(W) == np.count_nonzero(d) else None
+
+
+def whiten(W, r, J, out=None, diagonal=None):
+    """``(W r, [W J_a])`` for ``W`` (M, m, m) or None (unit); written into ``out = (r_out, [J_a_out])``
+    where given (each of the shape of its input). ``diagonal``: ``W``'s diagonal (M, m) where ``W`` is
+    diagonal (:func:`diagonal`), by which ``W r`` is the product entry by entry (the same numbers: the
+    other terms are 0), ten times faster than the sum over ``b`` of ``W_ab r_b``."""
+    def whitened_r(r_out=None):
+        if diagonal is not None:
+            return np.multiply(diagonal, r, out=r_out)
+        return np.einsum("mab,mb->ma", W, r, out=r_out)
+
+    if out is None:
+        if W is None:
+            return r, J
+        return whitened_r(), [np.matmul(W, block) for block in J]
+    r_out, J_out = out
+    if W is None:
+        r_out[...] = r
+        for block, block_out in zip(J, J_out):
+            block_out[...] = block
+    else:
+        whitened_r(r_out)
+        for block, block_out in zip(J, J_out):
+            np.matmul(W, block, out=block_out)
+    return r_out, J_out
 
 
 # ---------------------------------------------------------------- noise models for FactorGraph.add(..., noise=)

@@ -4,12 +4,14 @@
 a step ``h`` (n,) is every variable's tangent step in the same order. ``linearize`` evaluates each
 group of factors at once: the values of its variables gathered, the residual and its tangent
 Jacobians (``jacobians``: ``"autodiff"`` by the implementation's Jets and ``autodiff_factor``, each
-variable's stored value seeded with its kind's ``plus_jacobian``, ``"numeric"`` by central
+variable's stored value seeded with its kind's ``plus_jacobian`` (found once per variable where its
+factors outnumber its kind's variables, and gathered per factor), ``"numeric"`` by central
 differences, or a function that a peer supplies, see ``FactorGraphProblem``; a fixed variable is not
 differentiated: a constant, or its seed 0 in the factors that hold it, and its blocks 0 on every
 path; the Jets evaluate a group in chunks that stay in the cache, one slot at a time, ``SLOT_BY_SLOT``),
-whitened by the square root of the information, and all groups assembled
-by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pattern found once. The
+whitened by the square root of the information (the Jets' output chunk by chunk, as it comes), and all
+groups assembled by the implementation's ``factor_linearisation.BlockSparseAssembler`` into a pattern
+found once. The
 step comes from the sparse solve ``course.solver.choice`` picks (``solver``, default ``auto``: CHOLMOD
 on a large system where cvxopt is installed, else the implementation's sparse Cholesky solver of
 chapter 2, or SuperLU where qdldl is not installed; ``linear_solve`` names it; CHOLMOD analyses H's
@@ -99,8 +101,18 @@ class FactorGraphProblem:
         self._gathers = [[(self._x_offsets[keys[:, a]][:, None] + np.arange(int(np.prod(kind.shape))),
                            (len(keys),) + kind.shape) for a, kind in enumerate(ftype.kinds)]
                          for ftype, keys, _, _ in self._groups]
+        # per group, per slot: each factor's variable's row among its kind's (``_by_kind``), where the group
+        # holds the kind at least as often as it has variables: its plus-Jacobians are then found once per
+        # variable and gathered (each pose of a pose graph is in about 7 factors), else None
+        rank = np.zeros(len(kinds), dtype=np.int64)
+        for members, _, _ in self._by_kind.values():
+            rank[members] = np.arange(len(members))
+        self._plus_rows = [[rank[keys[:, a]] if sum(k == kind for k in ftype.kinds) * len(keys)
+                            >= len(self._by_kind[kind][0]) else None for a, kind in enumerate(ftype.kinds)]
+                           for ftype, keys, _, _ in self._groups]
         self._whitening = [noise.whitening(info, ftype.dim, len(keys), f"{graph.name}: {ftype.name}")
                            for ftype, keys, _, info in self._groups]
+        self._diagonal = [noise.diagonal(W) for W in self._whitening]  # (M, m) where W is diagonal, else None
         self._losses = [group.loss for group in graph.groups.values()]
         self._kernels = self.impl.module("robust_kernels") if any(self._losses) else None
         self._fixed = np.array(sorted(set(graph.fixed)), dtype=np.int64)
@@ -153,14 +165,14 @@ class FactorGraphProblem:
     def _slots(self, x, group: int):
         """The values of group ``group``'s variables at ``x``, slot by slot (M, *shape_a)."""
         x = np.asarray(x)
-        return [x[index].reshape(shape) for index, shape in self._gathers[group]]
+        return [np.take(x, index).reshape(shape) for index, shape in self._gathers[group]]
 
     def residuals(self, x) -> list:
         """Per group, the whitened residuals (M_g, m_g) at ``x``."""
         out = []
         for group, ((ftype, _, z, _), W) in enumerate(zip(self._groups, self._whitening)):
             r = np.asarray(ftype.residual(z, *self._slots(x, group)), dtype=float)
-            out.append(r if W is None else np.einsum("mab,mb->ma", W, r))
+            out.append(noise.whiten(W, r, [], diagonal=self._diagonal[group])[0])
         return out
 
     def chi2(self, x) -> float:
@@ -170,9 +182,13 @@ class FactorGraphProblem:
 
     # ------------------------------------------------------------ the linearisation
 
-    def factor_jacobians(self, x, group: int):
-        """``(r (M, m), [J_a (M, m, d_a)])`` of group ``group`` at ``x``, before whitening."""
+    def factor_jacobians(self, x, group: int, plus_by_kind=None):
+        """``(r (M, m), [J_a (M, m, d_a)])`` of group ``group`` at ``x``, before whitening.
+
+        ``plus_by_kind``: a dict that keeps, per kind, the plus-Jacobians of all its variables at ``x`` once
+        found (one linearisation's groups share it), or None."""
         ftype, keys, z, _ = self._groups[group]
+        plus_by_kind = {} if plus_by_kind is None else plus_by_kind
 
         def residual(*points):
             return ftype.residual(z, *points)
@@ -189,27 +205,46 @@ class FactorGraphProblem:
         if self.jacobians == "numeric":
             r, J = central_differences(residual, retractions, dims, xs)
             return self._checked(r, (len(keys), ftype.dim), "the residual", "r", group, 0), self._held_still(held, J)
+        return self._autodiff(x, group, xs, plus_by_kind, whiten=False)
+
+    def _autodiff(self, x, group: int, xs: list, plus_by_kind: dict, whiten: bool):
+        """``factor_jacobians`` by the Jets, chunk by chunk. With ``whiten``: each chunk's output whitened as
+        it comes (``noise.whiten`` into the group's arrays, while the chunk is in the cache), its finiteness
+        looked at there, and None where a chunk is not finite (the caller then takes the path without,
+        whose checks name the factor)."""
+        ftype, keys, z, _ = self._groups[group]
+        W = self._whitening[group] if whiten else None
+        diagonal = self._diagonal[group] if whiten else None
+        dims = [kind.dim for kind in ftype.kinds]
+        held = self._held[group]
         jet = self.impl.module("jets").Jet
         tangent_jacobians = self.impl.module("autodiff_factor").tangent_jacobians
         where = "autodiff_factor.tangent_jacobians"
         m = ftype.dim
         r_all = np.empty((len(keys), m))
-        J_all = [np.zeros((len(keys), m, d)) if h is not None else np.empty((len(keys), m, d))
-                 for h, d in zip(held, dims)]
+        J_all = [np.empty((len(keys), m, d)) for d in dims]
+        rows = self._plus_rows[group]
         chunk = chunk_size(ftype)
         for start in range(0, len(keys), chunk):  # a chunk's Jets stay in the cache
             part = slice(start, start + chunk)
             count = len(keys[part])
             values = [x[part] for x in xs]
-            # a slot held fixed in every factor of the chunk is a constant (no Jet directions); one held in
-            # some has its plus-Jacobian's rows 0 there: its block is 0, as the assembler takes it
+            # a slot held fixed in every factor of the chunk is a constant (no Jet directions): its block 0;
+            # one held in some has its plus-Jacobian's rows 0 there: its block is 0, as the assembler takes it
             held_here = [None if h is None else h[part] for h in held]
             free = [a for a, h in enumerate(held_here) if h is None or not h.all()]
             plus = []
-            for a in free:
-                P = ftype.kinds[a].plus_jacobian(values[a])
-                h = held_here[a]
-                plus.append(P if h is None else np.where(h[:, None, None], 0.0, P))
+            for a, (h, row) in enumerate(zip(held_here, rows)):
+                if a not in free:
+                    J_all[a][part] = 0.0
+                elif row is None:
+                    P = ftype.kinds[a].plus_jacobian(values[a])
+                    plus.append(P if h is None else np.where(h[:, None, None], 0.0, P))
+                else:  # the kind's, found once per variable, gathered (a copy, zeroed in place where held)
+                    P = np.take(self._plus_of_kind(x, ftype.kinds[a], plus_by_kind), row[part], axis=0)
+                    if h is not None:
+                        P[h] = 0.0
+                    plus.append(P)
 
             def residual_of_part(*points, z_part=z[part], values=values, slots=free):
                 full = list(values)
@@ -218,22 +253,41 @@ class FactorGraphProblem:
                 return ftype.residual(z_part, *full)
 
             if not free:  # every variable fixed: the residual alone, its blocks 0
-                r_all[part] = self._checked(residual_of_part(), (count, m), "the residual", "r", group, start)
+                r = self._checked(residual_of_part(), (count, m), "the residual", "r", group, start)
+                noise.whiten(None if W is None else W[part], r, [], out=(r_all[part], []),
+                             diagonal=None if diagonal is None else diagonal[part])
                 continue
+            r_part, J_part = None, {}
             for slots in ([[a] for a in free] if SLOT_BY_SLOT else [free]):
                 r, J = tangent_jacobians(partial(residual_of_part, slots=slots), [plus[free.index(a)] for a in slots],
                                          [values[a] for a in slots], jet)
                 if slots[0] == free[0]:
-                    r_all[part] = _shaped(r, (count, m), where, "r")
+                    r_part = _shaped(r, (count, m), where, "r")
                 if not isinstance(J, (list, tuple)) or len(J) != len(slots):
                     raise ShapeError(f"{where} returned {len(J) if isinstance(J, (list, tuple)) else type(J).__name__} "
                                      f"Jacobian blocks for the {len(slots)} plus-Jacobian(s) it was given "
                                      f"({ftype.name}, slot(s) {', '.join(map(str, slots))})")
                 for i, (a, block) in enumerate(zip(slots, J)):
-                    J_all[a][part] = _shaped(block, (count, m, dims[a]), where, f"J[{i}]")
+                    J_part[a] = _shaped(block, (count, m, dims[a]), where, f"J[{i}]")
+            if whiten and not all(_sums_finite(out) for out in (r_part, *J_part.values())):
+                return None
+            noise.whiten(None if W is None else W[part], r_part, list(J_part.values()),
+                         out=(r_all[part], [J_all[a][part] for a in J_part]),
+                         diagonal=None if diagonal is None else diagonal[part])
+        if whiten:
+            return r_all, J_all
         # finite, each non-finite entry named by its factor in the group (one pass over each output)
         return self._checked(r_all, r_all.shape, where, "r", group, 0), [
             self._checked(block, block.shape, where, f"J[{a}]", group, 0) for a, block in enumerate(J_all)]
+
+    def _plus_of_kind(self, x, kind, plus_by_kind: dict) -> np.ndarray:
+        """``kind.plus_jacobian`` (N, size, dim) of all the ``N`` variables of ``kind`` at ``x``, found once
+        into ``plus_by_kind``."""
+        if kind not in plus_by_kind:
+            members, x_index, _ = self._by_kind[kind]
+            values = np.take(np.asarray(x), x_index).reshape((len(members),) + kind.shape)
+            plus_by_kind[kind] = np.asarray(kind.plus_jacobian(values), dtype=float)
+        return plus_by_kind[kind]
 
     @staticmethod
     def _held_still(held, J) -> list:
@@ -253,7 +307,9 @@ class FactorGraphProblem:
         arr = np.asarray(value, dtype=float) if isinstance(value, np.ndarray) else value
         finite = None
         if isinstance(arr, np.ndarray) and arr.shape == tuple(shape):
-            finite = bool(np.isfinite(arr).all())
+            # a finite sum says every entry is finite (one pass, no mask); an infinite one (nan or inf
+            # among them, or a sum that overflowed) is looked at entry by entry
+            finite = bool(np.isfinite(arr.sum())) or bool(np.isfinite(arr).all())
             if finite:
                 return arr
         if finite is False:
@@ -292,11 +348,18 @@ class FactorGraphProblem:
     def linearize(self, x) -> Linearization:
         blocks = []
         robust_correction = 0.0  # a robust group's chi2 is sum rho, not the reweighted residuals' sum r~^T r~
+        plus_by_kind: dict = {}  # the variables' plus-Jacobians at x, found once for all the groups
         for group, (W, loss) in enumerate(zip(self._whitening, self._losses)):
-            r, J = self.factor_jacobians(x, group)
+            # the Jets' output whitened chunk by chunk; the other paths, or a non-finite output, whole
+            whitened = self._autodiff(x, group, self._slots(x, group), plus_by_kind, whiten=True) \
+                if self.jacobians == "autodiff" else None
+            if whitened is None:
+                r, J = self.factor_jacobians(x, group, plus_by_kind)
+                whitened = noise.whiten(W, r, J, diagonal=self._diagonal[group])
+            r, J = whitened
+            # a held dof's Jacobian column zeroed (after the whitening, which mixes rows, not columns)
             J = [block if mask is None else block * mask[:, None, :]
                  for block, mask in zip(J, self._column_masks[group])]
-            r, J = noise.whiten(W, r, J)
             if loss is not None:  # r~, J~ with J~^T J~ = J^T W_rho J and J~^T r~ = rho' J^T r (chapter 4)
                 r, J, rho = robust.reweight(self._kernels, loss, r, J)
                 robust_correction += rho - float(np.vdot(r, r))
@@ -362,6 +425,12 @@ def _shaped(value, shape, where: str, what: str):
     if isinstance(value, np.ndarray) and value.shape == shape:
         return value
     return check_array(value, shape, where, what)
+
+
+def _sums_finite(value: np.ndarray) -> bool:
+    """Whether ``value`` is of floats and its sum finite: then every entry is (one pass, no mask); if not,
+    an entry is not finite, or the sum overflowed, or the dtype is another."""
+    return value.dtype == np.float64 and bool(np.isfinite(value.sum()))
 
 
 def chunk_size(ftype) -> int:

@@ -123,27 +123,43 @@ class SE3Kind(VariableKind):
         return _concatenate_last(t_new, R_new.reshape(R_new.shape[:-2] + (9,)))
 
     def plus_jacobian(self, x) -> np.ndarray:
-        t, R = se3_parts(np.asarray(x, dtype=float))
-        out = np.zeros((len(t), 12, 6))
-        out[:, :3, :3] = R
-        rotation_plus_jacobian(R, out[:, 3:, 3:])
-        return out
+        x = np.asarray(x, dtype=float)
+        return (x[:, 3:] @ _SE3_PLUS).reshape(len(x), 12, 6)
 
 
-def rotation_plus_jacobian(R: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+def rotation_plus_jacobian(R: np.ndarray) -> np.ndarray:
     """``d vec(R Exp(phi)) / d phi`` at ``phi = 0`` (M, 9, 3) of rotations ``R`` (M, 3, 3): column ``k`` is
     ``vec(R [e_k]_x)``, whose column ``j`` is ``R (e_k x e_j)``: ``R [e_0]_x = [0, R e_2, -R e_1]``,
-    ``R [e_1]_x = [-R e_2, 0, R e_0]``, ``R [e_2]_x = [R e_1, -R e_0, 0]``. Written into ``out`` (M, 9, 3)
-    if given (zeros where these are)."""
-    if out is None:
-        out = np.zeros((len(R), 9, 3))
-    P = out.reshape(len(R), 3, 3, 3)  # [m, i, j, k]: row i, column j of R [e_k]_x
-    P[:, :, 1, 0], P[:, :, 2, 0] = R[:, :, 2], -R[:, :, 1]
-    P[:, :, 0, 1], P[:, :, 2, 1] = -R[:, :, 2], R[:, :, 0]
-    P[:, :, 0, 2], P[:, :, 1, 2] = R[:, :, 1], -R[:, :, 0]
-    if not np.shares_memory(P, out):  # ``out`` a view that reshape had to copy
-        out[...] = P.reshape(out.shape)
-    return out
+    ``R [e_1]_x = [-R e_2, 0, R e_0]``, ``R [e_2]_x = [R e_1, -R e_0, 0]``. Linear in ``R``: one product of
+    the rows of ``R`` with the constant ``[e_k]_x`` (each entry one term, exact)."""
+    R = np.asarray(R, dtype=float)
+    return (R.reshape(-1, 3) @ _GENERATORS).reshape(len(R), 9, 3)
+
+
+def _generators() -> np.ndarray:
+    """``G`` (3, 9) with ``G[l, 3 j + k] = [e_k]_x[l, j]``: row ``i`` of ``R`` times it is row ``i`` of every
+    ``R [e_k]_x``, as ``rotation_plus_jacobian`` lays them out."""
+    G = np.zeros((3, 3, 3))
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = 1.0
+        G[:, :, k] = np.cross(e, np.eye(3)).T  # column j of [e_k]_x is e_k x e_j
+    return G.reshape(3, 9)
+
+
+def _se3_plus() -> np.ndarray:
+    """``L`` (9, 72): the stored R's row by row (9,) times it is the SE(3) plus-Jacobian (12, 6), flattened:
+    ``d t / d rho = R`` and ``d vec(R) / d phi`` from :data:`_GENERATORS` (each entry one term, exact)."""
+    L = np.zeros((3, 3, 12, 6))  # [i, j, row, column]: the coefficient of R[i, j]
+    for i in range(3):
+        for j in range(3):
+            L[i, j, i, j] = 1.0
+            L[i, j, 3 + 3 * i:6 + 3 * i, 3:] = _GENERATORS[j].reshape(3, 3)
+    return L.reshape(9, 72)
+
+
+_GENERATORS = _generators()
+_SE3_PLUS = _se3_plus()
 
 
 def _identities(M: int, n: int) -> np.ndarray:
@@ -164,6 +180,8 @@ def se3_value(t, R) -> np.ndarray:
 
 def _concatenate_last(a, b):
     """``concatenate([a, b], axis=-1)`` of arrays or Jets (column by column: a Jet has no concatenate)."""
+    if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
+        return np.concatenate([a, b], axis=-1)
     parts = [a[..., i] for i in range(a.shape[-1])] + [b[..., i] for i in range(b.shape[-1])]
     return np.stack(parts, axis=-1)
 

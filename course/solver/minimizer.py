@@ -78,6 +78,7 @@ def minimize(problem: Problem, method="gauss-newton", impl="solutions", options:
     initial_chi2 = lin.chi2
     trace = [IterationRecord(0, lin.chi2, damping=strategy.start(problem, lin))]
     reason = StopReason.MAX_ITERATIONS
+    x_chi2 = None  # problem.chi2(x) once a step is accepted: every strategy's trial chi2 is that of its point
     for iteration in range(1, options.max_iterations + 1):
         if np.max(np.abs(lin.b)) <= options.gradient_tolerance:
             reason = StopReason.GRADIENT_TOLERANCE
@@ -97,7 +98,7 @@ def minimize(problem: Problem, method="gauss-newton", impl="solutions", options:
         strategy.step_done(trial, lin, rho, accepted)
         if accepted:
             # judged on the trial's chi2: a run that stops here never linearizes at its last point
-            x, previous = trial.x, lin.chi2
+            x, previous, x_chi2 = trial.x, lin.chi2, trial.chi2
             converged = abs(previous - trial.chi2) <= options.cost_tolerance * previous
             if not converged:
                 lin = trial.lin if trial.lin is not None else problem.linearize(x)
@@ -116,7 +117,7 @@ def minimize(problem: Problem, method="gauss-newton", impl="solutions", options:
             break
     return RunResult(
         backend="ours", method=method if isinstance(method, str) else strategy.name, params=x,
-        initial_chi2=initial_chi2, final_chi2=problem.chi2(x),
+        initial_chi2=initial_chi2, final_chi2=problem.chi2(x) if x_chi2 is None else float(x_chi2),
         iterations=len(trace) - 1, seconds=time.perf_counter() - start, trace=trace,
         stop_reason=reason, factorizations=strategy.factorizations,
         linear_solve=str(getattr(problem, "linear_solve", "")),

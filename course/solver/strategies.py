@@ -45,7 +45,8 @@ MU_MIN, MU_MAX = 1e-8, 1.0
 @dataclass
 class Trial:
     """A candidate point: ``x`` after the step ``h`` (as finally scaled), its chi2, and the
-    linearization there when the strategy already computed it (Gauss-Newton)."""
+    linearization there when the strategy already computed it (none of ours does: the minimizer
+    linearizes an accepted point when the run goes on)."""
 
     x: np.ndarray
     h: np.ndarray
@@ -55,7 +56,9 @@ class Trial:
 
 
 class GaussNewtonStrategy:
-    """Every step taken; the new point is linearized at once (its chi2 comes with it)."""
+    """Every step taken. The trial point's chi2 alone is evaluated (errors, no Jacobians); the minimizer
+    linearizes it only when the run goes on, so the point a run stops at is never linearized (GTSAM's
+    Gauss-Newton evaluates the error at the new values and linearizes at the next iteration, likewise)."""
 
     name = GAUSS_NEWTON
 
@@ -77,8 +80,7 @@ class GaussNewtonStrategy:
 
     def trial(self, problem, x, h, lin) -> Trial:
         x_new = problem.retract(x, h)
-        lin_new = problem.linearize(x_new)
-        return Trial(x_new, h, lin_new.chi2, lin_new)
+        return Trial(x_new, h, problem.chi2(x_new))
 
     def predicted_decrease(self, trial, lin) -> float:
         return float(-trial.h @ lin.b)  # the undamped model, H h = -b
