@@ -40,7 +40,7 @@ class SparseAssembler:
     of that 6x6 matrix are needed. The pattern (upper triangle, CSC, every diagonal
     entry present) and the position in ``H.data`` of every one of those 21 entries
     of every edge are computed once here; ``assemble`` then costs two batched
-    products and one ``np.bincount``. Fixed poses get identity blocks and zero rows,
+    products and two ``np.bincount``. Fixed poses get identity blocks and zero rows,
     columns and b.
 
     Optional attribute ``diagonal_positions`` (3N,): where H's diagonal entries sit in

@@ -61,7 +61,7 @@ class SparseAssembler:
     of that 6x6 matrix are needed. The pattern (upper triangle, CSC, every diagonal
     entry present) and the position in ``H.data`` of every one of those 21 entries
     of every edge are computed once here; ``assemble`` then costs two batched
-    products and one ``np.bincount``. Fixed poses get identity blocks and zero rows,
+    products and two ``np.bincount``. Fixed poses get identity blocks and zero rows,
     columns and b.
 
     Optional attribute ``diagonal_positions`` (3N,): where H's diagonal entries sit in
@@ -112,17 +112,20 @@ class SparseAssembler:
         information (M, 3, 3).
         """
         # BEGIN SOLUTION
-        J = np.concatenate([A, B], axis=2)
-        JT = J.transpose(0, 2, 1)
-        H_edges = np.matmul(JT, np.matmul(information, J))[:, self.UPPER[0], self.UPPER[1]]
-        Oe = np.matmul(information, e[:, :, None])  # (M, 3, 1)
-        g_edges = np.matmul(JT, Oe)
+        # one product gives all three: with K = [A B e] (M, 3, 7), K^T Omega K = [[J^T Omega J, J^T Omega e],
+        # [e^T Omega J, e^T Omega e]] (fr079: 0.22 against 0.26 ms for J^T Omega J and J^T (Omega e) apart)
+        K = np.concatenate([A, B, e[:, :, None]], axis=2)
+        KOK = np.matmul(K.transpose(0, 2, 1), np.matmul(information, K))  # (M, 7, 7)
+        # the 21 upper entries of J^T Omega J, taken from the flat 7x7 blocks: a contiguous (M, 21), which
+        # KOK[:, UPPER[0], UPPER[1]] is not (its ravel below would copy it: fr079 0.02 against 0.06 ms)
+        H_edges = KOK.reshape(-1, 49).take(7 * self.UPPER[0] + self.UPPER[1], axis=1)
+        g_edges = KOK[:, :6, 6]
         data = np.bincount(self._positions, weights=H_edges.ravel(), minlength=self.nnz)
         data[self._dead] = 0.0
         data[self._fixed_diagonal] = 1.0
         b = np.bincount(self._b_positions, weights=g_edges.ravel(), minlength=self._shape[0])
         b[self._fixed_dof] = 0.0
-        chi2 = float(np.vdot(e, Oe))
+        chi2 = float(KOK[:, 6, 6].sum())
         H = sp.csc_matrix((data, self._indices, self._indptr), shape=self._shape)
         return H, b, chi2
         # END SOLUTION
@@ -173,6 +176,9 @@ HINTS = {
                        data = bincount(positions, H_edges.ravel(), minlength=nnz)
                        data[dead] = 0;  data[diagonal_positions[fixed_dof]] = 1
                        b = bincount(dof.ravel(), (J^T Omega e).ravel(), minlength=3N);  b[fixed_dof] = 0
-                       chi2 = sum_k e_k^T Omega_k e_k;  H = csc_matrix((data, indices, indptr), (3N, 3N))""",
+                       chi2 = sum_k e_k^T Omega_k e_k;  H = csc_matrix((data, indices, indptr), (3N, 3N))
+
+        (The reference gets ``J^T Omega J``, ``J^T Omega e`` and ``e^T Omega e`` from one batched product
+        ``[A B e]^T Omega [A B e]`` (M, 7, 7): fewer calls, each over all the edges.)""",
     ),
 }

@@ -410,3 +410,46 @@ def test_time_to_solution_counts_the_initialisation(data_folder):
     for run in (t.chordal_run, t.file_run):  # the same minimum, by the same stopping rule
         assert run.final_chi2 == pytest.approx(t.g2o_run.final_chi2, rel=1e-6)
         assert run.stop_reason.startswith("cost_tolerance") and t.g2o_run.stop_reason.startswith("gain_threshold")
+
+
+def _anisotropic_loop(n=12, seed=5):
+    """A chain of ``n`` poses closed by two loops, anisotropic translation information, (args, anchor pose)."""
+    rng = np.random.default_rng(seed)
+    ei = np.concatenate([np.arange(n - 1), [0, n - 1]])
+    ej = np.concatenate([np.arange(1, n), [n // 2, 3]])
+    z = np.column_stack([rng.normal(1.0, 0.2, len(ei)), rng.normal(0.0, 0.2, len(ei)), rng.normal(0.3, 0.2, len(ei))])
+    info = np.tile(np.diag([40.0, 10.0, 25.0]), (len(ei), 1, 1))
+    return (n, ei, ej, z, info), np.array([0.5, -1.0, 0.2])
+
+
+def test_chordal_poses_shares_one_analysis_and_checks_its_inputs_once(monkeypatch):
+    """Anisotropic information: the rotations (real 2x2 blocks) and the translations share one pattern, so
+    ``chordal_poses`` analyses it once; the inputs are checked once; the poses are the two functions' own."""
+    import qdldl
+
+    args, pose = _anisotropic_loop()
+    expected_theta = ini.chordal_rotations(*args, pose[2])
+    expected_xy = ini.chordal_translations(*args, expected_theta, pose[:2])
+    made, searched = [], []
+    solver, search = qdldl.Solver, ini.csgraph.breadth_first_order
+    monkeypatch.setattr(qdldl, "Solver", lambda *a, **k: made.append(1) or solver(*a, **k))
+    monkeypatch.setattr(ini.csgraph, "breadth_first_order", lambda *a, **k: searched.append(1) or search(*a, **k))
+    poses = ini.chordal_poses(*args, pose)
+    assert len(made) == 1  # the translations' solve reused the rotations' analysis
+    assert ini._CHECKED is None  # nothing kept after the call
+    np.testing.assert_allclose(poses[:, 2], expected_theta, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(poses[:, :2], expected_xy, rtol=1e-10, atol=1e-10)
+    assert len(searched) == 1  # the connectivity search ran once, for both functions
+    made.clear()
+    ini.chordal_rotations(*args, pose[2])
+    ini.chordal_translations(*args, expected_theta, pose[:2])
+    assert len(made) == 2  # alone, each analyses its own system: nothing outlives chordal_poses
+
+
+def test_chordal_poses_still_refuses_a_disconnected_graph_after_a_connected_one():
+    """The inputs checked inside one ``chordal_poses`` call are not trusted by the next call."""
+    args, pose = _anisotropic_loop()
+    ini.chordal_poses(*args, pose)
+    ei, ej, z, info = _two_components()
+    with pytest.raises(ValueError, match="disconnected graph"):
+        ini.chordal_poses(5, ei, ej, z, info, np.zeros(3))

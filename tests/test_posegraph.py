@@ -136,3 +136,12 @@ def test_damping_strategies_work_unchanged_on_pose_graphs():
         assert result.final_chi2 == pytest.approx(gn.final_chi2, rel=REL), method
         accepted = [r.chi2 for r in result.trace if r.accepted]
         assert all(b <= a * (1 + 1e-12) for a, b in zip(accepted, accepted[1:]))
+
+
+@pytest.mark.parametrize("method", ["gauss-newton", "lm-type3", "dogleg"])
+def test_the_final_chi2_is_the_trusted_chi2_of_the_final_poses(intel, method):
+    """The minimizer reports the last accepted trial's chi2 in place of evaluating it again: it is the
+    problem's own ``chi2`` of the returned point, to the bit."""
+    problem = PoseGraphProblem(intel)
+    result = minimize(problem, method, options=None)
+    assert result.final_chi2 == problem.chi2(result.params)
