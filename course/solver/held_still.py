@@ -60,11 +60,14 @@ def _upper_entries_touching(H, fixed_dof):
     if not H.has_canonical_format:  # one entry per position, sorted: on a copy, the caller's H untouched
         H = H.copy()
         H.sum_duplicates()
-    fixed = np.zeros(H.shape[0], dtype=bool)
-    fixed[fixed_dof] = True
-    in_column = np.concatenate([np.arange(H.indptr[f], H.indptr[f + 1]) for f in np.flatnonzero(fixed)])
-    where = np.union1d(np.flatnonzero(fixed[H.indices]), in_column.astype(np.int64))
+    fixed_dof = np.unique(fixed_dof)
+    # the rows: compared with the few fixed dofs (isin), not gathered through a mask by H's 32-bit indices;
+    # the columns: their ranges of the data (fr079's first system: 0.08 against 0.16 ms for the search)
+    mask = np.isin(H.indices, fixed_dof)
+    starts, lengths = H.indptr[fixed_dof], H.indptr[fixed_dof + 1] - H.indptr[fixed_dof]
+    mask[np.repeat(starts - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())] = True
+    where = np.flatnonzero(mask)
     rows = H.indices[where].astype(np.int64)
-    cols = np.searchsorted(H.indptr, where, side="right") - 1
+    cols = np.searchsorted(H.indptr, where, side="right") - 1  # the column whose range holds each entry
     upper = rows <= cols
     return rows[upper], cols[upper], np.asarray(H.data[where], dtype=float)[upper]

@@ -73,7 +73,7 @@ from course.core.errors import SingularSystemError
 from course.geometry.so3 import exp_many, log_many, so3_exp, so3_log
 from course.problems.vio.imu_jacobians import imu_jacobians, stack_preintegrated
 from course.solver.linearization import Linearization
-from course.solver.robust import RobustLoss, reweight, robust_chi2
+from course.solver.robust import RobustLoss, evaluate, reweight
 from course.solver.superlu import sparse_solver
 
 EZ = np.array([0.0, 0.0, 1.0])
@@ -229,10 +229,13 @@ class VioProblem:
     ``"analytic"`` (Forster's formulas at the implementation's residual) or ``"numeric"`` (central
     differences of it);
     ``sparse`` True or False, or None: sparse from :data:`SPARSE_FROM` unknowns.
+    ``imu_known``: IMU residuals already computed by the same implementation
+    (:meth:`known_imu_residuals` of another problem, e.g. the previous window's at its solution),
+    used at the first point where a factor's preintegration and states are the same.
     """
 
     def __init__(self, frames0, landmarks0, data: VioData, impl="solutions", loss=DEFAULT_LOSS,
-                 imu_jacobian="analytic", sparse=None):
+                 imu_jacobian="analytic", sparse=None, imu_known: dict | None = None):
         if imu_jacobian not in ("analytic", "numeric"):
             raise ValueError(f"imu_jacobian must be 'analytic' or 'numeric', got {imu_jacobian!r}")
         self.imu_jacobian = imu_jacobian
@@ -247,8 +250,12 @@ class VioProblem:
         self.x0 = np.concatenate([np.asarray(frames0, dtype=float).ravel(),
                                   np.asarray(landmarks0, dtype=float).ravel()])
         self._last_imu: tuple | None = None
+        self._last_point: tuple | None = None  # (x, {name: value}): :meth:`_at_point`
+        self._walk_rows: np.ndarray | None = None  # the bias walk's Jacobian rows, made on the first linearization
+        self._imu_known = imu_known or None  # read at the first point only
         self.sparse = self.n >= SPARSE_FROM if sparse is None else bool(sparse)
         self._sparse_solver: Any = None  # the implementation's, made on the first sparse step (one pattern)
+        self._dense_module: Any = None  # the implementation's sparse_solve, for dense_solve, on the first dense step
         self._info_roots = []
         for factor in data.imu:
             cov = np.asarray(factor.preintegrated.covariance)
@@ -276,7 +283,7 @@ class VioProblem:
         self._last_rotations: tuple | None = None
         self._priors = [self._frame_prior_rows(prior) for prior in data.frame_priors]
         self._priors += [self._linear_prior_rows(lp) for lp in (data.linear_prior, data.anchor) if lp is not None]
-        self._prior_H: np.ndarray | None = None  # the priors' J^T J (constant), dense
+        self._prior_JtJ = np.zeros(0)  # the priors' J^T J blocks (constant), flattened, made with _flat_index
         # the landmarks no prior touches: only their reprojections do, so their block of H is
         # 3x3 block diagonal and the dense step eliminates them first (:meth:`solve`)
         in_priors = {int(k) for lp in (data.linear_prior, data.anchor) if lp is not None for k in lp.landmarks}
@@ -285,6 +292,11 @@ class VioProblem:
         self._kept_columns = np.setdiff1d(np.arange(self.n), self._free_columns.ravel())  # frames first
         self._pattern: _UpperPattern | None = None  # H's upper triangle, made on the first sparse linearization
         self._kept_block: np.ndarray | None = None  # A_KK's flat positions in A, made on the first dense step
+        self._free_blocks: np.ndarray = np.zeros(0, dtype=np.int64)  # likewise (e, 3, 3)
+        self._pose_free: np.ndarray = np.zeros(0, dtype=np.int64)  # likewise (6F, 3e)
+        self._pose_pose: np.ndarray = np.zeros(0, dtype=np.int64)  # likewise (36 F^2,)
+        #: every frame's dphi and dp columns (6F,): the only frame columns a reprojection has
+        self._pose_columns = (FRAME_DOF * np.arange(self.num_frames)[:, None] + np.arange(POSE_DOF)).ravel()
 
     # ------------------------------------------------------------------ layout
     def frames(self, x):
@@ -311,7 +323,7 @@ class VioProblem:
         """``Exp(phi_f)`` (F, 3, 3) of the frame states ``frames`` (F, 15); the last point's kept
         (every factor type needs them, and the loop asks for the same point more than once)."""
         last = self._last_rotations
-        if last is not None and np.array_equal(last[0], frames[:, 0:3]):
+        if last is not None and _same(last[0], frames[:, 0:3]):
             return last[1]
         R = exp_many(frames[:, 0:3])
         self._last_rotations = (frames[:, 0:3].copy(), R)
@@ -326,7 +338,7 @@ class VioProblem:
         implementation's residual per factor."""
         frames = np.asarray(frames, dtype=float)
         last = self._last_imu
-        if last is not None and np.array_equal(last[0], frames):
+        if last is not None and _same(last[0], frames):
             return last[1]
         raw = self._raw_imu_residuals(frames)
         walk = (frames[self._imu_j, 9:15] - frames[self._imu_i, 9:15]) * self._walk_scale
@@ -338,12 +350,25 @@ class VioProblem:
         """The implementation's ``imu_factor_residual`` (K, 9) of every IMU factor at the frame states
         ``frames`` (F, 15), not whitened (the last point's kept by :meth:`_imu_residuals`)."""
         last = self._last_imu
-        if last is not None and np.array_equal(last[0], frames):
+        if last is not None and _same(last[0], frames):
             return last[2]
         R = self._rotations(frames)
         given = frames.copy()  # the implementation gets copies: what it does to them stays there
-        return np.array([self._raw_imu_residual(k, given[f.i], given[f.j], R[f.i].copy(), R[f.j].copy())
-                         for k, f in enumerate(self.data.imu)]).reshape(-1, 9)
+        known, self._imu_known = self._imu_known or {}, None
+        rows = []
+        for k, f in enumerate(self.data.imu):
+            hit = known.get(_imu_key(f, given[f.i], given[f.j])) if known else None
+            rows.append(hit[1] if hit is not None and hit[0] is f.preintegrated else
+                        self._raw_imu_residual(k, given[f.i], given[f.j], R[f.i].copy(), R[f.j].copy()))
+        return np.array(rows).reshape(-1, 9)
+
+    def known_imu_residuals(self, x) -> dict:
+        """The implementation's IMU residuals at ``x`` (n,), for another problem's ``imu_known``:
+        ``{key: (preintegrated, r (9,))}``, the key naming the preintegration and the two states."""
+        frames = np.array(self.frames(np.asarray(x, dtype=float)), dtype=float)
+        raw = self._raw_imu_residuals(frames)
+        return {_imu_key(f, frames[f.i], frames[f.j]): (f.preintegrated, raw[k].copy())
+                for k, f in enumerate(self.data.imu)}
 
     def _raw_imu_residual(self, k, s_i, s_j, Ri=None, Rj=None):
         """The implementation's ``imu_factor_residual`` (9,) of IMU factor k at frame states ``s_i``,
@@ -365,13 +390,19 @@ class VioProblem:
         once, at the rotation rows of the loaded implementation's residual) or, with
         ``imu_jacobian="numeric"``, central differences of that residual; exact for the bias walk."""
         K = len(self._imu_i)
-        J = np.zeros((K, 15, 30))
+        if self._walk_rows is None:  # the bias walk's rows (K, 6, 30), constant
+            self._walk_rows = np.zeros((K, 6, 2 * FRAME_DOF))
+            walk = np.arange(6)
+            self._walk_rows[:, walk, 9 + walk] = -self._walk_scale
+            self._walk_rows[:, walk, 24 + walk] = self._walk_scale
+        J = np.empty((K, 15, 2 * FRAME_DOF))
+        J[:, 9:] = self._walk_rows
         if self.imu_jacobian == "analytic":
             R = self._rotations(frames)
             r_R = self._raw_imu_residuals(frames)[:, 0:3]
             J_imu = imu_jacobians(frames[self._imu_i], frames[self._imu_j], self._stacked, self.data.gravity, r_R,
                                   R[self._imu_i], R[self._imu_j])
-            J[:, :9] = np.matmul(self._root_t, J_imu)
+            np.matmul(self._root_t, J_imu, out=J[:, :9])
         else:
             for k in range(K):
                 s_i, s_j = frames[self._imu_i[k]], frames[self._imu_j[k]]
@@ -385,39 +416,39 @@ class VioProblem:
                         plus = self._imu_residual(k, s_i, frame_retract(s_j, d))
                         minus = self._imu_residual(k, s_i, frame_retract(s_j, -d))
                     J[k, :9, col] = (plus[:9] - minus[:9]) / (2.0 * FD_STEP)
-        walk = np.arange(6)
-        J[:, 9 + walk, 9 + walk] = -self._walk_scale
-        J[:, 9 + walk, 24 + walk] = self._walk_scale
         return J
 
     def _reprojection(self, x, jacobians):
-        """Whitened residuals (M, 2) and, when asked, Jacobians (M, 2, 15) in the frame, (M, 2, 3) in the point."""
+        """Whitened residuals r (M, 2) and, when asked, Jacobians (M, 2, 9) in the observation's
+        columns (:attr:`_obs_columns`: its frame's dphi and dp, then its point's 3), else None."""
         d = self.data
-        frames, points = self.frames(x), self.landmarks(x)
-        R = self._rotations(frames)
-        Rf, pf = R[d.obs_frame], frames[d.obs_frame, 3:6]
-        X_b = np.einsum("mji,mj->mi", Rf, points[d.obs_landmark] - pf)  # R^T (X - p)
-        X_c = (X_b - d.t_bc) @ d.R_bc  # R_bc^T (X_b - t_bc), row-wise
-        z = np.maximum(X_c[:, 2], MIN_DEPTH)
-        fx, fy, cx, cy = d.K[0, 0], d.K[1, 1], d.K[0, 2], d.K[1, 2]
-        uv = np.stack([fx * X_c[:, 0] / z + cx, fy * X_c[:, 1] / z + cy], axis=1)
-        r = (uv - d.pixels) / d.pixel_sigma
+        cache = self._at_point(x)
+        if "projection" not in cache:
+            frames, points = self.frames(x), self.landmarks(x)
+            Rf, pf = self._rotations(frames)[d.obs_frame], frames[d.obs_frame, 3:6]
+            X_b = np.einsum("mji,mj->mi", Rf, points[d.obs_landmark] - pf)  # R^T (X - p)
+            X_c = (X_b - d.t_bc) @ d.R_bc  # R_bc^T (X_b - t_bc), row-wise
+            z = np.maximum(X_c[:, 2], MIN_DEPTH)
+            uv = np.stack([d.K[0, 0] * X_c[:, 0] / z + d.K[0, 2], d.K[1, 1] * X_c[:, 1] / z + d.K[1, 2]], axis=1)
+            cache["projection"] = ((uv - d.pixels) / d.pixel_sigma, Rf, X_b, X_c, z)
+        r, Rf, X_b, X_c, z = cache["projection"]
         if not jacobians:
-            return r, None, None
+            return r, None
+        fx, fy = d.K[0, 0], d.K[1, 1]
         M = len(r)
         P = np.zeros((M, 2, 3))
         P[:, 0, 0], P[:, 0, 2] = fx / z, -fx * X_c[:, 0] / z**2
         P[:, 1, 1], P[:, 1, 2] = fy / z, -fy * X_c[:, 1] / z**2
         P /= d.pixel_sigma
         PB = P @ d.R_bc.T  # (M, 2, 3): d r / d X_b
-        skew = np.zeros((M, 3, 3))
-        skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -X_b[:, 2], X_b[:, 1], -X_b[:, 0]
-        skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = X_b[:, 2], -X_b[:, 1], X_b[:, 0]
-        J_frame = np.zeros((M, 2, FRAME_DOF))
-        J_frame[:, :, 0:3] = PB @ skew
-        J_point = PB @ Rf.transpose(0, 2, 1)
-        J_frame[:, :, 3:6] = -J_point
-        return r, J_frame, J_point
+        J = np.empty((M, 2, POSE_DOF + POINT_DOF))
+        a0, a1, a2 = PB[:, :, 0], PB[:, :, 1], PB[:, :, 2]  # each row a (M, 2): a [X_b]_x = a x X_b
+        x0, x1, x2 = X_b[:, 0:1], X_b[:, 1:2], X_b[:, 2:3]
+        J[:, :, 0], J[:, :, 1], J[:, :, 2] = a1 * x2 - a2 * x1, a2 * x0 - a0 * x2, a0 * x1 - a1 * x0
+        J_point = np.matmul(PB, Rf.transpose(0, 2, 1))
+        np.negative(J_point, out=J[:, :, 3:6])
+        J[:, :, 6:9] = J_point
+        return r, J
 
     def _frame_prior_rows(self, prior: FramePrior) -> _PriorRows:
         """A frame prior in the linear form of :class:`_PriorRows`: ``e0 = 0`` and ``J`` the rows of
@@ -441,15 +472,37 @@ class VioProblem:
     def _prior_rows(self, x, jacobians):
         """The frame priors' and the linear priors' residuals (and Jacobian rows) as a list of
         ``(r (k,), columns (c,), block (k, c) or None)``; every block is constant."""
-        frames, points = self.frames(x), self.landmarks(x)
-        R = self._rotations(frames) if self._priors else None
-        out = []
-        for prior in self._priors:
-            d = frames[prior.frames] - prior.frame_lin  # the tangent difference s [-] s_lin of frame_difference
-            d[:, 0:3] = log_many(np.matmul(prior.R_lin_t, R[prior.frames]))
-            r = prior.e0 + prior.J @ np.concatenate([d.ravel(), (points[prior.landmarks] - prior.landmark_lin).ravel()])
-            out.append((r, prior.columns, prior.J if jacobians else None))
-        return out
+        cache = self._at_point(x)
+        if "priors" not in cache:
+            frames, points = self.frames(x), self.landmarks(x)
+            R = self._rotations(frames) if self._priors else None
+            rows = []
+            for prior in self._priors:
+                d = frames[prior.frames] - prior.frame_lin  # the tangent difference s [-] s_lin of frame_difference
+                d[:, 0:3] = log_many(np.matmul(prior.R_lin_t, R[prior.frames]))
+                delta = np.concatenate([d.ravel(), (points[prior.landmarks] - prior.landmark_lin).ravel()])
+                rows.append(prior.e0 + prior.J @ delta)
+            cache["priors"] = rows
+        return [(r, prior.columns, prior.J if jacobians else None) for r, prior in zip(cache["priors"], self._priors)]
+
+    def _kernel_values(self, x, r) -> tuple:
+        """The robust kernel's ``(rho, d_rho, dd_rho)`` (M,) at the reprojection residuals r (M, 2) of
+        the point x (``course.solver.robust.evaluate``), kept for the last point."""
+        cache = self._at_point(x)
+        if "kernel" not in cache:
+            assert self.loss is not None  # asked only under a robust loss
+            cache["kernel"] = evaluate(self.kernels, self.loss, np.sum(r * r, axis=1))
+        return cache["kernel"]
+
+    def _at_point(self, x) -> dict:
+        """What was computed at the point ``x`` (n,) (the reprojections' forward pass, the priors'
+        residuals), kept for the last point only: the loop asks ``chi2`` at a trial point and then
+        ``linearize`` at the same point once the step is taken."""
+        last = self._last_point
+        if last is not None and _same(last[0], x):
+            return last[1]
+        self._last_point = (np.array(x, dtype=float), {})
+        return self._last_point[1]
 
     def chi2_by_factor(self, x) -> dict:
         """``{factor type: (chi2, dof)}`` at ``x`` in plain squares (no robust loss): the IMU
@@ -459,7 +512,7 @@ class VioProblem:
         x = np.asarray(x, dtype=float)
         frames = self.frames(x)
         imu = self._imu_residuals(frames)
-        r, _, _ = self._reprojection(x, False)
+        r, _ = self._reprojection(x, False)
         priors = [rows for rows, _, _ in self._prior_rows(x, False)]
         out = {name: (float(np.sum(imu[:, part] ** 2)), imu[:, part].size)
                for name, part in (("IMU rotation", slice(0, 3)), ("IMU velocity", slice(3, 6)),
@@ -474,9 +527,14 @@ class VioProblem:
         x = np.asarray(x, dtype=float)
         frames = self.frames(x)
         total = float(np.sum(self._imu_residuals(frames) ** 2))
-        r, _, _ = self._reprojection(x, False)
+        r, _ = self._reprojection(x, False)
         if len(r):
-            total += robust_chi2(self.kernels, self.loss, r) if self.loss else float(np.sum(r * r))
+            if not self.loss:
+                total += float(np.sum(r * r))
+            elif not np.all(np.isfinite(r)):
+                total = float("inf")
+            else:
+                total += float(np.sum(self._kernel_values(x, r)[0]))
         for rows, _, _ in self._prior_rows(x, False):
             total += float(rows @ rows)
         return total if np.isfinite(total) else float("inf")
@@ -535,43 +593,42 @@ class VioProblem:
             chi2 += float(np.sum(r_imu * r_imu))
             # the Jacobians at the first estimates where given, linearised around the residuals at x
             groups.append((r_imu, imu_cols, self._imu_jacobians(frames if fej is None else fej_frames)))
-        r, J_f, J_p = self._reprojection(x, True)
+        r, J_obs = self._reprojection(x, True)
         if fej is not None:
-            _, J_f, J_p = self._reprojection(x_fej, True)
+            _, J_obs = self._reprojection(x_fej, True)
         if len(r):
             if self.loss is not None:
-                r, (J_f, J_p), c = reweight(self.kernels, self.loss, r, (J_f, J_p))
+                r, (J_obs,), c = reweight(self.kernels, self.loss, r, (J_obs,), self._kernel_values(x, r))
                 chi2 += c
             else:
                 chi2 += float(np.sum(r * r))
-            groups.append((r, obs_cols, np.concatenate([J_f[:, :, :POSE_DOF], J_p], axis=2)))
+            groups.append((r, obs_cols, J_obs))
         priors = self._prior_rows(x, True)
         chi2 += sum(float(r @ r) for r, _, _ in priors)
         return groups, priors, chi2
 
     def _dense_normal_equations(self, x) -> tuple[np.ndarray, np.ndarray, float]:
         """``(H (n, n), b (n,), chi2)`` summed factor by factor: each factor's ``J_k^T J_k`` and
-        ``J_k^T r_k`` added at its columns (one ``bincount`` over all of them), the priors' dense
-        blocks after; equal to ``J^T J`` and ``J^T r`` of :meth:`residual_and_jacobian` to rounding."""
+        ``J_k^T r_k`` added at its columns, the priors' constant ``J^T J`` blocks with them (one
+        ``bincount`` over all of them, which writes H once); equal to ``J^T J`` and ``J^T r`` of
+        :meth:`residual_and_jacobian` to rounding."""
         groups, priors, chi2 = self._factor_blocks(x)
         n = self.n
-        if self._flat_index is None:  # the (c, c) positions in H of every factor's block
+        if self._flat_index is None:  # the (c, c) positions in H of every factor's block, then the priors'
             self._flat_index = np.concatenate([(c[:, :, None] * n + c[:, None, :]).ravel()
-                                               for c in (self._imu_columns, self._obs_columns)])
-        JtJ, b = self._block_products(groups, priors)
+                                               for c in (self._imu_columns, self._obs_columns)]
+                                              + [(columns[:, None] * n + columns).ravel() for _, columns, _ in priors])
+            self._prior_JtJ = np.concatenate([(block.T @ block).ravel() for _, _, block in priors] + [np.zeros(0)])
+        JtJ, b = self._block_products(groups, priors, self._prior_JtJ)
         H: np.ndarray = np.bincount(self._flat_index, JtJ, minlength=n * n).reshape(n, n).astype(float, copy=False)
-        if priors:
-            if self._prior_H is None:
-                self._prior_H = np.zeros((n, n))
-                for _, columns, block in priors:
-                    self._prior_H[np.ix_(columns, columns)] += block.T @ block
-            H += self._prior_H
         return H, b, chi2
 
-    def _block_products(self, groups, priors) -> tuple[np.ndarray, np.ndarray]:
+    def _block_products(self, groups, priors, tail=None) -> tuple[np.ndarray, np.ndarray]:
         """Every factor's ``J_k^T J_k``, flattened and concatenated (the IMU factors', then the
-        reprojections'), and b (n,): the factors' ``J_k^T r_k`` summed at their columns, the priors' added."""
-        JtJ = np.concatenate([np.matmul(J.transpose(0, 2, 1), J).ravel() for _, _, J in groups] + [np.zeros(0)])
+        reprojections', then ``tail`` where given), and b (n,): the factors' ``J_k^T r_k`` summed at
+        their columns, the priors' added."""
+        JtJ = np.concatenate([np.matmul(J.transpose(0, 2, 1), J).ravel() for _, _, J in groups]
+                             + [np.zeros(0) if tail is None else tail])
         Jtr = np.concatenate([np.matmul(r[:, None, :], J).ravel() for r, _, J in groups] + [np.zeros(0)])
         b: np.ndarray = np.bincount(self._all_columns, Jtr, minlength=self.n).astype(float, copy=False)
         for r_p, columns, block in priors:
@@ -669,30 +726,36 @@ class VioProblem:
     def _eliminating_free_landmarks(self, A, b) -> np.ndarray:
         """``h`` of ``A h = -b`` (A dense (n, n), positive definite) with the landmarks no prior touches
         (e of them, columns E; the rest K, frames first) eliminated first: their block ``A_EE`` is 3x3
-        block diagonal and they are coupled to the frames F alone, so with ``W = A_FE A_EE^-1``::
+        block diagonal and they are coupled to the frames' pose columns P (each frame's dphi and dp,
+        the only ones a reprojection has) alone, so with ``W = A_PE A_EE^-1``::
 
-            S = A_KK - [W A_EF; 0],   S h_K = -b_K + [W b_E; 0],   h_E = -A_EE^-1 (b_E + A_EF h_F)
+            S = A_KK - [W A_EP at (P, P)],   S h_K = -b_K + [W b_E at P],   h_E = -A_EE^-1 (b_E + A_EP h_P)
 
         a Cholesky factorisation of S (frames and the priors' landmarks) instead of the whole A:
         the same step to rounding, about half the flops on a window. A is positive definite
-        exactly when every 3x3 block of ``A_EE`` and S are (``LinAlgError`` otherwise)."""
-        E, K, F = self._free_columns, self._kept_columns, self.split
-        e = len(E)
-        A_EE = A[E[:, :, None], E[:, None, :]]  # (e, 3, 3)
-        np.linalg.cholesky(A_EE)  # positive definite, or LinAlgError
-        inv_EE = np.linalg.inv(A_EE)
-        A_FE = A[:F, E.ravel()]  # (F, 3e)
-        W = np.matmul(A_FE.reshape(F, e, POINT_DOF).transpose(1, 0, 2), inv_EE).transpose(1, 0, 2).reshape(F, -1)
-        if self._kept_block is None:
-            self._kept_block = K[:, None] * self.n + K
+        exactly when every 3x3 block of ``A_EE`` and S are (``LinAlgError`` otherwise; the blocks'
+        leading minors decide theirs, :func:`_inverse_3x3_spd`)."""
+        E, K = self._free_columns, self._kept_columns
+        e, n = len(E), self.n
+        if self._kept_block is None:  # flat positions in A, made on the first dense step
+            E_flat, P = E.ravel(), self._pose_columns
+            self._kept_block = K[:, None] * n + K
+            self._free_blocks = (E[:, :, None] * n + E[:, None, :]).reshape(e, POINT_DOF, POINT_DOF)
+            self._pose_free = P[:, None] * n + E_flat  # (6F, 3e)
+            self._pose_pose = (P[:, None] * len(K) + P).ravel()  # (P, P) in S (the frames lead K)
+        inv_EE = _inverse_3x3_spd(A.take(self._free_blocks))
+        A_PE = A.take(self._pose_free)  # (p, 3e)
+        P = self._pose_columns
+        W = np.matmul(A_PE.reshape(len(P), e, POINT_DOF).transpose(1, 0, 2), inv_EE).transpose(1, 0, 2)
+        W = W.reshape(len(P), -1)
         S = A.take(self._kept_block)
-        S[:F, :F] -= W @ A_FE.T
+        S.reshape(-1)[self._pose_pose] -= (W @ A_PE.T).ravel()
         b_E = b[E.ravel()]
         rhs = -b[K]
-        rhs[:F] += W @ b_E
-        h = np.empty(self.n)
+        rhs[P] += W @ b_E
+        h = np.empty(n)
         h[K] = self._dense_step(S, -rhs)
-        coupled = (b_E + A_FE.T @ h[:F]).reshape(e, POINT_DOF)
+        coupled = (b_E + A_PE.T @ h[P]).reshape(e, POINT_DOF)
         h[E.ravel()] = -np.einsum("eij,ej->ei", inv_EE, coupled).ravel()
         return h
 
@@ -700,4 +763,35 @@ class VioProblem:
         """``h`` (n,) of ``A h = -b``, A dense and positive definite: the implementation's
         ``sparse_solve.dense_solve`` (chapter 2's exercise; ``LinAlgError`` from the reference when A
         is not positive definite)."""
-        return np.asarray(self.impl.module("sparse_solve").dense_solve(A, b), dtype=np.float64)
+        if self._dense_module is None:  # looked up once (the implementation's modules are instrumented then)
+            self._dense_module = self.impl.module("sparse_solve")
+        return np.asarray(self._dense_module.dense_solve(A, b), dtype=np.float64)
+
+
+def _inverse_3x3_spd(A) -> np.ndarray:
+    """``A^-1`` (e, 3, 3) of symmetric 3x3 blocks A (e, 3, 3) by their adjugates; ``LinAlgError``
+    unless every block is positive definite (its three leading minors positive, Sylvester's criterion)."""
+    a, b, c = A[:, 0, 0], A[:, 0, 1], A[:, 0, 2]
+    d, f, g = A[:, 1, 1], A[:, 1, 2], A[:, 2, 2]
+    c00, c01, c02 = d * g - f * f, c * f - b * g, b * f - c * d
+    det = a * c00 + b * c01 + c * c02
+    if not (np.all(a > 0) and np.all(a * d - b * b > 0) and np.all(det > 0)):
+        raise np.linalg.LinAlgError("a 3x3 block is not positive definite")
+    out = np.empty_like(A)
+    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = c00, c01, c02
+    out[:, 1, 1], out[:, 1, 2], out[:, 2, 2] = a * g - c * c, b * c - a * f, a * d - b * b
+    out[:, 1, 0], out[:, 2, 0], out[:, 2, 1] = c01, c02, out[:, 1, 2]
+    out /= det[:, None, None]
+    return out
+
+
+def _same(kept: np.ndarray, a: np.ndarray) -> bool:
+    """``np.array_equal`` of a kept array and a float array ``a``, without its conversions (the caches'
+    test, made several times per point)."""
+    return kept.shape == a.shape and bool((kept == a).all())
+
+
+def _imu_key(factor: ImuFactor, s_i: np.ndarray, s_j: np.ndarray) -> tuple:
+    """What an IMU residual depends on: the factor's preintegration (by identity: the value kept
+    with the residual is compared with ``is``) and the two frame states (15,), by their bytes."""
+    return id(factor.preintegrated), s_i.tobytes(), s_j.tobytes()

@@ -307,7 +307,9 @@ class _Window:
     (keyframe -> (15,)) and ``points`` (landmark -> (3,)), ``preints`` (k -> the preintegration
     from keyframe k to k + 1), the keyframes in the window ``frame_ids`` (consecutive), the
     marginalisation ``prior`` (None until the first), ``anchor_refs`` (oldest keyframe -> the
-    (15,) its anchor holds) and ``final`` (keyframe -> its (15,) estimate when it left)."""
+    (15,) its anchor holds), ``final`` (keyframe -> its (15,) estimate when it left) and
+    ``imu_known``: the last solve's IMU residuals at its solution, which the next window starts
+    from (``VioProblem.known_imu_residuals``)."""
 
     states: dict[int, np.ndarray]
     frame_ids: list[int]
@@ -316,6 +318,7 @@ class _Window:
     prior: _Prior | None = None
     anchor_refs: dict[int, np.ndarray] = field(default_factory=dict)
     final: dict[int, np.ndarray] = field(default_factory=dict)
+    imu_known: dict = field(default_factory=dict)
 
 
 def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, method="dogleg",
@@ -354,6 +357,7 @@ def sliding_window(sim: VioSim, variant="prior", window=10, keyframe_every=5, me
         start = time.perf_counter()
         result = minimize(problem, method, impl, options)
         seconds.append(time.perf_counter() - start)
+        w.imu_known = problem.known_imu_residuals(result.params)
         iterations.append(result.iterations)
         steps.append({"time": float(kfs.times[new]), "chi2": float(result.final_chi2), "frames": len(w.frame_ids),
                       "landmarks": len(lm_ids), "prior_dof": 0 if linear is None else int(linear.J.shape[1]),
@@ -399,7 +403,8 @@ def _window_problem(sim, kfs, w: _Window, lm_ids, variant, gauge, first_estimate
         else:
             data.first_estimates = (linear.frames, linear.frame_lin, linear.landmarks, linear.landmark_lin)
     problem = VioProblem(np.array([w.states[f] for f in w.frame_ids]),
-                         np.array([w.points[lm] for lm in lm_ids]).reshape(-1, 3), data, impl, **loss_kw)
+                         np.array([w.points[lm] for lm in lm_ids]).reshape(-1, 3), data, impl,
+                         imu_known=w.imu_known, **loss_kw)
     return problem, linear
 
 
