@@ -114,6 +114,7 @@ def schur_solve(U, V, W, g_cam, g_point, camera_index, point_index, damping_cam=
     multiplies 9x3 blocks at a time. Fastest: the framework's
     ``course.solver.schur_reduction.schur_reduction(W, V_inv, camera_index, point_index, C)``,
     the same sum by camera pair, compiled where numba is installed (write the BSR product first:
-    it is the idea).
+    it is the idea); with ``g_point=g_point`` it also returns ``sum_k W_k V_p^-1 g_point_p`` by
+    camera, (C, 9), from the same pass.
     """
     raise NotImplementedError("TODO bundle_adjustment.schur_solve: not implemented yet")

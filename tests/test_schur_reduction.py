@@ -6,7 +6,7 @@ import pytest
 
 from course.core import jit, peers
 from course.solver import schur_reduction as sr
-from tests.conftest import needs
+from tests.conftest import kernel_path, needs
 
 
 def _structure(seed=3, cameras=7, points=40):
@@ -39,12 +39,7 @@ def _dense(W, V_inv, ci, pi, C):
 
 @pytest.fixture(params=["compiled", "bsr"])
 def path(request, monkeypatch):
-    if request.param == "compiled":
-        if not peers.installed("numba"):
-            pytest.skip(peers.missing_message("numba"))
-        monkeypatch.delenv(jit.NO_JIT, raising=False)
-    else:
-        monkeypatch.setenv(jit.NO_JIT, "1")
+    kernel_path(request.param == "compiled", monkeypatch)
     return request.param
 
 
@@ -133,3 +128,19 @@ def test_long_camera_rows(path):
     R = sr.schur_reduction(W, V_inv, ci, pi, C)
     assert R.has_sorted_indices and np.diff(R.indptr).max() == C
     np.testing.assert_allclose(R.toarray(), _dense(W, V_inv, ci, pi, C), rtol=1e-12, atol=1e-10)
+
+
+def test_the_right_side_term_is_the_sum_over_observations_in_the_same_pass(path):
+    """With ``g_point``: ``sum_k W_k V_p^-1 g_p`` into block c_k, beside the same R (a camera that sees
+    nothing gets 0, a point seen twice by one camera counts twice)."""
+    W, V_inv, ci, pi, C = _structure()
+    g = np.random.default_rng(4).normal(size=(len(V_inv), 3))
+    R, term = sr.schur_reduction(W, V_inv, ci, pi, C, g_point=g)
+    want = np.zeros((C, 9))
+    for k in range(len(ci)):
+        want[ci[k]] += W[k] @ V_inv[pi[k]] @ g[pi[k]]
+    assert term.shape == (C, 9) and not term[C - 1].any()
+    np.testing.assert_allclose(term, want, rtol=1e-12, atol=1e-10)
+    np.testing.assert_array_equal(R.toarray(), sr.schur_reduction(W, V_inv, ci, pi, C).toarray())
+    with pytest.raises(ValueError, match="g_point"):
+        sr.schur_reduction(W, V_inv, ci, pi, C, g_point=g[:-1])

@@ -79,14 +79,15 @@ def robust_chi2(module, loss: RobustLoss, r) -> float:
     return float(np.sum(rho))
 
 
-def reweight(module, loss: RobustLoss, r, jacobians):
+def reweight(module, loss: RobustLoss, r, jacobians, values=None):
     """``(r~ (K, n), (J~ ...), chi2)``: residual blocks r (K, n) and Jacobian blocks (K, n, m_j)
     transformed so that ``J~^T J~ = J^T W J`` and ``J~^T r~ = rho' J^T r`` (module docstring);
-    ``chi2 = sum_k rho(|r_k|^2)``."""
+    ``chi2 = sum_k rho(|r_k|^2)``. ``values``: :func:`evaluate`'s ``(rho, d_rho, dd_rho)`` at these
+    r where the caller has them already."""
     r = np.asarray(r, dtype=float)
     K, n = r.shape
     s = np.sum(r * r, axis=1)
-    rho, d_rho, dd_rho = evaluate(module, loss, s)
+    rho, d_rho, dd_rho = evaluate(module, loss, s) if values is None else values
     where = f"robust_kernels.{loss.kernel}"
     if np.any(d_rho < 0):
         k = int(np.flatnonzero(d_rho < 0)[0])
@@ -122,6 +123,8 @@ def _reweight_2(r, jacobians, weight, d_rho):
     None when some active weight is not positive definite (the general path says which)."""
     active = d_rho > 0
     w00, w10, w11 = weight[:, 0, 0], weight[:, 1, 0], weight[:, 1, 1]
+    if active.all():  # every block weighted (Huber, Cauchy; Tukey within its threshold): no masks, same values
+        return _reweight_2_all(r, jacobians, w00, w10, w11, d_rho)
     with np.errstate(invalid="ignore", divide="ignore"):
         l00 = np.sqrt(np.where(active, w00, 1.0))
         l10 = np.where(active, w10, 0.0) / l00
@@ -132,8 +135,30 @@ def _reweight_2(r, jacobians, weight, d_rho):
     scaled = np.where(active, d_rho, 0.0)[:, None] * r
     y0 = scaled[:, 0] / l00
     r_tilde = np.stack([y0, (scaled[:, 1] - l10 * y0) / l11], axis=1)
-    on = active.astype(float)[:, None]
-    l00, l10, l11 = (v[:, None] * on for v in (l00, l10, l11))
+    on = active.astype(float)
+    return r_tilde, _lower_times(jacobians, l00 * on, l10 * on, l11 * on)
+
+
+def _reweight_2_all(r, jacobians, w00, w10, w11, d_rho):
+    """:func:`_reweight_2` where every ``rho'`` is positive (no block left out)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        l00 = np.sqrt(w00)
+        l10 = w10 / l00
+        pivot = w11 - l10 * l10
+        if not np.all(w00 > 0) or not np.all(pivot > 0):
+            return None
+    l11 = np.sqrt(pivot)
+    scaled = d_rho[:, None] * r
+    r_tilde = np.empty_like(scaled)
+    r_tilde[:, 0] = y0 = scaled[:, 0] / l00
+    r_tilde[:, 1] = (scaled[:, 1] - l10 * y0) / l11
+    return r_tilde, _lower_times(jacobians, l00, l10, l11)
+
+
+def _lower_times(jacobians, l00, l10, l11) -> tuple:
+    """Each ``J`` (K, 2, c) times ``L^T`` on the left, ``L = [[l00, 0], [l10, l11]]`` (each (K,)): its rows
+    ``l00 J_0 + l10 J_1`` and ``l11 J_1``."""
+    l00, l10, l11 = l00[:, None], l10[:, None], l11[:, None]
     weighted = []
     for J in jacobians:
         J = np.asarray(J, dtype=float)
@@ -141,4 +166,4 @@ def _reweight_2(r, jacobians, weight, d_rho):
         J_tilde[:, 0] = l00 * J[:, 0] + l10 * J[:, 1]
         J_tilde[:, 1] = l11 * J[:, 1]
         weighted.append(J_tilde)
-    return r_tilde, tuple(weighted)
+    return tuple(weighted)

@@ -12,9 +12,12 @@ W_k V_p^-1 and W_k). :func:`schur_reduction` computes it where numba is installe
 compiled passes: the pattern (which camera pairs share a point, and the list of observation
 pairs that fill each block), computed once per problem and kept, and the values, one a x b x a
 block product per pair with ``c_l >= c_k`` only (R is symmetric: the lower blocks are the upper
-ones transposed). ladybug-49: 214,329 block products in scipy's BSR product, 123,086 here; 34
-against 8.4 ms, this machine. Without numba (no wheel for every Python), for other block sizes
-than (9, 3), and in the autograder's children (:mod:`course.core.jit`) it is that BSR product.
+ones transposed; a pair (k, k) adds its upper triangle only), ``Y_k = W_k V_p^-1`` formed as the
+pairs reach k and nothing of size K written; with ``g_point`` the same pass sums the reduced right
+side's term ``Y_k g_p``. ladybug-49: 214,329 block products in scipy's BSR product, 123,086 here
+(31,843 of them half); 50 against 7.9 ms of CPU (a loaded 2-core SkylakeX). Without numba (no
+wheel for every Python), for other block sizes than (9, 3), and in the autograder's children
+(:mod:`course.core.jit`) it is that BSR product.
 Same R to rounding.
 """
 
@@ -24,8 +27,10 @@ import scipy.sparse as sp
 from course.core import jit
 
 
-def schur_reduction(W, V_inv, camera_index, point_index, num_cameras) -> sp.bsr_matrix:
-    """``R`` (a C, a C) as a ``scipy.sparse.bsr_matrix`` with (a, a) blocks, both triangles.
+def schur_reduction(W, V_inv, camera_index, point_index, num_cameras, g_point=None):
+    """``R`` (a C, a C) as a ``scipy.sparse.bsr_matrix`` with (a, a) blocks, both triangles; with
+    ``g_point`` (P, b) also the reduced right side's term ``sum_k W_k V_{p_k}^-1 g_point_{p_k}`` into
+    block ``c_k``, (C, a), in the same pass: ``(R, that)``.
 
     Args: W (K, a, b); V_inv (P, b, b), symmetric; camera_index, point_index (K,) int;
     num_cameras C. Every camera row lists its blocks in column order. ``ValueError`` on shapes
@@ -39,21 +44,27 @@ def schur_reduction(W, V_inv, camera_index, point_index, num_cameras) -> sp.bsr_
     if W.ndim != 3 or len(W) != K or pi.shape != (K,) or ci.ndim != 1 or V_inv.shape[1:] != (W.shape[2],) * 2:
         raise ValueError(f"schur_reduction: W {W.shape}, V_inv {V_inv.shape}, camera_index {ci.shape} and "
                          f"point_index {pi.shape} do not fit: W (K, a, b), V_inv (P, b, b), both indices (K,)")
+    g = np.zeros((0, W.shape[2])) if g_point is None else np.ascontiguousarray(g_point, dtype=float)
+    if g_point is not None and g.shape != (len(V_inv), W.shape[2]):
+        raise ValueError(f"schur_reduction: g_point {g.shape} does not fit V_inv {V_inv.shape}: (P, b)")
     for name, index, count in (("camera_index", ci, num_cameras), ("point_index", pi, len(V_inv))):
         if K and (index.min() < 0 or index.max() >= count):
             raise ValueError(f"schur_reduction: {name} holds {index.min()} to {index.max()}, not in [0, {count})")
     a = W.shape[1]
     compiled = jit.kernels(globals(), KERNELS) if W.shape[1:] == (CAMERA, POINT) else None
     if compiled is None:
-        return _bsr_product(W, V_inv, ci, pi, num_cameras)
-    pattern, values = compiled[-2:]
-    indptr, indices, pairs, source, transposed = _pattern_of(pattern, ci, pi, num_cameras, len(V_inv))
-    data = values(W, V_inv, pi, *pairs, source, transposed)
-    return sp.bsr_matrix((data, indices, indptr), shape=(a * num_cameras, a * num_cameras))
+        R, term = _bsr_product(W, V_inv, ci, pi, num_cameras, g)
+    else:
+        pattern, values = compiled[-2:]
+        indptr, indices, pairs, source, transposed = _pattern_of(pattern, ci, pi, num_cameras, len(V_inv))
+        data, term = values(W, V_inv, ci, pi, g, num_cameras, *pairs, indptr, indices, source, transposed)
+        R = sp.bsr_matrix((data, indices, indptr), shape=(a * num_cameras, a * num_cameras))
+    return R if g_point is None else (R, term)
 
 
-def _bsr_product(W, V_inv, ci, pi, num_cameras):
-    """``Ys @ Ws^T`` by scipy's block-sparse product (the path without numba)."""
+def _bsr_product(W, V_inv, ci, pi, num_cameras, g):
+    """``Ys @ Ws^T`` by scipy's block-sparse product (the path without numba), and ``Ys g`` (C, a)
+    where ``g`` has rows."""
     a, b = W.shape[1:]
     order = np.argsort(ci, kind="stable")
     indptr = np.concatenate([[0], np.cumsum(np.bincount(ci, minlength=num_cameras))])
@@ -63,7 +74,8 @@ def _bsr_product(W, V_inv, ci, pi, num_cameras):
     Ws = sp.bsr_matrix((W_sorted, p_sorted, indptr), shape=shape)
     product = sp.bsr_matrix(Ys @ Ws.T, blocksize=(a, a))
     product.sort_indices()
-    return product
+    term = (Ys @ g.ravel()).reshape(num_cameras, a) if len(g) else None
+    return product, term
 
 
 #: the compiled pass's block sizes: a camera's 9 parameters, a point's 3 (constants, so that the
@@ -216,30 +228,49 @@ def _pattern(ci, pi, C, P):
     return indptr, indices, pair_k, pair_l, pair_q, upper_ptr[C], source, transposed
 
 
-def _values(W, V_inv, pi, pair_k, pair_l, pair_q, n_upper, source, transposed):
-    """R's blocks (in the order of ``_pattern``'s ``indices``) for W (K, CAMERA, POINT); compiled."""
-    K = W.shape[0]
-    # Y_k = W_k V_p^-1 (K, 9, 3) and W_k^T (K, 3, 9), contiguous in the order the products read them
-    Y = np.empty((K, CAMERA, POINT))
-    Wt = np.empty((K, POINT, CAMERA))
-    for k in range(K):
-        p = pi[k]
-        for i in range(CAMERA):
-            w0, w1, w2 = W[k, i, 0], W[k, i, 1], W[k, i, 2]
-            Wt[k, 0, i], Wt[k, 1, i], Wt[k, 2, i] = w0, w1, w2
-            for j in range(POINT):
-                Y[k, i, j] = w0 * V_inv[p, 0, j] + w1 * V_inv[p, 1, j] + w2 * V_inv[p, 2, j]
+def _values(W, V_inv, ci, pi, g, C, pair_k, pair_l, pair_q, n_upper, indptr, indices, source, transposed):
+    """R's blocks (in the order of ``_pattern``'s ``indices``) for W (K, CAMERA, POINT), and where ``g``
+    (P, POINT) has rows the term ``sum_k Y_k g_{p_k}`` (C, CAMERA) of the right side; compiled.
+
+    ``Y_k = W_k V_p^-1`` is formed when the pairs reach a new first observation k (they list each k's pairs one
+    after another) and ``W_l^T`` is read from W where it lies: no (K, 9, 3) arrays written and read back. A pair
+    (k, k) adds the symmetric ``W_k V_p^-1 W_k^T``: its upper triangle only, and every diagonal block is the
+    mirror of its upper triangle (the pairs (k, l), l != k, of one camera come in both orders: their sum is
+    symmetric too)."""
     upper = np.zeros((n_upper, CAMERA, CAMERA))
+    term = np.zeros((C, CAMERA))
+    Y = np.empty((CAMERA, POINT))
+    last = -1
     for t in range(len(pair_k)):
         k, m, q = pair_k[t], pair_l[t], pair_q[t]
-        for i in range(CAMERA):
-            y0, y1, y2 = Y[k, i, 0], Y[k, i, 1], Y[k, i, 2]
-            for j in range(CAMERA):
-                upper[q, i, j] += y0 * Wt[m, 0, j] + y1 * Wt[m, 1, j] + y2 * Wt[m, 2, j]
+        if k != last:
+            p = pi[k]
+            for i in range(CAMERA):
+                w0, w1, w2 = W[k, i, 0], W[k, i, 1], W[k, i, 2]
+                for j in range(POINT):
+                    Y[i, j] = w0 * V_inv[p, 0, j] + w1 * V_inv[p, 1, j] + w2 * V_inv[p, 2, j]
+            if len(g):  # every k has one run of pairs (its pair (k, k) among them): Y_k g_p added once
+                for i in range(CAMERA):
+                    term[ci[k], i] += Y[i, 0] * g[p, 0] + Y[i, 1] * g[p, 1] + Y[i, 2] * g[p, 2]
+            last = k
+        if k == m:  # two loops, not one from a variable start: the full one is unrolled by the compiler
+            for i in range(CAMERA):
+                y0, y1, y2 = Y[i, 0], Y[i, 1], Y[i, 2]
+                for j in range(i, CAMERA):
+                    upper[q, i, j] += y0 * W[m, j, 0] + y1 * W[m, j, 1] + y2 * W[m, j, 2]
+        else:
+            for i in range(CAMERA):
+                y0, y1, y2 = Y[i, 0], Y[i, 1], Y[i, 2]
+                for j in range(CAMERA):
+                    upper[q, i, j] += y0 * W[m, j, 0] + y1 * W[m, j, 1] + y2 * W[m, j, 2]
     data = np.empty((len(source), CAMERA, CAMERA))
-    for f in range(len(source)):
-        x = source[f]
-        for i in range(CAMERA):
-            for j in range(CAMERA):
-                data[f, i, j] = upper[x, j, i] if transposed[f] else upper[x, i, j]
-    return data
+    for c in range(len(indptr) - 1):
+        for f in range(indptr[c], indptr[c + 1]):
+            x = source[f]
+            for i in range(CAMERA):
+                for j in range(CAMERA):
+                    if indices[f] == c:  # a diagonal block: its upper triangle, mirrored
+                        data[f, i, j] = upper[x, i, j] if j >= i else upper[x, j, i]
+                    else:
+                        data[f, i, j] = upper[x, j, i] if transposed[f] else upper[x, i, j]
+    return data, term
