@@ -178,31 +178,38 @@ def same_data(text_a: str, text_b: str, rtol: float = 1e-9, atol: float = 1e-12)
     """Whether two renderings of the expected data agree: the same structure, strings and
     integers, and floats within ``rtol``/``atol``. Another numpy or CPU may round the last digit
     of a reference output differently (``exp`` by another SIMD path); that is not stale data.
-    A known mistake's arrays (under ``"mistakes"``) agree within :data:`MISTAKE_RTOL` of their largest
-    entry."""
 
-    def close(a, b, tolerance) -> bool:
+    An array's entries are compared at the scale of the array, ``|a - b| <= rtol max|b| + atol``
+    (``max|b|`` over its finite entries): a solve's rounding error is relative to its largest entry,
+    so its smallest entries may move by far more than ``rtol`` of themselves when another BLAS, or
+    another order of the same sums, computes them. A float outside an array is compared at its own
+    scale, ``|a - b| <= rtol |b| + atol``. A known mistake's arrays (under ``"mistakes"``) agree
+    within :data:`MISTAKE_RTOL` of their largest entry."""
+
+    def close(a, b, tolerance, relative) -> bool:
         # np.isclose's test, in plain floats (a million numpy scalar calls took 20 s)
         if a == b or (a != a and b != b):
             return True
-        return math.isfinite(a) and math.isfinite(b) and abs(a - b) <= tolerance + rtol * abs(b)
+        return math.isfinite(a) and math.isfinite(b) and abs(a - b) <= tolerance + relative * abs(b)
 
-    def same_array(a: dict, b: dict) -> bool:
+    def same_array(a: dict, b: dict, mistake: bool) -> bool:
         data_a, data_b = a.get("data"), b.get("data")
         if a.keys() != b.keys() or any(a[k] != b[k] for k in a if k != "data") or not isinstance(data_a, list) \
                 or not isinstance(data_b, list) or len(data_a) != len(data_b):
             return a == b
-        numbers = [abs(x) for x in data_b if isinstance(x, (int, float)) and math.isfinite(x)]
-        tolerance = MISTAKE_RTOL * max(numbers, default=0.0)
-        return all(isinstance(x, (int, float)) and isinstance(y, (int, float)) and close(x, y, tolerance)
-                   for x, y in zip(data_a, data_b))
+        if a["__array__"] != "float64" or any(isinstance(x, bool) or not isinstance(x, (int, float))
+                                              for x in (*data_a, *data_b)):
+            return data_a == data_b  # integers and booleans: exact
+        scale = max((abs(x) for x in data_b if math.isfinite(x)), default=0.0)
+        tolerance = MISTAKE_RTOL * scale if mistake else rtol * scale + atol
+        return all(close(x, y, tolerance, 0.0) for x, y in zip(data_a, data_b))
 
     def same(a, b, mistake=False) -> bool:
         if isinstance(a, dict):
             if not isinstance(b, dict) or a.keys() != b.keys():
                 return False
-            if mistake and "__array__" in a:
-                return same_array(a, b)
+            if "__array__" in a:
+                return same_array(a, b, mistake)
             return all(same(a[k], b[k], mistake or k == "mistakes") for k in a)
         if isinstance(a, list):
             return isinstance(b, list) and len(a) == len(b) and all(same(x, y, mistake) for x, y in zip(a, b))
@@ -210,7 +217,7 @@ def same_data(text_a: str, text_b: str, rtol: float = 1e-9, atol: float = 1e-12)
             if not isinstance(a, (int, float)) or not isinstance(b, (int, float)) or isinstance(a, bool) \
                     or isinstance(b, bool):
                 return False
-            return close(a, b, atol)
+            return close(a, b, atol, rtol)
         return type(a) is type(b) and a == b
 
     return text_a == text_b or same(json.loads(text_a), json.loads(text_b))

@@ -41,6 +41,19 @@ def needs(*libraries):
     return pytest.mark.skipif(bool(missing), reason=reason)
 
 
+def kernel_path(compiled: bool, monkeypatch) -> None:
+    """Run the framework's kernels compiled by numba (skipped where numba is not installed) or by
+    their numpy path (``COURSE_NO_JIT=1``), for the rest of the test."""
+    from course.core import jit, peers
+
+    if compiled:
+        if not peers.installed("numba"):
+            pytest.skip(peers.missing_message("numba"))
+        monkeypatch.delenv(jit.NO_JIT, raising=False)
+    else:
+        monkeypatch.setenv(jit.NO_JIT, "1")
+
+
 def pytest_collection_modifyitems(items):
     """A test that reads the batch grading of a module's variants (the ``graded`` fixture) is a
     real grading run: slow."""

@@ -15,6 +15,7 @@ from conftest import needs
 from autograder import expected, oracle
 from autograder.checks import all_checks, module_of
 from autograder.grade import HIDDEN_SUFFIX
+from autograder.records import Outcome
 from autograder.tasks import parallel_assembly as parallel_task
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -42,6 +43,27 @@ def test_two_renderings_agree_to_rounding_and_differ_beyond_it():
     assert not expected.same_data(text(float("inf")), text(float("-inf")))
     assert not expected.same_data(text(1.0), text(True))
     assert not expected.same_data(text(1.0), json.dumps({"a": [1.0], "n": 4}))
+
+
+def test_an_array_is_compared_at_its_own_scale_and_a_wrong_entry_still_fails():
+    def text(values, dtype=np.float64):
+        return expected.dumps({"c": expected.Expected([], [Outcome(fields={"x": np.array(values, dtype=dtype)})],
+                                                      [{}])})
+
+    step = np.array([3.0, -2.0, 1e-7, 0.0])
+    rounded = step + np.array([0.0, 1e-11, -1e-11, 1e-11])  # 3e-12 of the largest entry, on the others
+    assert not np.allclose(rounded, step, rtol=1e-9, atol=1e-12)  # entry by entry: the small one has moved
+    assert expected.same_data(text(step), text(rounded))
+    assert not expected.same_data(text(step), text(step + [0.0, 0.0, 1e-8, 0.0]))  # 3e-9 of the largest: wrong
+    assert not expected.same_data(text(step), text(step * [1.0, 1.0, -1.0, 1.0]))  # the small entry's sign
+    assert not expected.same_data(text(step), text(step[::-1]))
+    assert not expected.same_data(text(step), text([np.nan, -2.0, 1e-7, 0.0]))
+    assert expected.same_data(text([1.0, np.nan]), text([1.0, np.nan]))
+    # integers and booleans are exact, whatever the scale
+    assert not expected.same_data(text([10**12, 1], np.int64), text([10**12, 2], np.int64))
+    assert not expected.same_data(text([True, False], bool), text([True, True], bool))
+    # a float outside an array keeps its own scale
+    assert not expected.same_data(json.dumps({"a": [3.0, 1e-3]}), json.dumps({"a": [3.0, 1e-3 + 1e-11]}))
 
 
 def test_decoding_runs_no_code_from_the_file():

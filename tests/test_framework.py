@@ -263,3 +263,36 @@ def test_unique_inverse_is_numpys(keys):
     expected_unique, expected_inverse = np.unique(keys, return_inverse=True)
     assert np.array_equal(unique, expected_unique) and np.array_equal(inverse, expected_inverse)
     assert inverse.dtype == np.int64 and np.array_equal(unique[inverse], keys)
+
+
+def test_spd_solve_shares_an_analysis_only_inside_the_block(monkeypatch):
+    """Inside ``shared_analysis`` a second system of the same pattern is factorized numerically only (and
+    solved right); another pattern is analysed anew; outside the block every solve analyses its own."""
+    qdldl = pytest.importorskip("qdldl", reason="qdldl has no wheel here")
+    from course.solver.spd import shared_analysis, spd_solve
+
+    A = sp.random(40, 40, density=0.08, random_state=2) + sp.eye(40)
+    H1 = sp.triu((A @ A.T + sp.eye(40)).tocsc(), format="csc")
+    H2 = H1.copy()
+    H2.data = 2.0 * H2.data  # the same pattern, other values
+    H3 = sp.triu((A @ A.T + 3 * sp.eye(40)).tocsc() + sp.eye(40, k=39), format="csc")  # another pattern
+    rhs = np.arange(40.0)
+    made = []
+    solver = qdldl.Solver
+    monkeypatch.setattr(qdldl, "Solver", lambda *a, **k: made.append(1) or solver(*a, **k))
+
+    def full(U):
+        return (U + sp.triu(U, k=1).T).toarray()
+
+    with shared_analysis():
+        x1 = spd_solve(H1, rhs, upper=True)
+        x2 = spd_solve(H2, rhs, upper=True)
+        assert len(made) == 1
+        x3 = spd_solve(H3, rhs, upper=True)
+        assert len(made) == 2
+    for H, x in ((H1, x1), (H2, x2), (H3, x3)):
+        np.testing.assert_allclose(full(H) @ x, rhs, rtol=1e-9, atol=1e-9)
+    made.clear()
+    spd_solve(H1, rhs, upper=True)
+    spd_solve(H1, rhs, upper=True)
+    assert len(made) == 2

@@ -457,14 +457,16 @@ BUGS_INITIALISATION = {
         "initialisation.py", _CHORDAL, "w = information[:, 2, 2]", "w = information[:, 0, 0]",
         {ROTATIONS}, "not information[k, 0, 0]"),
     "rotations_transposed": V(
-        "initialisation.py", _CHORDAL, "a = np.exp(1j * measurements[:, 2])", "a = np.exp(-1j * measurements[:, 2])",
+        "initialisation.py", _CHORDAL, "c, s = np.cos(measurements[:, 2]), np.sin(measurements[:, 2])",
+        "c, s = np.cos(measurements[:, 2]), -np.sin(measurements[:, 2])",
         {ROTATIONS}, "the relative rotation is transposed"),
     "rotations_anchor_at_angle_0": V(
-        "initialisation.py", _CHORDAL, "z_anchor = np.exp(1j * anchor_theta)", "z_anchor = 1.0",
+        "initialisation.py", _CHORDAL, "v_anchor = np.array([np.cos(anchor_theta), np.sin(anchor_theta)])",
+        "v_anchor = np.array([1.0, 0.0])",
         {ROTATIONS}, "here the anchor is at angle 0"),
     "rotations_arctan_loses_the_quadrant": V(
-        "initialisation.py", _CHORDAL, "theta[others] = (np.angle(z) + np.pi) % (2.0 * np.pi) - np.pi",
-        "theta[others] = np.arctan(z.imag / z.real)",
+        "initialisation.py", _CHORDAL, "theta[others] = (np.arctan2(v[:, 1], v[:, 0]) + np.pi) % (2.0 * np.pi) - np.pi",
+        "theta[others] = np.arctan(v[:, 1] / v[:, 0])",
         {ROTATIONS}, "loses the quadrant"),
     "translations_weight_not_rotated": V(
         "initialisation.py", _TRANSLATE,
@@ -494,8 +496,8 @@ BUGS_INITIALISATION = {
         {TRANSLATIONS}, "not at the origin"),
     # wrong only where two edges leave the anchor for the same pose: fancy-index += adds one of them
     "rotations_anchor_terms_by_fancy_index": V(
-        "initialisation.py", _CHORDAL, "np.add.at(rhs, uj[from_anchor], w[from_anchor] * a[from_anchor] * z_anchor)",
-        "rhs[uj[from_anchor]] += w[from_anchor] * a[from_anchor] * z_anchor",
+        "initialisation.py", _CHORDAL, "np.add.at(rhs, uj[from_anchor], w[from_anchor, None] * rotated[from_anchor])",
+        "rhs[uj[from_anchor]] += w[from_anchor, None] * rotated[from_anchor]",
         {ROTATIONS}, "on a 3-pose graph with two edges from pose 0 to pose 1"),
     # wrong only on diagonal but anisotropic translation information: the shortcut for a I taken for any diagonal
     "translations_shortcut_on_any_diagonal": V(
@@ -573,33 +575,35 @@ BA_PT = "bundle_adjustment.schur_solve: point step by back-substitution"
 # chapter 4: bundle adjustment
 BUGS_BUNDLE_ADJUSTMENT = {
     "ba_projection_sign": V(
-        "bundle_adjustment.py", [], "p = -P[:, :2] / z[:, None]", "p = P[:, :2] / z[:, None]",
+        "bundle_adjustment.py", [], "p = (-P[0] / z, -P[1] / z)", "p = (P[0] / z, P[1] / z)",
         {BA_R, BA_JC}, "the BAL projection is p = -P[:2] / P[2]"),
     "ba_residual_flipped": V(
-        "bundle_adjustment.py", [], "r = (f * d)[:, None] * p - observations",
-        "r = observations - (f * d)[:, None] * p",
+        "bundle_adjustment.py", [], "r = np.stack([fd * p[0], fd * p[1]], axis=1) - observations",
+        "r = observations - np.stack([fd * p[0], fd * p[1]], axis=1)",
         {BA_R}, "not observed - predicted"),
     "ba_no_distortion": V(
         "bundle_adjustment.py", [], "d = 1.0 + k1 * n + k2 * n * n", "d = np.ones_like(n)",
         {BA_R, BA_JC, BA_JP}, "the radial distortion d = 1 + k1 |p|^2 + k2 |p|^4 is missing"),
+    # d(RX)/dw taken as -[R X]_x, the derivative at w = 0: the rows -(A x RX)
     "ba_small_angle_rotation_jacobian": V(
-        "bundle_adjustment.py", [], "J_cam[:, :, :3] = -np.matmul(np.cross(AR, X[:, None, :]), Jr)",
-        "J_cam[:, :, :3] = -np.matmul(A, skew(np.matmul(R, X[:, :, None])[:, :, 0]))",
+        "bundle_adjustment.py", [],
+        "np.multiply(cross[0], Jr[j], out=J_w)\n            J_w += cross[1] * Jr[3 + j]\n"
+        "            J_w += cross[2] * Jr[6 + j]",
+        "J_w[...] = np.cross(np.stack(A), np.stack(P) - t, axis=0)[j]",
         {BA_JC}, "holds only at w = 0"),
     "ba_no_distortion_derivative": V(
-        "bundle_adjustment.py", [], "dpred_dp = (f * (2.0 * k1 + 4.0 * k2 * n))[:, None, None] * "
-                                    "(p[:, :, None] * p[:, None, :])", "dpred_dp = np.zeros((K, 2, 2))",
+        "bundle_adjustment.py", [], "s = f * (2.0 * k1 + 4.0 * k2 * n)", "s = np.zeros_like(n)",
         {BA_JC, BA_JP}, "the derivative of the distortion d with respect to p is missing"),
     "ba_point_jacobian_without_rotation": V(
-        "bundle_adjustment.py", [], "J_point = AR", "J_point = A",
+        "bundle_adjustment.py", [], "np.ascontiguousarray(J_point.transpose(2, 0, 1))",
+        "np.ascontiguousarray(J_cam[:, 3:6].transpose(2, 0, 1))",
         {BA_JP}, "J_point = (d predicted / d P) R"),
     "ba_focal_column_without_distortion": V(
-        "bundle_adjustment.py", [], "J_cam[:, :, 6] = d[:, None] * p", "J_cam[:, :, 6] = p",
+        "bundle_adjustment.py", [], "np.multiply(d, p[i], out=J_cam[i, 6])", "J_cam[i, 6] = p[i]",
         {BA_JC}, "d predicted / d f = d p"),
     # a slip in d p / d P_z alone: both Jacobians disagree with central differences of the (right) r
     "ba_projection_derivative_z_sign": V(
-        "bundle_adjustment.py", [], "dp_dP[:, :, 2] = P[:, :2] / (z * z)[:, None]",
-        "dp_dP[:, 0, 2] = P[:, 0] / (z * z)\n    dp_dP[:, 1, 2] = -P[:, 1] / (z * z)",
+        "bundle_adjustment.py", [], "q = (P[0] / zz, P[1] / zz)", "q = (P[0] / zz, -P[1] / zz)",
         {BA_JC, BA_JP}, "both go wrong through the factor they share, d predicted / d P (projection and distortion): "
         "your J_cam's t columns are that factor (d P / d t = I), and times the reference's d P / d w and d P / d X = "
         "R(w) it gives your rotation columns and your J_point. In it, d predicted / d P_z differs"),
@@ -607,30 +611,35 @@ BUGS_BUNDLE_ADJUSTMENT = {
     # consistent Jacobian
     "ba_pinhole_projection_consistently": V(
         "bundle_adjustment.py", [],
-        "p = -P[:, :2] / z[:, None]\n    n = np.sum(p * p, axis=1)\n    f, k1, k2 = cam[:, 6], cam[:, 7], cam[:, 8]\n"
-        "    d = 1.0 + k1 * n + k2 * n * n\n    r = (f * d)[:, None] * p - observations\n\n    K = len(r)\n"
-        "    dp_dP = np.zeros((K, 2, 3))\n    dp_dP[:, 0, 0] = dp_dP[:, 1, 1] = -1.0 / z\n"
-        "    dp_dP[:, :, 2] = P[:, :2] / (z * z)[:, None]",
-        "p = P[:, :2] / z[:, None]\n    n = np.sum(p * p, axis=1)\n    f, k1, k2 = cam[:, 6], cam[:, 7], cam[:, 8]\n"
-        "    d = 1.0 + k1 * n + k2 * n * n\n    r = (f * d)[:, None] * p - observations\n\n    K = len(r)\n"
-        "    dp_dP = np.zeros((K, 2, 3))\n    dp_dP[:, 0, 0] = dp_dP[:, 1, 1] = 1.0 / z\n"
-        "    dp_dP[:, :, 2] = -P[:, :2] / (z * z)[:, None]",
+        "p = (-P[0] / z, -P[1] / z)\n    n = p[0] * p[0] + p[1] * p[1]\n    d = 1.0 + k1 * n + k2 * n * n\n"
+        "    fd = f * d\n    r = np.stack([fd * p[0], fd * p[1]], axis=1) - observations\n\n"
+        "    # A = (d predicted / dp) (dp / dP), one row i at a time: d predicted_i / dp_m = s p_i p_m + f d [i = m],\n"
+        "    # dp/dP = [[-1/z, 0, P_x / z^2], [0, -1/z, P_y / z^2]]\n    s = f * (2.0 * k1 + 4.0 * k2 * n)\n"
+        "    minus_inv_z = -1.0 / z\n    zz = z * z\n    q = (P[0] / zz, P[1] / zz)",
+        "p = (P[0] / z, P[1] / z)\n    n = p[0] * p[0] + p[1] * p[1]\n    d = 1.0 + k1 * n + k2 * n * n\n"
+        "    fd = f * d\n    r = np.stack([fd * p[0], fd * p[1]], axis=1) - observations\n\n"
+        "    s = f * (2.0 * k1 + 4.0 * k2 * n)\n"
+        "    minus_inv_z = 1.0 / z\n    zz = z * z\n    q = (-P[0] / zz, -P[1] / zz)",
         {BA_R, BA_JC, BA_JP}, "agrees with central differences of your own r"),
     "ba_camera_blocks_by_fancy_index": V(
         "bundle_adjustment.py", [],
-        "U = np.stack([np.dot(rows[lo:hi].T, rows[lo:hi]) for lo, hi in zip(bounds[:-1], bounds[1:])])",
-        "U = np.zeros((num_cameras, 9, 9))\n    U[ci] += np.matmul(Jc_t, J_cam)",
+        "U = np.stack([np.dot(rows[lo:hi].T, rows[lo:hi]) for lo, hi in per_camera])",
+        "U = np.zeros((num_cameras, 9, 9))\n    U[ci] += np.matmul(J_cam.transpose(0, 2, 1), J_cam)",
         {BA_UVW}, "accumulate with np.add.at"),
     "ba_point_blocks_by_fancy_index": V(
-        "bundle_adjustment.py", [], "V = scatter(pi, np.matmul(Jp_t, J_point), num_points)",
-        "V = np.zeros((num_points, 3, 3))\n    V[pi] += np.matmul(Jp_t, J_point)",
+        "bundle_adjustment.py", [],
+        "V = np.empty((num_points, 3, 3))\n    for a in range(3):\n        for b in range(a, 3):\n"
+        "            V[:, a, b] = V[:, b, a] = per_point(Jp[a] * Jp[b] + Jp[3 + a] * Jp[3 + b])",
+        "V = np.zeros((num_points, 3, 3))\n    V[pi] += np.matmul(J_point.transpose(0, 2, 1), J_point)",
         {BA_UVW}, "accumulate with np.add.at"),
     "ba_coupling_summed_per_camera": V(
-        "bundle_adjustment.py", [], "W = np.matmul(Jc_t, J_point)",
-        "W = scatter(ci, np.matmul(Jc_t, J_point), num_cameras)[ci]",
+        "bundle_adjustment.py", [], "W = np.matmul(J_cam.transpose(0, 2, 1), J_point)",
+        "W = np.matmul(J_cam.transpose(0, 2, 1), J_point)\n"
+        "    W = np.stack([np.bincount(ci, weights=W[:, i, j], minlength=num_cameras)\n"
+        "                  for i in range(9) for j in range(3)], axis=1).reshape(-1, 9, 3)[ci]",
         {BA_UVW}, "one block per observation"),
     "ba_gradient_sign": V(
-        "bundle_adjustment.py", [], "g_cam = scatter(ci,", "g_cam = -scatter(ci,",
+        "bundle_adjustment.py", [], "g_cam = np.stack([", "g_cam = -np.stack([",
         {BA_G}, "the gradient has the opposite sign"),
     "ba_half_chi2": V(
         "bundle_adjustment.py", [], "float(np.sum(r * r))", "float(0.5 * np.sum(r * r))",
@@ -642,14 +651,14 @@ BUGS_BUNDLE_ADJUSTMENT = {
         {BA_R, BA_JC, BA_JP}, "not a finite number"),
     "ba_camera_count_without_minlength": V(
         "bundle_adjustment.py", ["def normal_equations"], "np.bincount(ci, minlength=num_cameras)", "np.bincount(ci)",
-        {BA_UVW}, "a camera that sees no point"),
-    "ba_scatter_without_minlength": V(
-        "bundle_adjustment.py", ["def normal_equations"],
-        "minlength=count * size).reshape((count, *blocks.shape[1:]))", ").reshape((-1, *blocks.shape[1:]))",
         {BA_UVW, BA_G}, "a camera that sees no point"),
-    "ba_gradient_squeezed": V(
-        "bundle_adjustment.py", ["def normal_equations"], "np.matmul(Jc_t, r[:, :, None])[:, :, 0]",
-        "np.matmul(Jc_t, r[:, :, None]).squeeze()", {BA_UVW, BA_G}, "one observation (K = 1)"),
+    "ba_scatter_without_minlength": V(
+        "bundle_adjustment.py", ["def normal_equations"], "np.bincount(pi, weights=values, minlength=num_points)",
+        "np.bincount(pi, weights=values)",
+        {BA_UVW, BA_G}, "point 5 by none"),
+    "ba_residuals_squeezed": V(
+        "bundle_adjustment.py", ["def normal_equations"], "r0, r1 = r[:, 0], r[:, 1]",
+        "r0, r1 = r.squeeze()[:, 0], r.squeeze()[:, 1]", {BA_UVW, BA_G}, "one observation (K = 1)"),
     # the edge problem's point seen once (and camera that sees none) leaves the undamped block singular: the
     # student's own error names it
     "schur_point_blocks_undamped": V(
@@ -659,12 +668,12 @@ BUGS_BUNDLE_ADJUSTMENT = {
         "bundle_adjustment.py", [], "U[:, np.arange(9), np.arange(9)] += damping_cam", "pass",
         {BA_CAM, BA_PT}, "add damping"),
     "schur_coupling_added": V(
-        "bundle_adjustment.py", [], "S = scipy.linalg.block_diag(*U) - reduction.toarray()",
-        "S = scipy.linalg.block_diag(*U) + reduction.toarray()",
+        "bundle_adjustment.py", [], "S[block_rows, :, R.indices, :] = -R.data",
+        "S[block_rows, :, R.indices, :] = R.data",
         {BA_CAM, BA_PT}, "the coupling term is subtracted"),
     "schur_rhs_sign": V(
-        "bundle_adjustment.py", [], "rhs = -np.asarray(g_cam, dtype=float).ravel() + np.bincount(",
-        "rhs = -np.asarray(g_cam, dtype=float).ravel() - np.bincount(",
+        "bundle_adjustment.py", [], "rhs = -np.asarray(g_cam, dtype=float).ravel() + Wg.ravel()",
+        "rhs = -np.asarray(g_cam, dtype=float).ravel() - Wg.ravel()",
         {BA_CAM, BA_PT}, "the reduced right-hand side is -g_cam + W V^-1 g_point"),
     "schur_back_substitution_sign": V(
         "bundle_adjustment.py", [], "(-np.asarray(g_point, dtype=float) - back)",
@@ -679,7 +688,8 @@ BUGS_BUNDLE_ADJUSTMENT = {
         {BA_CAM, BA_PT}, "on a problem of 112 cameras"),
 }
 
-_REDUCTION = "    reduction = schur_reduction(W, V_inv, ci, pi, C)  # (9C, 9C), blocks (9, 9)\n"
+_REDUCTION = ("    reduction, Wg = schur_reduction(W, V_inv, ci, pi, C, g_point=g_point)  # (9C, 9C), blocks (9, 9); "
+              "(C, 9)\n")
 
 # chapter 4: the Schur complement's reduction written as the hint says, without the framework's helper
 ALTERNATIVES_BUNDLE_ADJUSTMENT = {
@@ -689,14 +699,16 @@ ALTERNATIVES_BUNDLE_ADJUSTMENT = {
         "    indptr = np.concatenate([[0], np.cumsum(np.bincount(ci, minlength=C))])\n"
         "    Ys = sp.bsr_matrix((np.matmul(W[order], V_inv[pi[order]]), pi[order], indptr), shape=(9 * C, 3 * P))\n"
         "    Ws = sp.bsr_matrix((W[order], pi[order], indptr), shape=(9 * C, 3 * P))\n"
-        "    reduction = Ys @ Ws.T\n", set()),
+        "    reduction = Ys @ Ws.T\n"
+        "    Wg = (Ys @ g_point.ravel()).reshape(C, 9)\n", set()),
     "schur_reduction_by_csr_entries": V(
         "bundle_adjustment.py", ["def schur_solve"], _REDUCTION,
         "    rows = np.broadcast_to((9 * ci)[:, None, None] + np.arange(9)[:, None], (len(ci), 9, 3)).ravel()\n"
         "    cols = np.broadcast_to((3 * pi)[:, None, None] + np.arange(3), (len(ci), 9, 3)).ravel()\n"
         "    Ys = sp.csr_matrix((np.matmul(W, V_inv[pi]).ravel(), (rows, cols)), shape=(9 * C, 3 * P))\n"
         "    Ws = sp.csr_matrix((W.ravel(), (rows, cols)), shape=(9 * C, 3 * P))\n"
-        "    reduction = Ys @ Ws.T\n", set()),
+        "    reduction = Ys @ Ws.T\n"
+        "    Wg = (Ys @ g_point.ravel()).reshape(C, 9)\n", set()),
 }
 
 RK_HUBER, RK_CAUCHY, RK_TUKEY = "robust_kernels.huber: ", "robust_kernels.cauchy: ", "robust_kernels.tukey: "
@@ -1215,8 +1227,9 @@ BUGS_POSE_GRAPH_3D_ASSEMBLY = {
         "OA, OB = A, B", {P3_ASM},
         "weigh every edge by its information"),
     "p3a_lower_triangle": V(
-        "pose_graph_3d_assembly.py", [], "rows, cols = np.minimum(r, c).ravel(), np.maximum(r, c).ravel()",
-        "rows, cols = np.maximum(r, c).ravel(), np.minimum(r, c).ravel()", {P3_ASM},
+        "pose_graph_3d_assembly.py", [],
+        "rows, cols = np.minimum(r, c).ravel()[entries], np.maximum(r, c).ravel()[entries]",
+        "rows, cols = np.maximum(r, c).ravel()[entries], np.minimum(r, c).ravel()[entries]", {P3_ASM},
         "H holds the lower triangle"),
     "p3a_b_sign": V(
         "pose_graph_3d_assembly.py", [], "b = np.bincount(", "b = -np.bincount(", {P3_ASM},
@@ -1225,13 +1238,14 @@ BUGS_POSE_GRAPH_3D_ASSEMBLY = {
         "pose_graph_3d_assembly.py", [], "data[self._dead] = 0.0\n        data[self._fixed_diagonal] = 1.0",
         "pass", {P3_ASM}, "a fixed pose keeps an identity diagonal block"),
     "p3a_chi2_unweighted": V(
-        "pose_graph_3d_assembly.py", [], 'chi2 = float(np.einsum("mi,mij,mj->", e, information, e))',
-        "chi2 = float(np.sum(e * e))", {P3_ASM}, "weighted by the information"),
+        "pose_graph_3d_assembly.py", [], "chi2 = float(np.vdot(e, Oe))", "chi2 = float(np.vdot(e, e))", {P3_ASM},
+        "weighted by the information"),
 }
 ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY = {
     "p3a_add_at": V(
-        "pose_graph_3d_assembly.py", [], "data = np.bincount(self._positions, weights=H_edges, minlength=self.nnz)",
-        "data = np.zeros(self.nnz)\n        np.add.at(data, self._positions, H_edges)", set()),
+        "pose_graph_3d_assembly.py", [], "data = self._sum @ blocks.ravel()",
+        "S = self._sum.tocoo()\n        data = np.zeros(self.nnz)\n"
+        "        np.add.at(data, S.row, blocks.ravel()[S.col])", set()),
 }
 
 C3_REL = "chordal_3d.relaxed_rotations: the relaxation's 3x3 matrices"
@@ -1372,10 +1386,14 @@ ALTERNATIVES_DERIVED = {
     "derived_p3_rotation_through_d": V(
         "pose_graph_3d.py", [], "A[:, 3:, 3:] = -np.matmul(Jr_inv, np.matmul(Rj.transpose(0, 2, 1), Ri))",
         "A[:, 3:, 3:] = -np.matmul(Jr_inv, np.matmul(D_R.transpose(0, 2, 1), RzT))", set()),
+    # d(RX)/dw = -[RX]_x J_l(w), J_l = I + b W + c W^2: the rows -(A x RX) J_l
     "derived_ba_left_jacobian": V(
-        "bundle_adjustment.py", [], "J_cam[:, :, :3] = -np.matmul(np.cross(AR, X[:, None, :]), Jr)",
-        "J_cam[:, :, :3] = -np.matmul(A, np.matmul(skew(np.matmul(R, X[:, :, None])[:, :, 0]), "
-        "(eye + b[:, None, None] * Wx + c[:, None, None] * Wx2)[camera_index]))", set()),
+        "bundle_adjustment.py", [],
+        "np.multiply(cross[0], Jr[j], out=J_w)\n            J_w += cross[1] * Jr[3 + j]\n"
+        "            J_w += cross[2] * Jr[6 + j]",
+        "Jl = gathered((eye + b[:, None, None] * Wx + c[:, None, None] * Wx2).reshape(-1, 9).T, camera_index)\n"
+        "            left = np.cross(np.stack(A), np.stack(P) - t, axis=0)\n"
+        "            J_w[...] = left[0] * Jl[j] + left[1] * Jl[3 + j] + left[2] * Jl[6 + j]", set()),
     "derived_cauchy_second_from_first": V(
         "robust_kernels.py", ["def cauchy"], "return a2 * np.log1p(s / a2), 1.0 / t, -1.0 / (a2 * t * t)",
         "return a2 * np.log1p(s / a2), 1.0 / t, -((1.0 / t) ** 2) / a2", set()),
@@ -1464,8 +1482,8 @@ BUGS_FACTOR_GRAPH = {
         "factor_linearisation.py", ["def assemble"], "b[self._fixed_dof] = 0.0", "pass", {FL_2D, FL_FIXED},
         "entries of b are zero too"),
     "linearisation_slot_order_upper": V(
-        "factor_linearisation.py", ["def __init__"], "keep = r <= q  # the upper triangle of H",
-        "keep = (r <= q) if a <= c else np.zeros_like(r, dtype=bool)", {FL_2D, FL_3D, FL_FIXED},
+        "factor_linearisation.py", ["def __init__"], "used = r <= q if a == c else np.ones(r.shape, dtype=bool)",
+        "used = r <= q", {FL_2D, FL_3D, FL_FIXED},
         "the upper triangle is in the variables' order"),
 }
 
