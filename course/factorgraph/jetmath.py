@@ -148,12 +148,16 @@ def skew(v):
 
 
 def vee(W):
-    """The vector (..., 3) of the antisymmetric part of ``W`` (..., 3, 3): ``vee((W - W^T) / 2)``."""
-    return 0.5 * (W[..., _VEE_ROWS, _VEE_COLUMNS] - W[..., _VEE_COLUMNS, _VEE_ROWS])
+    """The vector (..., 3) of the antisymmetric part of ``W`` (..., 3, 3): ``vee((W - W^T) / 2)``. The
+    entries are picked from ``W`` flattened to (..., 9): one index on one axis (on a Jet, a third less
+    time than a pair of indices on two axes)."""
+    flat = W.reshape(W.shape[:-2] + (9,))
+    return 0.5 * (flat[..., _VEE_PLUS] - flat[..., _VEE_MINUS])
 
 
-#: the entries ``(2, 1), (0, 2), (1, 0)`` of ``[w]_x`` that hold ``w``'s components (:func:`vee`)
-_VEE_ROWS, _VEE_COLUMNS = np.array([2, 0, 1]), np.array([1, 2, 0])
+#: the entries ``(2, 1), (0, 2), (1, 0)`` of ``[w]_x`` that hold ``w``'s components, and their mirrors
+#: ``(1, 2), (2, 0), (0, 1)``, as indices of the matrix flattened row by row (:func:`vee`)
+_VEE_PLUS, _VEE_MINUS = np.array([7, 2, 3]), np.array([5, 6, 1])
 
 
 def matvec(A, v):
