@@ -120,7 +120,7 @@ class SE3Kind(VariableKind):
         t, R = se3_parts(x)
         t_new = t + jetmath.matvec(R, delta[..., :3])
         R_new = R @ jetmath.so3_exp(delta[..., 3:])
-        return _concatenate_last(t_new, R_new.reshape(R_new.shape[:-2] + (9,)))
+        return jetmath.concatenate([t_new, R_new.reshape(R_new.shape[:-2] + (9,))])
 
     def plus_jacobian(self, x) -> np.ndarray:
         x = np.asarray(x, dtype=float)
@@ -176,14 +176,6 @@ def se3_value(t, R) -> np.ndarray:
     """The stored value (12,) or (M, 12) of a pose ``(t, R)``."""
     t, R = np.asarray(t, dtype=float), np.asarray(R, dtype=float)
     return np.concatenate([t, R.reshape(R.shape[:-2] + (9,))], axis=-1)
-
-
-def _concatenate_last(a, b):
-    """``concatenate([a, b], axis=-1)`` of arrays or Jets (column by column: a Jet has no concatenate)."""
-    if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
-        return np.concatenate([a, b], axis=-1)
-    parts = [a[..., i] for i in range(a.shape[-1])] + [b[..., i] for i in range(b.shape[-1])]
-    return np.stack(parts, axis=-1)
 
 
 class BALCameraKind(Vector):

@@ -101,7 +101,7 @@ def minimize(problem: Problem, method="gauss-newton", impl="solutions", options:
             x, previous, x_chi2 = trial.x, lin.chi2, trial.chi2
             converged = abs(previous - trial.chi2) <= options.cost_tolerance * previous
             if not converged:
-                lin = trial.lin if trial.lin is not None else problem.linearize(x)
+                lin = problem.linearize(x)
                 strategy.relinearized(problem, lin)
         else:  # a rejected step that changes chi2 by less than cost_tolerance: the optimum, to rounding
             # (rho is noise there; going on would only shrink the step to the step tolerance, as

@@ -20,7 +20,6 @@ turn them into strategies.
 """
 
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 
@@ -44,14 +43,12 @@ MU_MIN, MU_MAX = 1e-8, 1.0
 
 @dataclass
 class Trial:
-    """A candidate point: ``x`` after the step ``h`` (as finally scaled), its chi2, and the
-    linearization there when the strategy already computed it (none of ours does: the minimizer
-    linearizes an accepted point when the run goes on)."""
+    """A candidate point: ``x`` after the step ``h`` (as finally scaled) and its chi2; the minimizer
+    linearizes an accepted point only when the run goes on."""
 
     x: np.ndarray
     h: np.ndarray
     chi2: float
-    lin: Any | None = None
     alpha: float = 1.0
 
 
