@@ -175,7 +175,9 @@ display(Image(plot.to_png(chapter6.perturbation_figure())))
 # $$J_r^{-1}(\phi) = I + \tfrac12 [\phi]_\times
 #   + \Big(\frac{1}{\theta^2} - \frac{1 + \cos\theta}{2\theta\sin\theta}\Big)[\phi]_\times^2$$
 #
-# (given: `course.geometry.so3.right_jacobian_inverse_many`; it grows without bound as $\theta \to \pi$).
+# (given: `course.geometry.so3.right_jacobian_inverse_many`). It stays finite up to $\theta = \pi$, where the
+# coefficient is $1/\pi^2$; but $(1 + \cos\theta)/\sin\theta$ is $0/0$ there and cancels near it, so the code
+# writes it $1/\tan(\theta/2)$.
 # Setting $\varepsilon = J_r(\phi)\,\delta$ in the first display and taking the Log gives what a
 # rotation *error* needs:
 #

@@ -47,3 +47,12 @@ def test_exp_many_is_a_rotation_and_log_many_its_inverse():
     np.testing.assert_allclose(R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape), rtol=0, atol=1e-15)
     np.testing.assert_allclose(np.linalg.det(R), 1.0, rtol=0, atol=1e-14)
     np.testing.assert_allclose(log_many(R), phi, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("gap", [1e-3, 1e-5, 1e-7, 1e-9, 0.0])
+def test_right_jacobian_inverse_is_right_at_and_near_pi(gap):
+    """``J_r^-1`` is finite at pi (its coefficient is ``1 / pi^2`` there): near it ``(1 + cos t) / sin t``
+    cancels (``1 + cos t`` keeps a relative error of about ``eps / gap^2``) where ``1 / tan(t / 2)`` does not."""
+    phi = _vectors([np.pi - gap, np.pi - gap], seed=2)
+    inverse = [np.linalg.inv(right_jacobian(p)) for p in phi]
+    np.testing.assert_allclose(right_jacobian_inverse_many(phi), inverse, rtol=0, atol=4e-15)

@@ -153,10 +153,12 @@ def right_jacobian_many(phi) -> np.ndarray:
 def right_jacobian_inverse_many(phi) -> np.ndarray:
     """``J_r(phi_k)^-1 = I + [phi]/2 + (1/t^2 - (1 + cos t) / (2 t sin t)) [phi]^2`` (K, 3, 3).
 
-    ``Log(Exp(phi) Exp(d)) = phi + J_r(phi)^-1 d + O(|d|^2)``; defined for t < pi.
+    ``Log(Exp(phi) Exp(d)) = phi + J_r(phi)^-1 d + O(|d|^2)``. Right at every angle up to pi: the
+    coefficient is finite there (``1 / pi^2``), and written with ``(1 + cos t) / sin t = 1 / tan(t / 2)``
+    so that it stays so (the quotient is 0 / 0 at pi; ``tan(pi / 2)`` is about 1.6e16 in floating point).
     """
     phi = np.asarray(phi, dtype=float).reshape(-1, 3)
     t = _angles(phi)
     c = _by_angle(t, lambda s: 1.0 / 12.0 + s * s / 720.0,
-                  lambda s: 1.0 / (s * s) - (1.0 + np.cos(s)) / (2.0 * s * np.sin(s)))
+                  lambda s: 1.0 / (s * s) - 1.0 / (2.0 * s * np.tan(0.5 * s)))
     return _quadratic(phi, 0.5, c)
