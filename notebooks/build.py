@@ -26,7 +26,9 @@ on the factor graph with automatic differentiation (dual numbers and Jets, finit
 against Jets by the step size, the chain rule through a retraction, the generic block-sparse
 linearisation; then intel, sphere2500 and ladybug-49 as factor graphs: automatic against analytic
 Jacobians, the same minimum, the benchmark, a GPS factor in five lines, and range-only SLAM from the
-factor library against GTSAM's own factors).
+factor library against GTSAM's own factors), chapter 8 a lesson on elimination (one variable eliminated
+by QR or by completing the square, the Bayes net and back-substitution, the elimination game and a
+minimum-degree ordering against AMD on intel, every pose's marginal covariance by the recursion on R).
 
 Each notebook's source is a jupytext py:percent file next to it (``chapter2_pose_graphs.py``
 for ``chapter2_pose_graphs.ipynb``); edit the source, then rebuild. A cell starts with
@@ -80,10 +82,12 @@ CHAPTER4 = HERE / "chapter4_bundle_adjustment.ipynb"
 CHAPTER5 = HERE / "chapter5_vio.ipynb"
 CHAPTER6 = HERE / "chapter6_pose_graphs_3d.ipynb"
 CHAPTER7 = HERE / "chapter7_factor_graphs.ipynb"
+CHAPTER8 = HERE / "chapter8_elimination.ipynb"
 
 #: each notebook and its py:percent source
 NOTEBOOKS = {path: path.with_suffix(".py")
-             for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B, CHAPTER4, CHAPTER5, CHAPTER6, CHAPTER7)
+             for path in (CHAPTER1, CHAPTER2, CHAPTER3, CHAPTER3B, CHAPTER4, CHAPTER5, CHAPTER6, CHAPTER7,
+                          CHAPTER8)
              if path.is_file() or path.with_suffix(".py").is_file()}  # an assignment tree ships its chapters only
 
 

@@ -1,0 +1,377 @@
+"""Chapter 8's lesson: elimination, orderings and fill, marginal covariances.
+
+What the notebook's cells call, section by section (each takes the implementation's module, so that the
+student's own ``elimination``, ``orderings`` and ``marginal_covariances`` run):
+
+* ``LinearGraph``, ``small_graph``, ``stacked``, ``elimination_check``: a linear Gaussian factor graph of
+  three 2-vectors, the factors adjacent to one variable stacked, and a check of one elimination by the
+  identity the contract states (at random points, no reference answer).
+* ``eliminate_all``, ``back_substitute``, ``bayes_net_table``: variable elimination, one variable at a time
+  (a Bayes net of conditionals), and the solution read back from it, against a dense least squares.
+* ``game_graph``, ``game_figure``: the elimination game on a small pose graph with landmarks, two orderings.
+* ``graph_of``, ``ordering_rows``, ``ordering_table``: the fill and the factor's size under the natural order,
+  the student's minimum degree, reverse Cuthill-McKee (scipy) and AMD (cvxopt, where installed).
+* ``pose_graph_information``, ``square_root_information``, ``marginals_run``, ``ellipse_figure``: a 2D pose
+  graph solved, its square-root information in the student's ordering, every pose's marginal covariance by
+  the student's recursion against the dense inverse, and the poses' 3-sigma ellipses.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+from course.app.plot import figure
+from course.core import peers
+from course.notebook_helpers.lesson import exercise, todo_as_one_line  # noqa: F401 (the cells call them here)
+
+# ---------------------------------------------------------------- section 1: one elimination
+
+
+class LinearGraph(NamedTuple):
+    """A linear Gaussian factor graph: ``sizes[v]`` the size of variable ``v``; each factor
+    ``(keys, blocks, b)`` adds ``||sum_a blocks[a] x_keys[a] - b||^2`` (whitened: ``blocks[a]`` (m, sizes[key])).
+    """
+
+    sizes: tuple
+    factors: list
+
+
+def small_graph(seed: int = 0) -> LinearGraph:
+    """Three 2-vectors ``x0, x1, x2``: a prior on ``x0``, odometry ``x0-x1`` and ``x1-x2``, a loop ``x0-x2``
+    and a one-row measurement of ``x2``; random whitened blocks (well conditioned)."""
+    rng = np.random.default_rng(seed)
+
+    def block(m):
+        return rng.normal(0.0, 1.0, (m, 2)) + 2.0 * np.eye(m, 2)
+
+    factors = [((0,), [block(2)], rng.normal(size=2)),
+               ((0, 1), [block(2), -block(2)], rng.normal(size=2)),
+               ((1, 2), [block(2), -block(2)], rng.normal(size=2)),
+               ((0, 2), [block(2), -block(2)], rng.normal(size=2)),
+               ((2,), [block(1)], rng.normal(size=1))]
+    return LinearGraph((2, 2, 2), factors)
+
+
+def stacked(graph: LinearGraph, v: int, factors=None):
+    """``(A_x, A_s, b, separator)``: the factors of ``factors`` (default: the graph's) that touch ``v``,
+    stacked; ``separator`` their other variables, sorted, ``A_s``'s column blocks in that order."""
+    factors = graph.factors if factors is None else factors
+    adjacent = [f for f in factors if v in f[0]]
+    separator = sorted({key for keys, _, _ in adjacent for key in keys if key != v})
+    offsets = np.concatenate([[0], np.cumsum([graph.sizes[s] for s in separator])]).astype(int)
+    rows = sum(len(b) for _, _, b in adjacent)
+    A_x = np.zeros((rows, graph.sizes[v]))
+    A_s = np.zeros((rows, int(offsets[-1])))
+    b = np.zeros(rows)
+    row = 0
+    for keys, blocks, rhs in adjacent:
+        m = len(rhs)
+        for key, block in zip(keys, blocks):
+            if key == v:
+                A_x[row:row + m] += block
+            else:
+                k = separator.index(key)
+                A_s[row:row + m, offsets[k]:offsets[k + 1]] += block
+        b[row:row + m] = rhs
+        row += m
+    return A_x, A_s, b, separator
+
+
+def elimination_check(module, graph: LinearGraph | None = None, v: int = 0, points: int = 5, out=print) -> bool:
+    """Eliminate ``v`` with ``module.eliminate_variable`` and check the contract at random points: R upper
+    triangular, and ``||A_x x + A_s s - b||^2 - ||R x + S s - d||^2 - ||A_new s - b_new||^2`` the same
+    constant ``c >= 0`` everywhere (the two sides differ by no function of ``x`` or ``s``)."""
+    graph = small_graph() if graph is None else graph
+    A_x, A_s, b, separator = stacked(graph, v)
+    R, S, d, A_new, b_new = (np.asarray(a, dtype=float) for a in module.eliminate_variable(A_x, A_s, b))
+    upper = R.shape == (A_x.shape[1],) * 2 and bool(np.allclose(np.tril(R, -1), 0.0, atol=1e-12))
+    out(f"R {R.shape}, S {S.shape}, d {d.shape}, new factor {A_new.shape} on x{', x'.join(map(str, separator))}; "
+        f"R upper triangular: {'yes' if upper else 'NO'}")
+    rng = np.random.default_rng(1)
+    gaps = []
+    for _ in range(points):
+        x, s = rng.normal(0.0, 3.0, A_x.shape[1]), rng.normal(0.0, 3.0, A_s.shape[1])
+        whole = np.sum((A_x @ x + A_s @ s - b) ** 2)
+        split = np.sum((R @ x + S @ s - d) ** 2) + np.sum((A_new @ s - b_new) ** 2)
+        gaps.append(whole - split)
+    gaps = np.asarray(gaps)
+    spread = float(np.ptp(gaps))
+    constant = spread < 1e-9 * max(1.0, float(np.max(np.abs(gaps)))) and float(np.min(gaps)) > -1e-9
+    out(f"||A_x x + A_s s - b||^2 - (||R x + S s - d||^2 + ||A_new s - b_new||^2) at {points} random points: "
+        f"{gaps[0]:.6g} (spread {spread:.1e}): {'a constant c >= 0, right' if constant else 'NOT a constant c >= 0'}")
+    return upper and constant
+
+
+def eliminate_all(module, graph: LinearGraph, ordering) -> list:
+    """Variable elimination: for each ``v`` of ``ordering``, its adjacent factors replaced by the new factor
+    on its separator; returns the Bayes net ``[(v, separator, R, S, d)]`` in elimination order."""
+    factors = list(graph.factors)
+    net = []
+    for v in ordering:
+        A_x, A_s, b, separator = stacked(graph, v, factors)
+        R, S, d, A_new, b_new = (np.asarray(a, dtype=float) for a in module.eliminate_variable(A_x, A_s, b))
+        net.append((v, separator, R, S, d))
+        factors = [f for f in factors if v not in f[0]]
+        if separator and len(b_new):
+            offsets = np.concatenate([[0], np.cumsum([graph.sizes[s] for s in separator])]).astype(int)
+            factors.append((tuple(separator), [A_new[:, offsets[k]:offsets[k + 1]] for k in range(len(separator))],
+                            b_new))
+    return net
+
+
+def back_substitute(net: list, sizes) -> list:
+    """The solution from the Bayes net, last eliminated first: ``x_v = R^-1 (d - S x_separator)``."""
+    x: dict = {}
+    for v, separator, R, S, d in reversed(net):
+        s = np.concatenate([x[k] for k in separator]) if separator else np.zeros(0)
+        x[v] = scipy.linalg.solve_triangular(R, d - S @ s) if np.allclose(np.tril(R, -1), 0.0) else np.linalg.solve(
+            R, d - S @ s)
+    return [x[v] for v in range(len(sizes))]
+
+
+def least_squares(graph: LinearGraph) -> list:
+    """The whole system stacked and solved densely (numpy's least squares): the comparison."""
+    offsets = np.concatenate([[0], np.cumsum(graph.sizes)]).astype(int)
+    rows = []
+    rhs = []
+    for keys, blocks, b in graph.factors:
+        A = np.zeros((len(b), offsets[-1]))
+        for key, block in zip(keys, blocks):
+            A[:, offsets[key]:offsets[key + 1]] = block
+        rows.append(A)
+        rhs.append(b)
+    x = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
+    return [x[offsets[v]:offsets[v + 1]] for v in range(len(graph.sizes))]
+
+
+def bayes_net_table(module, graph: LinearGraph | None = None) -> str:
+    """For two orderings: the conditionals (each variable given its separator) and the largest difference
+    between the back-substituted solution and numpy's least squares."""
+    graph = small_graph() if graph is None else graph
+    want = np.concatenate(least_squares(graph))
+    lines = []
+    for ordering in ([0, 1, 2], [1, 0, 2]):
+        net = eliminate_all(module, graph, ordering)
+        got = np.concatenate(back_substitute(net, graph.sizes))
+        conditionals = ", ".join(f"p(x{v}{' | x' + ', x'.join(map(str, s)) if s else ''})" for v, s, *_ in net)
+        lines.append(f"order {ordering}: {conditionals}; |x - x_lstsq| = {np.max(np.abs(got - want)):.1e}")
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- section 2: orderings and fill
+
+
+def game_graph():
+    """``(n, edges, positions)``: six poses around a loop (0..5, odometry and one closure 5-0) and two
+    landmarks (6 seen from 0, 1 and 2; 7 from 3, 4 and 5), with positions for the figure."""
+    angles = np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False)
+    poses = np.column_stack([np.cos(angles), np.sin(angles)]) * 2.0
+    positions = np.vstack([poses, [[1.0, 0.9], [-1.0, -0.9]]])
+    edges = [(k, (k + 1) % 6) for k in range(6)] + [(p, 6) for p in (0, 1, 2)] + [(p, 7) for p in (3, 4, 5)]
+    return 8, np.array(edges), positions
+
+
+def game_figure(module, orderings: dict | None = None):
+    """One panel per ordering: the graph's edges, the fill of ``module.symbolic_elimination`` (red, dashed)
+    and each variable's position in the ordering; the natural order and ``module.minimum_degree_ordering``
+    by default."""
+    n, edges, positions = game_graph()
+    if orderings is None:
+        orderings = {"natural": np.arange(n), "minimum degree": np.asarray(module.minimum_degree_ordering(n, edges))}
+    fig = figure(4.2 * len(orderings), 4.2)
+    for k, (name, ordering) in enumerate(orderings.items()):
+        ax = fig.add_subplot(1, len(orderings), k + 1)
+        _, parents, fill = module.symbolic_elimination(n, edges, ordering)
+        fill = np.asarray(fill, dtype=int).reshape(-1, 2)
+        for i, j in edges:
+            ax.plot(*positions[[i, j]].T, color="0.3", lw=1.5, zorder=1)
+        for i, j in fill:
+            ax.plot(*positions[[i, j]].T, color="tab:red", lw=1.2, ls="--", zorder=1)
+        position = np.empty(n, dtype=int)
+        position[np.asarray(ordering, dtype=int)] = np.arange(n)
+        for v in range(n):
+            ax.scatter(*positions[v], s=380, color="tab:orange" if v >= 6 else "tab:blue", zorder=2)
+            ax.text(*positions[v], f"{v}\n#{position[v] + 1}", ha="center", va="center", fontsize=7, color="white",
+                    zorder=3)
+        roots = int(np.sum(np.asarray(parents) < 0))
+        ax.set_title(f"{name}: {len(fill)} fill edge(s), {roots} root(s)\n"
+                     "poses blue, landmarks orange, fill red; #k: eliminated k-th", fontsize=8)
+        ax.set_aspect("equal")
+        ax.axis("off")
+    return fig
+
+
+def graph_of(name: str):
+    """``(n, edges)`` of the 2D pose graph ``name`` (a named dataset, or ``manhattan:N``): the poses and the
+    pairs of poses joined by an edge."""
+    from course.problems.posegraph.dataset import load_dataset
+
+    graph = load_dataset(name)
+    return graph.num_poses, np.column_stack([graph.edges_i, graph.edges_j]).astype(int)
+
+
+def _block_adjacency(n: int, edges) -> sp.csr_matrix:
+    edges = np.asarray(edges, dtype=int).reshape(-1, 2)
+    edges = edges[edges[:, 0] != edges[:, 1]]
+    A = sp.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    return ((A + A.T) > 0).astype(float).tocsr()
+
+
+def _amd(n: int, edges):
+    """AMD's ordering of the graph (cvxopt's, SuiteSparse), or None where cvxopt is not installed."""
+    if not peers.installed("cvxopt"):
+        return None
+    import cvxopt
+    from cvxopt import amd
+
+    A = sp.tril(_block_adjacency(n, edges) + sp.eye(n)).tocoo()
+    matrix = cvxopt.spmatrix(1.0, A.row.astype(np.int64), A.col.astype(np.int64), (n, n))
+    return np.array(amd.order(matrix, uplo="L")).ravel().astype(int)
+
+
+def ordering_rows(module, n: int, edges, block: int = 3) -> list:
+    """Per ordering (natural, the student's minimum degree, reverse Cuthill-McKee, AMD where installed):
+    ``(name, seconds to order, fill edges, largest separator, elimination-tree height, nonzeros of R)``,
+    R's nonzeros for variables of ``block`` unknowns (``block (block + 1) / 2`` on a diagonal block,
+    ``block^2`` per separator variable), the separators from ``module.symbolic_elimination``."""
+    candidates = [("natural", lambda: np.arange(n)),
+                  ("minimum degree (yours)", lambda: np.asarray(module.minimum_degree_ordering(n, edges), dtype=int)),
+                  ("reverse Cuthill-McKee (scipy)",
+                   lambda: np.asarray(reverse_cuthill_mckee(_block_adjacency(n, edges), symmetric_mode=True)))]
+    if peers.installed("cvxopt"):
+        candidates.append(("AMD (SuiteSparse, cvxopt)", lambda: _amd(n, edges)))
+    rows = []
+    for name, order in candidates:
+        start = time.perf_counter()
+        ordering = order()
+        seconds = time.perf_counter() - start
+        separators, parents, fill = module.symbolic_elimination(n, edges, ordering)
+        sizes = np.array([len(s) for s in separators])
+        depth = np.zeros(n, dtype=int)
+        for v in np.asarray(ordering, dtype=int)[::-1]:  # a parent is eliminated after its child
+            p = int(parents[v])
+            depth[v] = 0 if p < 0 else depth[p] + 1
+        nnz = int(np.sum(block * (block + 1) // 2 + block * block * sizes))
+        rows.append((name, seconds, len(np.asarray(fill).reshape(-1, 2)), int(sizes.max(initial=0)),
+                     int(depth.max(initial=0)) + 1, nnz))
+    return rows
+
+
+def ordering_table(module, names) -> str:
+    """:func:`ordering_rows` of each graph of ``names``, as a table."""
+    lines = [f"{'graph':<14} {'ordering':<30} {'ms':>8} {'fill':>8} {'max sep':>8} {'height':>7} {'nnz(R)':>10}"]
+    for name in names:
+        n, edges = graph_of(name)
+        for row in ordering_rows(module, n, edges):
+            label, seconds, fill, largest, height, nnz = row
+            lines.append(f"{name:<14} {label:<30} {seconds * 1e3:8.1f} {fill:8d} {largest:8d} {height:7d} {nnz:10d}")
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- section 3: marginal covariances
+
+
+class Information(NamedTuple):
+    """A solved 2D pose graph's information at its solution: ``H`` (3N, 3N) CSC, whole (both triangles),
+    the first pose held still by an identity block; ``poses`` (N, 3); ``edges`` (E, 2)."""
+
+    H: sp.csc_matrix
+    poses: np.ndarray
+    edges: np.ndarray
+
+
+def pose_graph_information(name: str, impl, iterations: int = 20) -> Information:
+    """Solve ``name`` by Gauss-Newton from the file's poses (chapter 2's problem, the implementation's
+    pieces) and linearise at the solution."""
+    from course.problems.posegraph.dataset import load_dataset
+    from course.problems.posegraph.problem import PoseGraphProblem
+    from course.solver import SolverOptions, minimize
+
+    graph = load_dataset(name)
+    problem = PoseGraphProblem(graph, impl)
+    result = minimize(problem, "gauss-newton", impl=impl, options=SolverOptions(max_iterations=iterations))
+    x = np.asarray(result.params, dtype=float).ravel()
+    lin = problem.linearize(x)
+    H = sp.csc_matrix(lin.H)
+    if lin.upper:
+        H = sp.csc_matrix(sp.triu(H) + sp.triu(H, 1).T)
+    return Information(H, problem.poses(x), np.column_stack([graph.edges_i, graph.edges_j]).astype(int))
+
+
+def square_root_information(info: Information, ordering, module) -> tuple:
+    """``(R, block_order)``: H's upper Cholesky factor in the block ordering ``ordering`` (poses of 3
+    unknowns), stored on the pattern of ``module.symbolic_elimination``'s separators (fill included, a
+    stored entry may be 0), and the unknowns' order. Dense Cholesky: a graph of a few thousand poses."""
+    n = len(info.poses)
+    ordering = np.asarray(ordering, dtype=int)
+    separators, _, _ = module.symbolic_elimination(n, info.edges, ordering)
+    unknowns = (3 * ordering[:, None] + np.arange(3)).ravel()
+    dense = info.H[unknowns][:, unknowns].toarray()
+    U = scipy.linalg.cholesky(dense, lower=False)
+    position = np.empty(n, dtype=int)
+    position[ordering] = np.arange(n)
+    rows, cols = [], []
+    for v in range(n):
+        i = position[v]
+        blocks = [i] + [int(position[s]) for s in separators[v]]
+        r = 3 * i + np.arange(3)
+        c = (3 * np.asarray(blocks)[:, None] + np.arange(3)).ravel()
+        rr, cc = np.meshgrid(r, c, indexing="ij")
+        keep = cc >= rr
+        rows.append(rr[keep])
+        cols.append(cc[keep])
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    R = sp.csc_matrix((U[rows, cols], (rows, cols)), shape=dense.shape)
+    return R, unknowns
+
+
+def marginals_run(info: Information, orderings_module, marginals_module) -> dict:
+    """Every pose's marginal covariance (3, 3) by ``marginals_module.marginal_covariances`` on H's
+    square-root information (the student's minimum-degree ordering), and the same blocks of the dense
+    inverse of H; their times and the largest difference relative to each block's scale."""
+    n = len(info.poses)
+    ordering = np.asarray(orderings_module.minimum_degree_ordering(n, info.edges), dtype=int)
+    R, _ = square_root_information(info, ordering, orderings_module)
+    start = time.perf_counter()
+    ours = marginals_module.marginal_covariances(R, [3] * n)
+    seconds = time.perf_counter() - start
+    start = time.perf_counter()
+    inverse = np.linalg.inv(info.H.toarray())
+    dense_seconds = time.perf_counter() - start
+    by_pose = [None] * n
+    for k, v in enumerate(ordering):
+        by_pose[v] = np.asarray(ours[k], dtype=float)
+    worst = max(float(np.max(np.abs(by_pose[v] - inverse[3 * v:3 * v + 3, 3 * v:3 * v + 3]))
+                      / max(np.max(np.abs(inverse[3 * v:3 * v + 3, 3 * v:3 * v + 3])), 1e-300)) for v in range(n))
+    return {"covariances": by_pose, "seconds": seconds, "dense_seconds": dense_seconds, "worst": worst,
+            "nnz": R.nnz, "n": n}
+
+
+def marginals_line(run: dict) -> str:
+    return (f"{run['n']} poses: marginals by your recursion {run['seconds'] * 1e3:.1f} ms on R's {run['nnz']} stored "
+            f"entries; the dense inverse {run['dense_seconds'] * 1e3:.1f} ms; largest difference "
+            f"{run['worst']:.1e} of a block's scale")
+
+
+def ellipse_figure(info: Information, covariances, every: int = 10, sigmas: float = 3.0):
+    """The solved trajectory and the ``sigmas``-sigma ellipse of every ``every``-th pose's position marginal."""
+    fig = figure(6.5, 6.0)
+    ax = fig.add_subplot(1, 1, 1)
+    poses = info.poses
+    ax.plot(poses[:, 0], poses[:, 1], color="0.5", lw=0.6)
+    circle = np.column_stack([np.cos(np.linspace(0, 2 * np.pi, 60)), np.sin(np.linspace(0, 2 * np.pi, 60))])
+    for v in range(1, len(poses), every):
+        values, vectors = np.linalg.eigh(covariances[v][:2, :2])
+        shape = circle @ (vectors * (sigmas * np.sqrt(np.clip(values, 0.0, None)))).T
+        ax.plot(poses[v, 0] + shape[:, 0], poses[v, 1] + shape[:, 1], color="tab:blue", lw=0.8)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"{sigmas:g}-sigma position ellipses (every {every}th pose), relative to the first pose", fontsize=9)
+    return fig
