@@ -32,6 +32,10 @@ RETURNS = ("R", "S", "d", "A_new", "b_new")
 
 #: relative tolerance of every invariant, and of its absolute floor at the inputs' scale
 RTOL = 1e-9
+#: what a factorisation that fails, or gives numbers that are not finite, has likely met
+SINGULAR = ("the new factor's information Lambda_ss - S^T S can be singular (zero when m = n_x, rank m - n_x when "
+            "m - n_x < n_s): write it back as rows without a plain Cholesky (skip its zero pivots, or keep the "
+            "positive eigenvalues of eigh), or take the rows below R of a QR of [A_x | A_s | b]")
 
 POSE, LANDMARK = 3, 2
 
@@ -157,9 +161,19 @@ CAUSES = {"RtR": "R is the upper Cholesky factor of Lambda_xx (R^T R = Lambda_xx
           "Atb": "the new factor's information vector is eta_s - S^T d"}
 
 
-def _difference(mine, ref, name, atol, where, known):
-    """The feedback line where ``mine`` differs from ``ref`` beyond ``RTOL |ref| + atol``, or ''."""
-    excess = np.abs(mine - ref) - (atol + RTOL * np.abs(ref))
+def _excess(mine, ref, atol):
+    return np.abs(mine - ref) - (atol + RTOL * np.abs(ref))
+
+
+def _matches(mine, known, atol) -> list:
+    """The texts of the known mistakes whose value ``mine`` is, in order."""
+    return [why for value, why in known if np.shape(value) == np.shape(mine) and close(mine, value, RTOL, atol)]
+
+
+def _difference(mine, ref, name, atol, where, causes):
+    """The feedback line where ``mine`` differs from ``ref`` beyond ``RTOL |ref| + atol``, or ''; ``causes``:
+    the texts of the known mistakes it matches (the first is named), else the usual cause."""
+    excess = _excess(mine, ref, atol)
     if not np.any(excess > 0):
         return ""
     index = tuple(int(k) for k in np.unravel_index(int(np.argmax(excess)), excess.shape))
@@ -167,15 +181,12 @@ def _difference(mine, ref, name, atol, where, known):
     text = (f"{entry} = {fmt(mine[index])}, expected {fmt(ref[index])} {where} ({int(np.sum(excess > 0))} of "
             f"{excess.size} entries differ; {LABELS[name]} must be {MEANING[name]}; tolerance {RTOL:g} relative "
             f"and {RTOL:g} of the inputs' scale, here {fmt(atol[index])})")
-    for value, why in known.get(name, ()):
-        if close(mine, value, RTOL, atol):
-            return f"{text}: {why}"
-    return f"{text}: {CAUSES[name]}"
+    return f"{text}: {causes[0] if causes else CAUSES[name]}"
 
 
 def _judge(names, upper=False):
     def judge(ctx):
-        triples, failure = call_fields(ctx, failed=failed)
+        triples, failure = call_fields(ctx, {"LinAlgError": SINGULAR}, failed=failed)
         if failure:
             return failure
         for index, (call, got, want) in enumerate(triples):
@@ -187,7 +198,8 @@ def _judge(names, upper=False):
             known = ctx.known(index)
             for name in names:
                 if not np.all(np.isfinite(mine[name])):
-                    return Verdict(0.0, f"{LABELS[name]} has entries that are not finite {call.where}")
+                    return Verdict(0.0, f"{LABELS[name]} has entries that are not finite {call.where}"
+                                        + (f": {SINGULAR}" if name in ("AtA", "Atb") else ""))
             if upper and mine["below"] > RTOL * scale["below"]:
                 R = np.asarray(got["R"], dtype=float)
                 i, j = (int(k) for k in np.unravel_index(int(np.argmax(np.abs(np.tril(R, -1)))), R.shape))
@@ -196,10 +208,14 @@ def _judge(names, upper=False):
                     if close(R, value, RTOL, RTOL * scale["below"]):
                         return Verdict(0.0, f"{text}: {why}")
                 return Verdict(0.0, text)
-            for name in names:
-                text = _difference(mine[name], ref[name], name, RTOL * scale[name], call.where, known)
-                if text:
-                    return Verdict(0.0, text)
+            wrong = [name for name in names if np.any(_excess(mine[name], ref[name], RTOL * scale[name]) > 0)]
+            if wrong:
+                # a mistake that explains every wrong invariant of the check is named before one that explains one
+                each = [_matches(mine[name], known.get(name, ()), RTOL * scale[name]) for name in wrong]
+                both = [why for why in each[0] if all(why in other for other in each[1:])]
+                name = wrong[0]
+                return Verdict(0.0, _difference(mine[name], ref[name], name, RTOL * scale[name], call.where,
+                                                both or each[0]))
         return Verdict(1.0, "ok")
 
     return judge
