@@ -46,6 +46,7 @@ import scipy.linalg
 
 from course.core.errors import ShapeError, SingularSystemError
 
+
 def _inputs(A_x, A_s, b):
     A_x, A_s, b = (np.asarray(a, dtype=float) for a in (A_x, A_s, b))
     for name, a, ndim in (("A_x", A_x, 2), ("A_s", A_s, 2), ("b", b, 1)):

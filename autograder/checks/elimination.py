@@ -114,7 +114,8 @@ def shape_problem(got, n_x, n_s) -> str:
     if R.shape != (n_x, n_x):
         return f"R has shape {R.shape}, expected ({n_x}, {n_x})"
     if S.shape != (n_x, n_s) and not (S.size == 0 and n_x * n_s == 0):
-        return f"S has shape {S.shape}, expected ({n_x}, {n_s})" + (": S is transposed" if S.shape == (n_s, n_x) else "")
+        transposed = ": S is transposed" if S.shape == (n_s, n_x) else ""
+        return f"S has shape {S.shape}, expected ({n_x}, {n_s}){transposed}"
     if d.shape != (n_x,):
         return f"d has shape {d.shape}, expected ({n_x},)"
     if A_new.ndim != 2 or A_new.shape[1] != n_s:
