@@ -76,6 +76,8 @@ LOADED_BY = {
     "jets.py": ("jets",),
     "autodiff_factor.py": ("autodiff_factor",),
     "factor_linearisation.py": ("factor_linearisation",),
+    # chapter 8
+    "elimination.py": ("elimination",),
 }
 
 
@@ -1584,6 +1586,78 @@ ALTERNATIVES_FACTOR_GRAPH = {
 }
 
 
+EL_R, EL_SD, EL_NEW = ("elimination.eliminate_variable: " + t for t in (
+    "the conditional's R: upper triangular, R^T R = Lambda_xx",
+    "the conditional's S and d: R^T S = Lambda_xs, R^T d = eta_x",
+    "the new factor on the separator: A_new^T A_new and A_new^T b_new"))
+EL_IN = ("def eliminate_variable", "# BEGIN SOLUTION")
+BUGS_ELIMINATION = {
+    # R^T S and R^T d are judged with the student's own R: a lower R costs the S-and-d check too
+    "elim_R_lower": V("elimination.py", EL_IN, "    R = L.T\n", "    R = L\n", {EL_R, EL_SD}, "R is lower triangular"),
+    "elim_S_is_Lambda_xs": V(
+        "elimination.py", EL_IN, "S = scipy.linalg.solve_triangular(L, Lam[:n_x, n_x:], lower=True)",
+        "S = Lam[:n_x, n_x:]", {EL_SD, EL_NEW}, "not Lambda_xs itself"),
+    "elim_S_by_R_inverse": V(
+        "elimination.py", EL_IN, "S = scipy.linalg.solve_triangular(L, Lam[:n_x, n_x:], lower=True)",
+        "S = scipy.linalg.solve_triangular(L.T, Lam[:n_x, n_x:])", {EL_SD, EL_NEW}, "not R S = Lambda_xs"),
+    "elim_d_is_eta_x": V(
+        "elimination.py", EL_IN, "d = scipy.linalg.solve_triangular(L, eta[:n_x], lower=True)", "d = eta[:n_x]",
+        {EL_SD, EL_NEW}, "not eta_x itself"),
+    "elim_no_schur_complement": V(
+        "elimination.py", EL_IN, "Lam_new = Lam[n_x:, n_x:] - S.T @ S", "Lam_new = Lam[n_x:, n_x:]", {EL_NEW},
+        "the Schur complement Lambda_ss - S^T S"),
+    "elim_schur_complement_added": V(
+        "elimination.py", EL_IN, "Lam_new = Lam[n_x:, n_x:] - S.T @ S", "Lam_new = Lam[n_x:, n_x:] + S.T @ S",
+        {EL_NEW}, "the Schur complement subtracts"),
+    "elim_b_sign_gauss_newton": V(
+        "elimination.py", EL_IN, "eta = A.T @ b", "eta = -(A.T @ b)", {EL_SD, EL_NEW}, "the Gauss-Newton convention"),
+    "elim_b_new_without_S_d": V(
+        "elimination.py", EL_IN, "eta_new = eta[n_x:] - S.T @ d", "eta_new = eta[n_x:]", {EL_NEW},
+        "not eta_s = A_s^T b"),
+    "elim_new_factor_rows_as_given": V(
+        "elimination.py", EL_IN, "return R, S, d, factor[:, :n_s], factor[:, n_s]", "return R, S, d, A_s, b",
+        {EL_NEW}, "not the rows of A_s"),
+}
+
+#: the QR route: a Householder QR of the stacked rows (numpy's signs, negative diagonals left as they are)
+_QR_ROUTE = """    n_x = A_x.shape[1]
+    T = np.linalg.qr(np.column_stack([A_x, A_s, b]), mode="r")
+    return T[:n_x, :n_x], T[:n_x, n_x:-1], T[:n_x, -1], T[n_x:, n_x:-1], T[n_x:, -1]
+"""
+#: the QR of A_x alone, complete, its Q^T applied to the other columns
+_QR_OF_A_X = """    n_x = A_x.shape[1]
+    Q, T = np.linalg.qr(A_x, mode="complete")
+    rest = Q.T @ np.column_stack([A_s, b])
+    return T[:n_x], rest[:n_x, :-1], rest[:n_x, -1], rest[n_x:, :-1], rest[n_x:, -1]
+"""
+#: the new factor written back from eigh over its positive eigenvalues
+_EIGH_WRITE_BACK = """    e, V = np.linalg.eigh(Lam_new)
+    keep = e > 1e-12 * max(float(e.max()), 0.0) if len(e) else e > 0
+    keep &= e > 0
+    return R, S, d, np.sqrt(e[keep])[:, None] * V[:, keep].T, (V[:, keep].T @ eta_new) / np.sqrt(e[keep])
+"""
+
+
+def _after(module: str, function: str, line: str) -> str:
+    """The reference's solution lines of ``function`` in ``module`` from ``line`` on (to replace whole)."""
+    block = _solution_lines(module, function)
+    return block[block.index(line):]
+
+
+ALTERNATIVES_ELIMINATION = {
+    "elim_qr_route": V("elimination.py", ["def eliminate_variable"],
+                       _solution_lines("elimination.py", "eliminate_variable"), _QR_ROUTE, set()),
+    "elim_qr_of_A_x_complete": V("elimination.py", ["def eliminate_variable"],
+                                 _solution_lines("elimination.py", "eliminate_variable"), _QR_OF_A_X, set()),
+    "elim_cholesky_then_eigh": V("elimination.py", ["def eliminate_variable"],
+                                 _after("elimination.py", "eliminate_variable", "    # the new factor:"),
+                                 _EIGH_WRITE_BACK, set()),
+    "elim_cholesky_by_numpy_solve": V(
+        "elimination.py", EL_IN, "S = scipy.linalg.solve_triangular(L, Lam[:n_x, n_x:], lower=True)",
+        "S = np.linalg.solve(R.T, Lam[:n_x, n_x:])", set()),
+}
+
+
 VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION,
             **ALTERNATIVES_INITIALISATION, **ALTERNATIVES_WRAP, **BUGS_WRAP,
             **BUGS_BUNDLE_ADJUSTMENT, **ALTERNATIVES_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS,
@@ -1593,7 +1667,8 @@ VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BU
             **BUGS_IMU_PREINTEGRATION, **ALTERNATIVES_IMU_PREINTEGRATION,
             **BUGS_POSE_GRAPH_3D, **ALTERNATIVES_POSE_GRAPH_3D, **BUGS_POSE_GRAPH_3D_ASSEMBLY,
             **ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY, **BUGS_CHORDAL_3D, **ALTERNATIVES_CHORDAL_3D,
-            **BUGS_GNC, **ALTERNATIVES_GNC, **BUGS_FACTOR_GRAPH, **ALTERNATIVES_FACTOR_GRAPH}
+            **BUGS_GNC, **ALTERNATIVES_GNC, **BUGS_FACTOR_GRAPH, **ALTERNATIVES_FACTOR_GRAPH,
+            **BUGS_ELIMINATION, **ALTERNATIVES_ELIMINATION}
 
 
 def apply(text: str, variant: Variant) -> str:
