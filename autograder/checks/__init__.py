@@ -63,7 +63,8 @@ CHAPTER = {"curve_model": "1", "gauss_newton": "1", "damping": "1", "end_to_end"
 LESSONS = {"1": "notebooks/chapter1_curve_fitting.ipynb", "2": "notebooks/chapter2_pose_graphs.ipynb",
            "3": "notebooks/chapter3_dogleg.ipynb", "3b": "notebooks/chapter3b_initialisation.ipynb",
            "4": "notebooks/chapter4_bundle_adjustment.ipynb", "5": "notebooks/chapter5_vio.ipynb",
-           "6": "notebooks/chapter6_pose_graphs_3d.ipynb", "7": "notebooks/chapter7_factor_graphs.ipynb"}
+           "6": "notebooks/chapter6_pose_graphs_3d.ipynb", "7": "notebooks/chapter7_factor_graphs.ipynb",
+           "8": "notebooks/chapter8_elimination.ipynb"}
 
 
 def modules() -> list:
