@@ -39,6 +39,7 @@ DERIVED = {
     "autodiff_factor": ["tangent_jacobians"],
     "factor_linearisation": ["BlockSparseAssembler"],
     "elimination": ["eliminate_variable"],
+    "bayes_tree": ["bayes_tree", "clique_of"],
 }
 
 

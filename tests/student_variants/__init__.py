@@ -78,6 +78,7 @@ LOADED_BY = {
     "factor_linearisation.py": ("factor_linearisation",),
     # chapter 8
     "elimination.py": ("elimination",),
+    "bayes_tree.py": ("bayes_tree",),
 }
 
 
@@ -894,6 +895,71 @@ ALTERNATIVES_GAUGE = {
         "    return -3.0 * np.concatenate([d_cam.reshape(7, -1), d_point.reshape(7, -1)], axis=1).T", set()),
 }
 
+BT_F, BT_S, BT_P = ("bayes_tree.bayes_tree: " + t for t in ("the cliques' frontals", "the cliques' separators",
+                                                              "the parents (the tree)"))
+BT_TREE = {BT_F, BT_S, BT_P}
+BUGS_BAYES_TREE = {
+    "bayes_tree_merge_on_a_subset": V(
+        "bayes_tree.py", ["def bayes_tree("], "set(clique_separators[c]) == set(S)",
+        "set(clique_separators[c]) >= set(S)", BT_TREE, "EQUALS that clique's variables"),
+    "bayes_tree_compare_with_the_frontals_only": V(
+        "bayes_tree.py", ["def bayes_tree("], "set(frontals[c]) | set(clique_separators[c]) == set(S)",
+        "set(frontals[c]) == set(S)", BT_TREE, "AND its separator"),
+    "bayes_tree_parent_of_the_last_member": V(
+        "bayes_tree.py", ["def bayes_tree("], "c = home[S[0]] if S else -1", "c = home[S[-1]] if S else -1",
+        BT_TREE, "FIRST-eliminated member"),
+    "bayes_tree_frontals_in_the_order_added": V(
+        "bayes_tree.py", ["def bayes_tree("], "frontals[c].insert(0, v)", "frontals[c].append(v)",
+        {BT_F}, "in the order they were added"),
+    "bayes_tree_roots_under_the_first": V(
+        "bayes_tree.py", ["def bayes_tree("], "c = home[S[0]] if S else -1",
+        "c = home[S[0]] if S else (0 if frontals else -1)", {BT_P}, "new ROOT"),
+    "bayes_tree_separator_the_union": V(
+        "bayes_tree.py", ["def bayes_tree("], "            home[v] = c\n",
+        "            home[v] = c\n"
+        "            clique_separators[c] = sorted(set(clique_separators[c]) | set(S), key=order.index)\n",
+        {BT_S}, "not the union of its frontals' separators"),
+    "bayes_tree_elimination_order": V(
+        "bayes_tree.py", ["def bayes_tree("], "for v in reversed(order):", "for v in order:", BT_TREE,
+        "reverse elimination order"),
+    "clique_of_frontal_position": V(
+        "bayes_tree.py", ["def clique_of("], "out[list(F)] = c", "out[list(F)] = range(len(F))",
+        {"bayes_tree.clique_of: each variable's clique"}, "is a frontal of clique"),
+}
+_TREE_BY_LISTS = """    order = [int(v) for v in np.asarray(ordering)]
+    home = [-1] * len(order)  # a list for the map, and the cliques' variables kept as sets
+    frontals, clique_separators, parents, members = [], [], [], []
+    for v in order[::-1]:
+        S = list(map(int, separators[v]))
+        if S and members[home[S[0]]] == set(S):
+            c = home[S[0]]
+            frontals[c].append(v)
+            members[c].add(v)
+            home[v] = c
+        else:
+            home[v] = len(frontals)
+            frontals.append([v])
+            clique_separators.append(S)
+            members.append({v, *S})
+            parents.append(home[S[0]] if S else -1)
+    rank = {v: k for k, v in enumerate(order)}
+    frontals = [sorted(F, key=rank.get) for F in frontals]  # sorted once, at the end
+    return frontals, clique_separators, np.asarray(parents)
+"""
+ALTERNATIVES_BAYES_TREE = {
+    "bayes_tree_lists_and_sort_at_the_end": V(
+        "bayes_tree.py", ["def bayes_tree("], _solution_lines("bayes_tree.py", "bayes_tree"), _TREE_BY_LISTS, set()),
+    "bayes_tree_frontals_as_arrays": V(
+        "bayes_tree.py", ["def bayes_tree("], "    return frontals, clique_separators, np.array(parents, dtype=int)",
+        "    return [np.array(F) for F in frontals], [np.array(S, dtype=int) for S in clique_separators], parents",
+        set()),
+    "clique_of_by_a_dict": V(
+        "bayes_tree.py", ["def clique_of("], "    out = np.empty(n, dtype=int)\n    for c, F in enumerate(frontals):\n"
+        "        out[list(F)] = c\n    return out",
+        "    home = {v: c for c, F in enumerate(frontals) for v in F}\n    return [home[v] for v in range(n)]", set()),
+}
+
+
 PA_BOUNDS = "parallel_assembly.chunk_bounds: contiguous balanced chunks"
 PA_UVW = "parallel_assembly.normal_equations_parallel: U, V and W as the serial assembly"
 PA_G = "parallel_assembly.normal_equations_parallel: gradients and chi2 as the serial assembly"
@@ -1668,7 +1734,7 @@ VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BU
             **BUGS_POSE_GRAPH_3D, **ALTERNATIVES_POSE_GRAPH_3D, **BUGS_POSE_GRAPH_3D_ASSEMBLY,
             **ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY, **BUGS_CHORDAL_3D, **ALTERNATIVES_CHORDAL_3D,
             **BUGS_GNC, **ALTERNATIVES_GNC, **BUGS_FACTOR_GRAPH, **ALTERNATIVES_FACTOR_GRAPH,
-            **BUGS_ELIMINATION, **ALTERNATIVES_ELIMINATION}
+            **BUGS_ELIMINATION, **ALTERNATIVES_ELIMINATION, **BUGS_BAYES_TREE, **ALTERNATIVES_BAYES_TREE}
 
 
 def apply(text: str, variant: Variant) -> str:
