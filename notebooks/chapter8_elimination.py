@@ -1,18 +1,20 @@
 # %% [markdown] id="title"
-# # Chapter 8: elimination, orderings and marginal covariances
+# # Chapter 8: elimination, orderings, the Bayes tree and marginal covariances
 #
 # Every back end so far solved $H\,\delta = -b$ by a sparse Cholesky factorization it did not look inside,
 # and returned a point estimate only. This chapter opens the factorization: solving a linear factor graph
 # is **eliminating its variables one at a time**, each leaving a conditional on the variables it touched
 # and a new factor on them; the order of elimination decides how much fill the factor $R$ gets; and $R$,
 # the square-root information, gives the **marginal covariances** (GTSAM's `Marginals`, Ceres'
-# `Covariance`) without the dense inverse. It is the layer under GTSAM's Bayes tree and iSAM2, which the
-# next steps of this chapter build on it. The chapter is a lesson in this order:
+# `Covariance`) without the dense inverse. Grouped into cliques, the conditionals form the **Bayes tree**,
+# the data structure of GTSAM's incremental smoother iSAM2, which the next step of this chapter builds on
+# it. The chapter is a lesson in this order:
 #
 # 1. **Theory**, derived: eliminating one variable from its adjacent factors by QR or by completing the
 #    square (exercise `elimination`), the Bayes net it leaves and the solution by back-substitution; the
 #    elimination game, fill, the elimination tree and a greedy minimum-degree ordering (exercise
-#    `orderings`); the covariance recursion on $R$'s pattern (exercise `marginal_covariances`). After each
+#    `orderings`); the Bayes tree's cliques (exercise `bayes_tree`); the covariance recursion on $R$'s
+#    pattern (exercise `marginal_covariances`). After each
 #    exercise's theory, a cell `check("...")` grades it here, with the same sandboxed judge and public
 #    checks as `python -m autograder --only ...`; before it, a cell checks your code where you work.
 # 2. **Experiments**: the fill of intel (in the full setting also M3500) under four orderings, yours among
@@ -174,8 +176,43 @@ with todo_as_one_line():
     except DatasetError as exc:
         print(f"not run: {exc}")
 
+# %% [markdown] id="bayes-tree-md"
+# ## 3. The Bayes tree (exercise `bayes_tree`)
+#
+# The Bayes net of section 1 has one conditional per variable, $p(x_v \mid \mathrm{sep}(v))$. Many of them
+# belong together: when $v$'s separator is exactly the variables of the conditional it points to (that
+# one's frontal variables and its separator), the two are one joint conditional on a smaller set, a
+# **clique**. The **Bayes tree** groups the conditionals into such cliques, a clique $p(F \mid S)$ holding
+# its *frontal* variables $F$ and its *separator* $S$, each clique's separator inside its parent's variables
+# (the *running intersection*). It is the form GTSAM's `ISAM2` keeps: a new measurement changes only the
+# cliques on the paths from the variables it touches to the root, so an incremental update re-eliminates
+# that top of the tree alone.
+#
+# Build it from the conditionals in **reverse** elimination order (Kaess et al., iSAM2, 2012, Algorithm 2):
+# a conditional with an empty separator starts a root; otherwise take the clique holding its separator's
+# first-eliminated variable as a frontal, and either add the conditional to it (when the separator is
+# that clique's frontals and separator, exactly) or hang a new clique under it. Work out why the first
+# eliminated separator variable is the right parent, why equality (not inclusion) is the test, and what
+# a clique's separator is when it holds several frontals (`exercises/bayes_tree.py`).
+
+# %% id="hint-bayes-tree"
+hint("bayes_tree", 1)
+
+# %% [markdown] id="bayes-tree-check-md"
+# **Check your Bayes tree where you work.** The cell below eliminates the elimination game's graph in your
+# minimum-degree order, builds the tree with your `bayes_tree`, prints each clique as `frontals :
+# separator` indented under its parent, and tests what every Bayes tree satisfies.
+
+# %% id="bayes-tree-check"
+with todo_as_one_line():
+    bayes = chapter8.exercise("bayes_tree", IMPL)
+    chapter8.bayes_tree_check(orderings, bayes)
+
+# %% id="check-bayes-tree"
+check("bayes_tree")
+
 # %% [markdown] id="marginals-md"
-# ## 3. Marginal covariances (exercise `marginal_covariances`)
+# ## 4. Marginal covariances (exercise `marginal_covariances`)
 #
 # The estimate's covariance is $\Sigma = \Lambda^{-1}$, and a variable's **marginal** covariance is its
 # diagonal block $\Sigma_{vv}$: what gating a loop closure, planning or reporting an uncertainty needs.
@@ -248,6 +285,11 @@ if run is not None:
 # grow with the number of poses on a graph like M3500 ($n = 3500$)? Which pose has the largest ellipse,
 # and why is it not the last one?
 
+# **Question 5.** Read the Bayes tree of section 3 (the game's graph in your minimum-degree order). A new
+# measurement between poses 4 and 5 arrives: which cliques does it change (the paths from the cliques
+# holding its variables as frontals to the root)? And one between poses 0 and 3? Which variables would an
+# incremental update re-eliminate in each case, and why does iSAM2 order the newest variables last?
+
 # %% [markdown] tags=["answer"] id="answer-1"
 # *Your answer to question 1.*
 
@@ -259,3 +301,6 @@ if run is not None:
 
 # %% [markdown] tags=["answer"] id="answer-4"
 # *Your answer to question 4.*
+
+# %% [markdown] tags=["answer"] id="answer-5"
+# *Your answer to question 5.*

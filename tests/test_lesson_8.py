@@ -19,7 +19,7 @@ from course.core.impl import REPO_ROOT
 from course.notebook_helpers import chapter8
 from notebooks import build
 
-EXERCISES = ("elimination", "orderings", "marginal_covariances")
+EXERCISES = ("elimination", "orderings", "bayes_tree", "marginal_covariances")
 FIGURES = ["figure-game", "figure-ellipses"]
 
 
@@ -79,6 +79,21 @@ def test_the_elimination_game_figure_and_its_fill():
                                                                    "minimum degree: 4 fill edge(s), 1 root(s)"]
 
 
+def test_the_bayes_tree_of_the_game_and_its_properties():
+    lines = []
+    assert chapter8.bayes_tree_check(_module("orderings"), _module("bayes_tree"), out=lines.append)
+    assert lines[:4] == ["clique 0: 3 4 5 7 : (root)", "    clique 1: 2 : 3 5", "        clique 2: 1 6 : 2 5",
+                         "            clique 3: 0 : 1 6 5"]
+
+    def flat(ordering, separators):  # every clique hung under the root: the running intersection fails
+        frontals, seps, parents = _module("bayes_tree").bayes_tree(ordering, separators)
+        return frontals, seps, [p if p < 0 else 0 for p in parents]
+
+    lines = []
+    assert not chapter8.bayes_tree_check(_module("orderings"), SimpleNamespace(bayes_tree=flat), out=lines.append)
+    assert "parent's variables: NO" in lines[-1]
+
+
 def test_orderings_on_a_generated_graph(tmp_path):
     module = _module("orderings")
     n, edges = chapter8.graph_of("manhattan:200")
@@ -128,14 +143,18 @@ def test_the_lesson_runs_with_a_hint_a_check_and_a_checker_per_exercise(executed
     text = _outputs(nb)
     assert_hints_and_checks_at_full_marks(nb, (("hint-elimination", "check-elimination", "elimination"),
                                                ("hint-orderings", "check-orderings", "orderings"),
+                                               ("hint-bayes-tree", "check-bayes-tree", "bayes_tree"),
                                                ("hint-marginals", "check-marginals", "marginal_covariances")))
     order = [c.id for c in nb.cells]
     assert order.index("eliminate-md") < order.index("elimination-check") < order.index(
         "check-elimination") < order.index("orderings-md") < order.index("check-orderings") < order.index(
+        "bayes-tree-md") < order.index("bayes-tree-check") < order.index("check-bayes-tree") < order.index(
         "marginals-md") < order.index("marginals-check") < order.index("check-marginals")
     assert "a constant c >= 0, right" in text["elimination-check"]
     assert "|x - x_lstsq| = " in text["bayes-net"]
     assert "intel          minimum degree (yours)" in text["fill-table"]
+    assert "clique 0: 3 4 5 7 : (root)" in text["bayes-tree-check"] and "parent's variables: yes" in text[
+        "bayes-tree-check"]
     assert "729 poses: marginals by your recursion" in text["marginals-check"]
     assert _images(nb) == FIGURES
     assert_no_level_3_hint_line("\n".join(c.source for c in nb.cells) + "\n".join(text.values()), EXERCISES)
@@ -144,8 +163,8 @@ def test_the_lesson_runs_with_a_hint_a_check_and_a_checker_per_exercise(executed
 def test_the_written_questions_and_their_answer_cells():
     nb = build.read(build.NOTEBOOKS[build.CHAPTER8])
     markdown = {c.id: c for c in nb.cells if c.cell_type == "markdown"}
-    assert list(markdown)[-5] == "questions-md"
-    for k in range(1, 5):
+    assert list(markdown)[-6] == "questions-md"
+    for k in range(1, 6):
         assert f"**Question {k}.**" in markdown["questions-md"].source
         cell = markdown[f"answer-{k}"]
         assert cell.metadata["tags"] == [build.ANSWER_TAG] and f"Your answer to question {k}" in cell.source
@@ -160,7 +179,7 @@ def test_reference_answers_stay_out_of_the_student_tree():
 
     answers = (REPO_ROOT / "solutions" / "answers" / "chapter8.md").read_text()
     assert answers.startswith("# RELEASE: omit")
-    for k in range(1, 5):
+    for k in range(1, 6):
         assert f"## Question {k}:" in answers
     assert not [name for name in release.render(REPO_ROOT / "solutions") if name.startswith("answers")]
 
@@ -183,11 +202,11 @@ def test_in_a_student_tree_the_lesson_builds_and_names_its_todos(python):
     for c in nb.cells:
         for o in c.get("outputs", []):
             assert o.output_type != "error", (c.id, o.get("traceback"))
-    for check_id in ("check-elimination", "check-orderings", "check-marginals"):
+    for check_id in ("check-elimination", "check-orderings", "check-bayes-tree", "check-marginals"):
         assert "reach a TODO" in text[check_id], text[check_id]
-    for cell_id in ("elimination-check", "bayes-net", "figure-game", "fill-table"):
+    for cell_id in ("elimination-check", "bayes-net", "figure-game", "fill-table", "bayes-tree-check"):
         lines = text[cell_id].strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("not implemented: TODO ") and len(lines[0]) < 200, (
             cell_id, lines)
-    for hint_id in ("hint-elimination", "hint-orderings", "hint-marginals"):
+    for hint_id in ("hint-elimination", "hint-orderings", "hint-bayes-tree", "hint-marginals"):
         assert "hint 1 of 3" in text[hint_id]

@@ -9,6 +9,8 @@ student's own ``elimination``, ``orderings`` and ``marginal_covariances`` run):
 * ``eliminate_all``, ``back_substitute``, ``bayes_net_table``: variable elimination, one variable at a time
   (a Bayes net of conditionals), and the solution read back from it, against a dense least squares.
 * ``game_graph``, ``game_figure``: the elimination game on a small pose graph with landmarks, two orderings.
+* ``bayes_tree_check``: the Bayes tree of the elimination game's graph, drawn as text, and the properties a
+  Bayes tree has (every variable frontal in one clique, each separator inside its parent's variables).
 * ``graph_of``, ``ordering_rows``, ``ordering_table``: the fill and the factor's size under the natural order,
   the student's minimum degree, reverse Cuthill-McKee (scipy) and AMD (cvxopt, where installed).
 * ``pose_graph_information``, ``square_root_information``, ``marginals_run``, ``ellipse_figure``: a 2D pose
@@ -205,6 +207,32 @@ def game_figure(module, orderings: dict | None = None):
         ax.set_aspect("equal")
         ax.axis("off")
     return fig
+
+
+def bayes_tree_check(orderings_module, bayes_module, out=print) -> bool:
+    """The Bayes tree of :func:`game_graph` in ``orderings_module``'s minimum-degree order, from its
+    symbolic elimination and ``bayes_module.bayes_tree``: one line per clique, ``frontals : separator``,
+    indented by depth; then the properties every Bayes tree has: each variable a frontal of exactly one
+    clique, one root per connected component (here 1), and each clique's separator inside its parent's
+    frontals and separator (the running intersection)."""
+    n, edges, _ = game_graph()
+    ordering = np.asarray(orderings_module.minimum_degree_ordering(n, edges), dtype=int)
+    separators, _, _ = orderings_module.symbolic_elimination(n, edges, ordering)
+    frontals, clique_separators, parents = bayes_module.bayes_tree(ordering, [list(s) for s in separators])
+    parents = np.asarray(parents, dtype=int)
+    depth = np.zeros(len(frontals), dtype=int)
+    for c, p in enumerate(parents):  # a parent is created before its children
+        depth[c] = 0 if p < 0 else depth[p] + 1
+    for c, (f, sep) in enumerate(zip(frontals, clique_separators)):
+        out(f"{'    ' * depth[c]}clique {c}: {' '.join(map(str, f))} : {' '.join(map(str, sep)) or '(root)'}")
+    held = sorted(int(v) for f in frontals for v in f)
+    once = held == list(range(n))
+    roots = int(np.sum(parents < 0))
+    running = all(p < 0 or set(map(int, sep)) <= set(map(int, frontals[p])) | set(map(int, clique_separators[p]))
+                  for sep, p in zip(clique_separators, parents))
+    out(f"each variable a frontal once: {'yes' if once else 'NO'}; roots: {roots}; each separator inside its "
+        f"parent's variables: {'yes' if running else 'NO'}")
+    return once and roots == 1 and running
 
 
 def graph_of(name: str):
