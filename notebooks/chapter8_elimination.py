@@ -284,7 +284,7 @@ if run is not None:
 # **Question 4.** How much longer did the dense inverse take than your recursion on intel? How do both
 # grow with the number of poses on a graph like M3500 ($n = 3500$)? Which pose has the largest ellipse,
 # and why is it not the last one?
-
+#
 # **Question 5.** Read the Bayes tree of section 3 (the game's graph in your minimum-degree order). A new
 # measurement between poses 4 and 5 arrives: which cliques does it change (the paths from the cliques
 # holding its variables as frontals to the root)? And one between poses 0 and 3? Which variables would an
