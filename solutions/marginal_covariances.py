@@ -131,8 +131,8 @@ def marginal_covariances(R, sizes):
         try:
             S = np.array([[sigma[(a, b)] if a <= b else sigma[(b, a)] for b in K] for a in K])
         except KeyError:
-            raise ValueError(f"R's pattern is not closed under elimination: row {i} stores columns {K}, "
-                             "but not every R[a, b] between them is stored") from None
+            raise ValueError(f"R's pattern is not closed under elimination: row {i} stores columns {K}, but not "
+                             "every R[a, b] between them is stored (a stored 0 is part of the pattern)") from None
         s = -(r @ S) / d  # Sigma[i, K]
         for k, value in zip(K, s.tolist()):
             sigma[(i, k)] = value

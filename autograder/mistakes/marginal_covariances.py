@@ -25,7 +25,8 @@ def _dense(call):
 
 def recursion(R, pattern, sign=-1.0, own=True, rest=True):
     """Sigma on ``pattern`` (entries off it taken 0) by the recursion with a slip: ``sign`` of Sigma_ij,
-    ``own``: the 1 / R_ii^2 term of Sigma_ii, ``rest``: the sum in Sigma_ii."""
+    ``own``: the 1 / R_ii^2 term of Sigma_ii (kept in a row with no later entry, the last row's formula written
+    apart), ``rest``: the sum in Sigma_ii."""
     n = len(R)
     S = np.zeros((n, n))
     for i in range(n - 1, -1, -1):
@@ -33,7 +34,7 @@ def recursion(R, pattern, sign=-1.0, own=True, rest=True):
         r = R[i, K]
         for j in K:
             S[i, j] = S[j, i] = sign * (r @ S[K, j]) / R[i, i]
-        S[i, i] = ((1.0 / R[i, i] if own else 0.0) - (r @ S[K, i] if rest else 0.0)) / R[i, i]
+        S[i, i] = ((1.0 / R[i, i] if own or not K else 0.0) - (r @ S[K, i] if rest else 0.0)) / R[i, i]
     return S
 
 
