@@ -40,6 +40,7 @@ DERIVED = {
     "factor_linearisation": ["BlockSparseAssembler"],
     "elimination": ["eliminate_variable"],
     "bayes_tree": ["bayes_tree", "clique_of"],
+    "marginal_covariances": ["marginal_covariances", "joint_marginal"],
 }
 
 

@@ -79,6 +79,7 @@ LOADED_BY = {
     # chapter 8
     "elimination.py": ("elimination",),
     "bayes_tree.py": ("bayes_tree",),
+    "marginal_covariances.py": ("marginal_covariances",),
 }
 
 
@@ -1724,6 +1725,108 @@ ALTERNATIVES_ELIMINATION = {
 }
 
 
+MC_ROOT, MC_EVERY, MC_CHAIN = ("marginal_covariances.marginal_covariances: " + t for t in (
+    "the root's marginal (the last variable)", "every variable's marginal",
+    "a chain of 20,000 variables (no dense Sigma)"))
+MC_JOINT, MC_ORDER, MC_JCHAIN = ("marginal_covariances.joint_marginal: " + t for t in (
+    "the joint marginal with its cross-covariances", "keys in the order given",
+    "a chain of 20,000 variables (triangular solves)"))
+MC_IN_M = ("def marginal_covariances", "# BEGIN SOLUTION")
+MC_IN_J = ("def joint_marginal", "# BEGIN SOLUTION")
+_MC_SOLVES = "    X = spsolve_triangular(R, spsolve_triangular(sp.csr_matrix(R.T), E, lower=True), lower=False)"
+_MC_BLOCKS = "zip(starts[:-1], starts[1:])"
+#: the position in keys of the variable each row of the joint marginal belongs to
+_MC_OWNER = "np.repeat(np.arange(len(keys)), [starts[v + 1] - starts[v] for v in keys])"
+
+# chapter 8: marginal covariances
+BUGS_MARGINAL_COVARIANCES = {
+    "mc_diagonal_without_its_own_term": V(
+        "marginal_covariances.py", MC_IN_M, "sigma[(i, i)] = (1.0 / d - r @ s) / d", "sigma[(i, i)] = (-r @ s) / d",
+        {MC_ROOT, MC_EVERY, MC_CHAIN}, "needs its own term"),
+    "mc_diagonal_without_the_sum": V(
+        "marginal_covariances.py", MC_IN_M, "sigma[(i, i)] = (1.0 / d - r @ s) / d", "sigma[(i, i)] = 1.0 / (d * d)",
+        {MC_ROOT, MC_EVERY, MC_CHAIN}, "holds only for the last row"),
+    "mc_off_diagonal_sign": V(
+        "marginal_covariances.py", MC_IN_M, "s = -(r @ S) / d", "s = (r @ S) / d",
+        {MC_ROOT, MC_EVERY, MC_CHAIN}, "wrong sign"),
+    "mc_inverse_of_the_information_block": V(
+        "marginal_covariances.py", MC_IN_M, "    return out",
+        "    return [np.linalg.inv((C[:, a:b].T @ C[:, a:b]).toarray()) for C in [R.tocsc()] for a, b in "
+        + _MC_BLOCKS + "]",
+        {MC_ROOT, MC_EVERY, MC_CHAIN}, "given all the other variables"),
+    "mc_conditional_on_the_separator": V(
+        "marginal_covariances.py", MC_IN_M, "    return out",
+        "    return [np.linalg.inv(B.T @ B) for B in (R[a:b, a:b].toarray() for a, b in " + _MC_BLOCKS + ")]",
+        {MC_EVERY, MC_CHAIN}, "given its separator"),
+    "mc_stored_zeros_dropped": V(
+        "marginal_covariances.py", MC_IN_M, "    n = R.shape[0]", "    R.eliminate_zeros()\n    n = R.shape[0]",
+        {MC_EVERY}, "a stored 0 is part of the pattern"),
+    "jm_keys_sorted": V(
+        "marginal_covariances.py", MC_IN_J, "for v in keys])", "for v in sorted(keys)])",
+        {MC_ORDER}, "keep the order of keys"),
+    "jm_solves_in_the_wrong_order": V(
+        "marginal_covariances.py", MC_IN_J, _MC_SOLVES,
+        "    X = spsolve_triangular(sp.csr_matrix(R.T), spsolve_triangular(R, E, lower=False), lower=True)",
+        {MC_JOINT, MC_ORDER, MC_JCHAIN}, "(R R^T)^-1"),
+    "jm_diagonal_blocks_only": V(
+        "marginal_covariances.py", MC_IN_J, "    return X[cols]",
+        f"    return np.where(np.equal.outer({_MC_OWNER}, {_MC_OWNER}), X[cols], 0.0)",
+        {MC_JOINT, MC_ORDER, MC_JCHAIN}, "cross-covariances"),
+    "jm_inverse_of_the_information_block": V(
+        "marginal_covariances.py", MC_IN_J, "    return X[cols]",
+        "    return np.linalg.inv((R.T @ R)[cols][:, cols].toarray())",
+        {MC_JOINT, MC_ORDER, MC_JCHAIN}, "inverse of H's block"),
+}
+
+_MC_BY_COLUMNS = """    n = R.shape[0]
+    C = R.tocsc()
+    C.sort_indices()
+    diagonal = R.diagonal()
+    sigma: dict = {}
+
+    def get(a, b):
+        return sigma[(a, b)] if a <= b else sigma[(b, a)]
+
+    def later(i, j):  # sum over the stored k > i of row i: R_ik Sigma_kj
+        lo, hi = R.indptr[i], R.indptr[i + 1]
+        return sum(r * get(k, j) for k, r in zip(R.indices[lo:hi].tolist(), R.data[lo:hi].tolist()) if k > i)
+
+    for j in range(n - 1, -1, -1):  # column by column from the last; in each, the diagonal, then up
+        sigma[(j, j)] = (1.0 / diagonal[j] - later(j, j)) / diagonal[j]
+        above = C.indices[C.indptr[j]:C.indptr[j + 1]]
+        for i in sorted(above[above < j].tolist(), reverse=True):
+            sigma[(i, j)] = -later(i, j) / diagonal[i]
+    out = []
+    for v in range(len(starts) - 1):
+        block = range(starts[v], starts[v + 1])
+        out.append(np.array([[get(a, b) for b in block] for a in block]))
+    return out
+"""
+
+
+def _mc_solution(function: str) -> str:
+    text = (SOLUTIONS / "marginal_covariances.py").read_text()
+    start = text.index("# BEGIN SOLUTION\n", text.index(f"def {function}")) + len("# BEGIN SOLUTION\n")
+    return text[start:text.index("    # END SOLUTION", start)]
+
+
+#: correct but different: the recursion column by column; the joint marginal as Y^T Y from one solve, or by
+#: a general sparse solve with H = R^T R
+ALTERNATIVES_MARGINAL_COVARIANCES = {
+    "mc_recursion_by_columns": V(
+        "marginal_covariances.py", MC_IN_M, _mc_solution("marginal_covariances"), _MC_BY_COLUMNS, set()),
+    "jm_one_solve_y_t_y": V(
+        "marginal_covariances.py", MC_IN_J,
+        _MC_SOLVES + "\n    X = np.asarray(X).reshape(n, len(cols))\n    return X[cols]",
+        "    Y = np.asarray(spsolve_triangular(sp.csr_matrix(R.T), E, lower=True)).reshape(n, len(cols))\n"
+        "    return Y.T @ Y", set()),
+    "jm_general_sparse_solve": V(
+        "marginal_covariances.py", MC_IN_J, _MC_SOLVES,
+        "    X = sp.linalg.spsolve(sp.csc_matrix(R.T @ R), E)", set()),
+}
+
+
+
 VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION,
             **ALTERNATIVES_INITIALISATION, **ALTERNATIVES_WRAP, **BUGS_WRAP,
             **BUGS_BUNDLE_ADJUSTMENT, **ALTERNATIVES_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS,
@@ -1734,7 +1837,8 @@ VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BU
             **BUGS_POSE_GRAPH_3D, **ALTERNATIVES_POSE_GRAPH_3D, **BUGS_POSE_GRAPH_3D_ASSEMBLY,
             **ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY, **BUGS_CHORDAL_3D, **ALTERNATIVES_CHORDAL_3D,
             **BUGS_GNC, **ALTERNATIVES_GNC, **BUGS_FACTOR_GRAPH, **ALTERNATIVES_FACTOR_GRAPH,
-            **BUGS_ELIMINATION, **ALTERNATIVES_ELIMINATION, **BUGS_BAYES_TREE, **ALTERNATIVES_BAYES_TREE}
+            **BUGS_ELIMINATION, **ALTERNATIVES_ELIMINATION, **BUGS_BAYES_TREE, **ALTERNATIVES_BAYES_TREE,
+            **BUGS_MARGINAL_COVARIANCES, **ALTERNATIVES_MARGINAL_COVARIANCES}
 
 
 def apply(text: str, variant: Variant) -> str:
