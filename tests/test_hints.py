@@ -38,6 +38,7 @@ DERIVED = {
     "jets": ["Jet.__mul__", "Jet.__truediv__", "Jet.__pow__", "sqrt", "sin", "cos", "exp", "log", "arctan2", "matmul"],
     "autodiff_factor": ["tangent_jacobians"],
     "factor_linearisation": ["BlockSparseAssembler"],
+    "orderings": ["symbolic_elimination", "minimum_degree_ordering"],
 }
 
 

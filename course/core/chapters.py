@@ -67,6 +67,8 @@ CHAPTERS: tuple[Chapter, ...] = (
             ("course/factorgraph", "course/backends/factorgraph", "course/problems/posegraph/factor_graph.py",
              "course/problems/bal/factor_graph.py", "course/problems/posegraph3d/factor_graph.py",
              "course/notebook_helpers/chapter7.py", "course/app/benchmark_autodiff.py", "notebooks/chapter7_*")),
+    Chapter("ch8", "elimination, the Bayes tree and marginals", ("orderings",), (),
+            ("course/notebook_helpers/chapter8.py", "notebooks/chapter8_*")),
 )
 
 BY_NAME = {chapter.name: chapter for chapter in CHAPTERS}
