@@ -11,7 +11,7 @@ from autograder.checks import ORDER, SelectionError, all_checks, module_of, sele
 from autograder.course_config import ConfigError, load, parse
 from course.core.impl import REPO_ROOT
 
-SEMESTER = ("ch1", "ch2", "ch3", "ch3b", "ch4", "ch5", "ch6", "ch7")
+SEMESTER = ("ch1", "ch2", "ch3", "ch3b", "ch4", "ch5", "ch6", "ch7", "ch8")
 
 
 def minimal(**assignment) -> dict:
@@ -110,8 +110,8 @@ def test_a_file_that_is_not_toml_and_an_unknown_assignment(tmp_path):
     bad.write_text("[assignments.ch1\n")
     with pytest.raises(ConfigError, match=f"{bad}: not valid TOML"):
         load(bad)
-    with pytest.raises(ConfigError, match="assignments.ch8: no such assignment.*ch1, ch2"):
-        load().assignment("ch8")
+    with pytest.raises(ConfigError, match="assignments.ch9: no such assignment.*ch1, ch2"):
+        load().assignment("ch9")
 
 
 def test_the_late_policy_and_gradescope_metadata(tmp_path):
