@@ -9,9 +9,9 @@ eliminated centre first (its leaves become a clique) and leaves first; a 4 x 4 g
 fill); a pose graph of 30 poses with loop closures in a random order; two components (a cycle and a chain,
 their labels interleaved); one variable; a small graph whose pairs are given twice, in both orders, with
 self-pairs (as a Python list). ``minimum_degree_ordering`` gets the same graphs. A check of each function on
-a pose graph of 2000 poses with short loop closures (natural order for the elimination) is what a quadratic
-pass per elimination fails: it runs out of the time limit. Hidden: the same kinds of graphs, their sizes,
-labels, loop closures and orderings drawn from the hidden seed.
+a pose graph of 2000 poses with short loop closures (natural order for the elimination) is what a Python loop
+over every pair of variables per elimination fails: it runs out of the time limit. Hidden: the same kinds of
+graphs, their sizes, labels, loop closures and orderings drawn from the hidden seed.
 """
 
 from functools import cache
