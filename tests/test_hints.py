@@ -39,6 +39,7 @@ DERIVED = {
     "autodiff_factor": ["tangent_jacobians"],
     "factor_linearisation": ["BlockSparseAssembler"],
     "elimination": ["eliminate_variable"],
+    "orderings": ["symbolic_elimination", "minimum_degree_ordering"],
     "bayes_tree": ["bayes_tree", "clique_of"],
     "marginal_covariances": ["marginal_covariances", "joint_marginal"],
 }

@@ -36,7 +36,8 @@ ORDER = ("curve_model", "gauss_newton", "damping", "end_to_end", "pose_graph_edg
          "sparse_solve", "ceres_edge_cost", "pose_graph_fast", "pose_graph", "dogleg",
          "initialisation", "bundle_adjustment", "robust_kernels", "gauge", "parallel_assembly",
          "imu_preintegration", "marginalisation", "pose_graph_3d", "pose_graph_3d_assembly", "chordal_3d", "gnc",
-         "jets", "autodiff_factor", "factor_linearisation", "elimination", "bayes_tree", "marginal_covariances")
+         "jets", "autodiff_factor", "factor_linearisation",
+         "elimination", "orderings", "bayes_tree", "marginal_covariances")
 
 
 def present() -> tuple:
@@ -58,7 +59,7 @@ CHAPTER = {"curve_model": "1", "gauss_newton": "1", "damping": "1", "end_to_end"
            "bundle_adjustment": "4", "robust_kernels": "4", "gauge": "4", "parallel_assembly": "4",
            "marginalisation": "5", "imu_preintegration": "5",
            "pose_graph_3d": "6", "pose_graph_3d_assembly": "6", "chordal_3d": "6", "gnc": "6",
-           "elimination": "8", "bayes_tree": "8", "marginal_covariances": "8"}
+           "elimination": "8", "orderings": "8", "bayes_tree": "8", "marginal_covariances": "8"}
 LESSONS = {"1": "notebooks/chapter1_curve_fitting.ipynb", "2": "notebooks/chapter2_pose_graphs.ipynb",
            "3": "notebooks/chapter3_dogleg.ipynb", "3b": "notebooks/chapter3b_initialisation.ipynb",
            "4": "notebooks/chapter4_bundle_adjustment.ipynb", "5": "notebooks/chapter5_vio.ipynb",

@@ -80,6 +80,7 @@ LOADED_BY = {
     "elimination.py": ("elimination",),
     "bayes_tree.py": ("bayes_tree",),
     "marginal_covariances.py": ("marginal_covariances",),
+    "orderings.py": ("orderings",),
 }
 
 
@@ -1652,6 +1653,159 @@ ALTERNATIVES_FACTOR_GRAPH = {
         "factor_linearisation.py", ["def assemble"], "        n = self._shape[0]", DENSE_THEN_TRIANGLE, set()),
 }
 
+# chapter 8: the elimination game and the minimum-degree ordering
+OR_SE = "orderings.symbolic_elimination: "
+OR_SEP, OR_PAR, OR_FILL = OR_SE + "separators", OR_SE + "elimination tree (parents)", OR_SE + "fill edges"
+OR_SE_LARGE = OR_SE + "a pose graph of 2000 poses in time"
+OR_MD = "orderings.minimum_degree_ordering: greedy minimum-degree ordering"
+OR_MD_LARGE = "orderings.minimum_degree_ordering: a pose graph of 2000 poses in time"
+OR_IN_SE = ("def symbolic_elimination", "# BEGIN SOLUTION")
+OR_IN_MD = ("def minimum_degree_ordering", "# BEGIN SOLUTION")
+
+BUGS_ORDERINGS = {
+    # v stays in its neighbours' sets: later separators hold eliminated variables (and the large graph's
+    # separators grow to every variable before: it runs out of time)
+    "orderings_separator_keeps_eliminated": V(
+        "orderings.py", OR_IN_SE, "            neighbours[i].discard(v)\n", "",
+        {OR_SEP, OR_PAR, OR_FILL, OR_SE_LARGE}, "remove v from its neighbours"),
+    "orderings_no_fill": V(
+        "orderings.py", OR_IN_SE, "for j in separator[a + 1:]:", "for j in []:",
+        {OR_SEP, OR_PAR, OR_FILL, OR_SE_LARGE}, "joins every pair of its separator"),
+    # the parent is the first entry: sorted by index, it is the smallest index (the large graph is in
+    # natural order, where the two agree)
+    "orderings_separator_sorted_by_index": V(
+        "orderings.py", OR_IN_SE, "separator = sorted(neighbours[v], key=position.__getitem__)",
+        "separator = sorted(neighbours[v])", {OR_SEP, OR_PAR}, "not by index"),
+    "orderings_parent_last_eliminated": V(
+        "orderings.py", OR_IN_SE, "parents[v] = separator[0]", "parents[v] = separator[-1]",
+        {OR_PAR, OR_SE_LARGE}, "eliminated FIRST"),
+    "orderings_parent_smallest_index": V(
+        "orderings.py", OR_IN_SE, "parents[v] = separator[0]", "parents[v] = min(separator)",
+        {OR_PAR}, "not the smallest index"),
+    "orderings_roots_zero": V(
+        "orderings.py", OR_IN_SE, "parents = np.full(n, -1, dtype=np.int64)", "parents = np.zeros(n, dtype=np.int64)",
+        {OR_PAR, OR_SE_LARGE}, "has parent -1, not 0"),
+    "orderings_fill_with_original_edges": V(
+        "orderings.py", OR_IN_SE, "                if j not in neighbours[i]:",
+        "                fill.add((min(i, j), max(i, j)))\n                if j not in neighbours[i]:",
+        {OR_FILL, OR_SE_LARGE}, "not edges of the original graph"),
+    # in natural order (the large graph) every separator pair is already (smaller, larger)
+    "orderings_fill_pairs_in_separator_order": V(
+        "orderings.py", OR_IN_SE, "fill.add((min(i, j), max(i, j)))", "fill.add((i, j))",
+        {OR_FILL}, "with i < j"),
+    "orderings_fill_rows_not_sorted": V(
+        "orderings.py", OR_IN_SE, "np.array(sorted(fill), dtype=np.int64)", "np.array(list(fill), dtype=np.int64)",
+        {OR_FILL, OR_SE_LARGE}, "not sorted"),
+    "orderings_md_original_degrees": V(
+        "orderings.py", OR_IN_MD, "            degree[i] = len(neighbours[i])\n", "",
+        {OR_MD, OR_MD_LARGE}, "not the original degrees"),
+    "orderings_md_ties_to_largest": V(
+        "orderings.py", OR_IN_MD, "v = int(np.argmin(degree))", "v = n - 1 - int(np.argmin(degree[::-1]))",
+        {OR_MD, OR_MD_LARGE}, "ties go to the smallest index"),
+    "orderings_md_counts_eliminated_neighbours": V(
+        "orderings.py", OR_IN_MD, "        separator = neighbours[v]\n        for i in separator:\n"
+                                  "            neighbours[i].discard(v)\n",
+        "        separator = {u for u in neighbours[v] if degree[u] < n}\n        for i in separator:\n",
+        {OR_MD, OR_MD_LARGE}, "only the neighbours not eliminated yet"),
+    "orderings_md_no_fill": V(
+        "orderings.py", OR_IN_MD, "            neighbours[i].update(separator - {i})\n", "",
+        {OR_MD, OR_MD_LARGE}, "their degrees grow"),
+}
+
+_BOOLEAN_ELIMINATION = """    adjacency = np.zeros((n, n), dtype=bool)
+    adjacency[edges[:, 0], edges[:, 1]] = True
+    adjacency[edges[:, 1], edges[:, 0]] = True
+    np.fill_diagonal(adjacency, False)
+    original = adjacency.copy()
+    position = np.empty(n, dtype=np.int64)
+    position[ordering] = np.arange(n)
+    alive = np.ones(n, dtype=bool)
+    separators = [[] for _ in range(n)]
+    parents = -np.ones(n, dtype=int)
+    for v in ordering:
+        alive[v] = False
+        members = np.flatnonzero(adjacency[v] & alive)
+        members = members[np.argsort(position[members])]
+        separators[v] = members.tolist()
+        if members.size:
+            parents[v] = members[0]
+        adjacency[np.ix_(members, members)] = True
+    np.fill_diagonal(adjacency, False)
+    fill = np.argwhere(np.triu(adjacency & ~original, 1))
+    return separators, parents, fill
+"""
+_FILL_BY_DIFFERENCE = """    position = {int(v): k for k, v in enumerate(ordering)}
+    original = {(min(i, j), max(i, j)) for i, j in edges.tolist() if i != j}
+    neighbours = {v: set() for v in range(n)}
+    for i, j in original:
+        neighbours[i].add(j)
+        neighbours[j].add(i)
+    separators, parents, joined = [None] * n, [], set()
+    for v in ordering.tolist():
+        separator = sorted(neighbours.pop(v), key=lambda u: position[u])
+        separators[v] = separator
+        parents.append(separator[0] if separator else -1)
+        for i in separator:
+            neighbours[i] |= set(separator)
+            neighbours[i] -= {i, v}
+        joined |= {(i, j) for i in separator for j in separator if i < j}
+    parents = [parents[position[v]] for v in range(n)]
+    fill = np.unique(np.array(sorted(joined - original), dtype=int).reshape(-1, 2), axis=0)
+    return separators, np.array(parents), fill
+"""
+_HEAP_MINIMUM_DEGREE = """    import heapq
+
+    neighbours = [set() for _ in range(n)]
+    for i, j in edges.tolist():
+        if i != j:
+            neighbours[i].add(j)
+            neighbours[j].add(i)
+    heap = [(len(neighbours[v]), v) for v in range(n)]
+    heapq.heapify(heap)
+    done = [False] * n
+    ordering = []
+    while heap:
+        degree, v = heapq.heappop(heap)
+        if done[v] or degree != len(neighbours[v]):
+            continue  # stale: v's degree changed since this entry was pushed
+        done[v] = True
+        ordering.append(v)
+        separator = list(neighbours[v])
+        for i in separator:
+            neighbours[i].discard(v)
+            neighbours[i].update(j for j in separator if j != i)
+            heapq.heappush(heap, (len(neighbours[i]), i))
+    return np.array(ordering)
+"""
+_SCAN_MINIMUM_DEGREE = """    neighbours = {v: set() for v in range(n)}
+    for i, j in edges.tolist():
+        if i != j:
+            neighbours[i].add(j)
+            neighbours[j].add(i)
+    ordering = []
+    while neighbours:
+        v = min(neighbours, key=lambda u: (len(neighbours[u]), u))
+        ordering.append(v)
+        separator = neighbours.pop(v)
+        for i in separator:
+            neighbours[i] = (neighbours[i] | separator) - {i, v}
+    return np.array(ordering)
+"""
+ALTERNATIVES_ORDERINGS = {
+    "orderings_boolean_adjacency": V(
+        "orderings.py", OR_IN_SE, _solution_lines("orderings.py", "symbolic_elimination"), _BOOLEAN_ELIMINATION,
+        set()),
+    "orderings_fill_as_a_set_difference": V(
+        "orderings.py", OR_IN_SE, _solution_lines("orderings.py", "symbolic_elimination"), _FILL_BY_DIFFERENCE,
+        set()),
+    "orderings_heap_minimum_degree": V(
+        "orderings.py", OR_IN_MD, _solution_lines("orderings.py", "minimum_degree_ordering"), _HEAP_MINIMUM_DEGREE,
+        set()),
+    "orderings_scan_minimum_degree": V(
+        "orderings.py", OR_IN_MD, _solution_lines("orderings.py", "minimum_degree_ordering"), _SCAN_MINIMUM_DEGREE,
+        set()),
+}
+
 
 EL_R, EL_SD, EL_NEW = ("elimination.eliminate_variable: " + t for t in (
     "the conditional's R: upper triangular, R^T R = Lambda_xx",
@@ -1838,7 +1992,8 @@ VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BU
             **ALTERNATIVES_POSE_GRAPH_3D_ASSEMBLY, **BUGS_CHORDAL_3D, **ALTERNATIVES_CHORDAL_3D,
             **BUGS_GNC, **ALTERNATIVES_GNC, **BUGS_FACTOR_GRAPH, **ALTERNATIVES_FACTOR_GRAPH,
             **BUGS_ELIMINATION, **ALTERNATIVES_ELIMINATION, **BUGS_BAYES_TREE, **ALTERNATIVES_BAYES_TREE,
-            **BUGS_MARGINAL_COVARIANCES, **ALTERNATIVES_MARGINAL_COVARIANCES}
+            **BUGS_MARGINAL_COVARIANCES, **ALTERNATIVES_MARGINAL_COVARIANCES,
+            **BUGS_ORDERINGS, **ALTERNATIVES_ORDERINGS}
 
 
 def apply(text: str, variant: Variant) -> str:
