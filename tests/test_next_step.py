@@ -38,8 +38,11 @@ def test_the_end_of_a_chapter_names_its_lesson_then_the_next_chapter():
     line = report.next_step(_results({"gnc.gnc"}))
     assert line.startswith("next: chapter 6's lesson, notebooks/chapter6_pose_graphs_3d.ipynb (`make notebooks`), "
                            "then jets.Jet (chapter 7;")
-    last = report.next_step(_results({"factor_linearisation.BlockSparseAssembler"}))
-    assert last == "next: every exercise is at full marks; the last lesson is notebooks/chapter7_factor_graphs.ipynb"
+    line = report.next_step(_results({"factor_linearisation.BlockSparseAssembler"}))
+    assert line.startswith("next: chapter 7's lesson, notebooks/chapter7_factor_graphs.ipynb (`make notebooks`), "
+                           "then elimination.eliminate_variable (chapter 8;")
+    last = report.next_step(_results({"marginal_covariances.joint_marginal"}))
+    assert last == "next: every exercise is at full marks; the last lesson is notebooks/chapter8_elimination.ipynb"
 
 
 def test_an_exercise_below_full_marks_comes_first():

@@ -59,6 +59,7 @@ CHAPTER = {"curve_model": "1", "gauss_newton": "1", "damping": "1", "end_to_end"
            "bundle_adjustment": "4", "robust_kernels": "4", "gauge": "4", "parallel_assembly": "4",
            "marginalisation": "5", "imu_preintegration": "5",
            "pose_graph_3d": "6", "pose_graph_3d_assembly": "6", "chordal_3d": "6", "gnc": "6",
+           "jets": "7", "autodiff_factor": "7", "factor_linearisation": "7",
            "elimination": "8", "orderings": "8", "bayes_tree": "8", "marginal_covariances": "8"}
 LESSONS = {"1": "notebooks/chapter1_curve_fitting.ipynb", "2": "notebooks/chapter2_pose_graphs.ipynb",
            "3": "notebooks/chapter3_dogleg.ipynb", "3b": "notebooks/chapter3b_initialisation.ipynb",

@@ -35,7 +35,7 @@ ERROR_HINTS = {"KeyError": "when v is reached, the clique of its separator's fir
 # ---------------------------------------------------------------- inputs
 
 #: (what, ordering, separators): separators[v] sorted by elimination position, as an elimination gives them
-PUBLIC = (
+PUBLIC: tuple[tuple[str, list, list], ...] = (
     ("a single variable", [0], [[]]),
     ("a chain 0-1-2-3-4-5 eliminated 0, 1, ..., 5", [0, 1, 2, 3, 4, 5], [[1], [2], [3], [4], [5], []]),
     ("a complete graph of 5 variables", [2, 0, 4, 1, 3], [[4, 1, 3], [3], [0, 4, 1, 3], [], [1, 3]]),

@@ -102,11 +102,11 @@ def elimination_check(module, graph: LinearGraph | None = None, v: int = 0, poin
         whole = np.sum((A_x @ x + A_s @ s - b) ** 2)
         split = np.sum((R @ x + S @ s - d) ** 2) + np.sum((A_new @ s - b_new) ** 2)
         gaps.append(whole - split)
-    gaps = np.asarray(gaps)
-    spread = float(np.ptp(gaps))
-    constant = spread < 1e-9 * max(1.0, float(np.max(np.abs(gaps)))) and float(np.min(gaps)) > -1e-9
+    gap = np.asarray(gaps)
+    spread = float(np.ptp(gap))
+    constant = spread < 1e-9 * max(1.0, float(np.max(np.abs(gap)))) and float(np.min(gap)) > -1e-9
     out(f"||A_x x + A_s s - b||^2 - (||R x + S s - d||^2 + ||A_new s - b_new||^2) at {points} random points: "
-        f"{gaps[0]:.6g} (spread {spread:.1e}): {'a constant c >= 0, right' if constant else 'NOT a constant c >= 0'}")
+        f"{gap[0]:.6g} (spread {spread:.1e}): {'a constant c >= 0, right' if constant else 'NOT a constant c >= 0'}")
     return upper and constant
 
 
@@ -198,9 +198,9 @@ def game_figure(module, orderings: dict | None = None):
         position = np.empty(n, dtype=int)
         position[np.asarray(ordering, dtype=int)] = np.arange(n)
         for v in range(n):
-            ax.scatter(*positions[v], s=380, color="tab:orange" if v >= 6 else "tab:blue", zorder=2)
-            ax.text(*positions[v], f"{v}\n#{position[v] + 1}", ha="center", va="center", fontsize=7, color="white",
-                    zorder=3)
+            x, y = positions[v]
+            ax.scatter(x, y, s=380, color="tab:orange" if v >= 6 else "tab:blue", zorder=2)
+            ax.text(x, y, f"{v}\n#{position[v] + 1}", ha="center", va="center", fontsize=7, color="white", zorder=3)
         roots = int(np.sum(np.asarray(parents) < 0))
         ax.set_title(f"{name}: {len(fill)} fill edge(s), {roots} root(s)\n"
                      "poses blue, landmarks orange, fill red; #k: eliminated k-th", fontsize=8)
@@ -354,8 +354,8 @@ def square_root_information(info: Information, ordering, module) -> tuple:
         keep = cc >= rr
         rows.append(rr[keep])
         cols.append(cc[keep])
-    rows, cols = np.concatenate(rows), np.concatenate(cols)
-    R = sp.csc_matrix((U[rows, cols], (rows, cols)), shape=dense.shape)
+    r_all, c_all = np.concatenate(rows), np.concatenate(cols)
+    R = sp.csc_matrix((U[r_all, c_all], (r_all, c_all)), shape=dense.shape)
     return R, unknowns
 
 
