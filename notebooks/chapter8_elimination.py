@@ -162,20 +162,6 @@ with todo_as_one_line():
 # %% id="check-orderings"
 check("orderings")
 
-# %% [markdown] id="fill-md"
-# **On real graphs.** The table eliminates intel (and M3500 in the full setting) under the natural
-# order, your minimum degree, reverse Cuthill-McKee (scipy: it makes the matrix banded, not sparse) and
-# AMD (SuiteSparse through cvxopt, where installed), with your `symbolic_elimination` in every row: the
-# fill edges, the largest separator, the elimination tree's height, and the nonzeros of $R$ for poses of
-# 3 unknowns ($6$ on a diagonal block, $9$ per separator pose). The time is the ordering's alone.
-
-# %% id="fill-table"
-with todo_as_one_line():
-    try:
-        print(chapter8.ordering_table(orderings, GRAPHS))
-    except DatasetError as exc:
-        print(f"not run: {exc}")
-
 # %% [markdown] id="bayes-tree-md"
 # ## 3. The Bayes tree (exercise `bayes_tree`)
 #
@@ -235,24 +221,52 @@ check("bayes_tree")
 hint("marginal_covariances", 1)
 
 # %% [markdown] id="marginals-check-md"
-# **Check your recursion where you work.** The cell below solves intel (chapter 2's problem from the
-# file's poses, Gauss-Newton), linearises at the solution (the first pose held still), factors $\Lambda$ in
-# your minimum-degree order with $R$ stored on your symbolic pattern, and compares your marginal of every
-# pose with the same block of the dense inverse (and times both).
+# **Check your recursion where you work.** The cell below solves a generated Manhattan world of 150 poses
+# (chapter 2's problem, Gauss-Newton from the file's poses), linearises at the solution (the first pose
+# held still), factors $\Lambda$ in your minimum-degree order with $R$ stored on your symbolic pattern, and
+# compares your marginal of every pose with the same block of the dense inverse.
 
 # %% id="marginals-check"
-info = run = None
 with todo_as_one_line():
     marginal_covariances = chapter8.exercise("marginal_covariances", IMPL)
+    small_info = chapter8.pose_graph_information("manhattan:150", IMPL)
+    print(chapter8.marginals_line(chapter8.marginals_run(small_info, orderings, marginal_covariances)))
+
+# %% id="check-marginals"
+check("marginal_covariances")
+
+# %% [markdown] id="experiments-md"
+# ## 5. Experiments
+#
+# Your orderings on real graphs, and every pose's marginal covariance on intel.
+
+# %% [markdown] id="fill-md"
+# **On real graphs.** The table eliminates intel (and M3500 in the full setting) under the natural
+# order, your minimum degree, reverse Cuthill-McKee (scipy: it makes the matrix banded, not sparse) and
+# AMD (SuiteSparse through cvxopt, where installed), with your `symbolic_elimination` in every row: the
+# fill edges, the largest separator, the elimination tree's height, and the nonzeros of $R$ for poses of
+# 3 unknowns ($6$ on a diagonal block, $9$ per separator pose). The time is the ordering's alone.
+
+# %% id="fill-table"
+with todo_as_one_line():
+    try:
+        print(chapter8.ordering_table(orderings, GRAPHS))
+    except DatasetError as exc:
+        print(f"not run: {exc}")
+
+# %% [markdown] id="marginals-intel-md"
+# **Marginals on intel.** The same run as the check of section 4 on intel (729 poses): your recursion on
+# $R$ against the dense inverse, both timed.
+
+# %% id="marginals-intel"
+info = run = None
+with todo_as_one_line():
     try:
         info = chapter8.pose_graph_information("intel", IMPL)
         run = chapter8.marginals_run(info, orderings, marginal_covariances)
         print(chapter8.marginals_line(run))
     except DatasetError as exc:
         print(f"not run: {exc}")
-
-# %% id="check-marginals"
-check("marginal_covariances")
 
 # %% [markdown] id="ellipses-md"
 # **The uncertainty, seen.** Every tenth pose's position marginal as its 3-sigma ellipse, relative to the
