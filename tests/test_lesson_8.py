@@ -10,6 +10,7 @@ import pytest
 from executed_notebooks import (
     assert_hints_and_checks_at_full_marks,
     assert_no_level_3_hint_line,
+    cell_text,
     chapter_1_student_build,
     executed_small,
 )
@@ -119,9 +120,7 @@ def test_marginals_on_a_generated_graph_are_the_dense_inverses_blocks():
 # ---------------------------------------------------------------- the notebook
 
 
-def _outputs(nb) -> dict:
-    return {c.id: "".join(o.get("text", "") for o in c.get("outputs", []) if o.get("output_type") == "stream")
-            for c in nb.cells if c.cell_type == "code"}
+_outputs = cell_text
 
 
 def _images(nb) -> list:

@@ -418,7 +418,7 @@ def test_with_chapter_1_written_every_notebook_is_written_and_chapter_1_runs_who
     built = chapter_1_student_build(python)
     out = built["out"]
     assert built["returncode"] == 0, built["output"][-6000:]
-    assert len(list(out.glob("*.ipynb"))) == len(NOTEBOOKS) == 8
+    assert len(list(out.glob("*.ipynb"))) == len(NOTEBOOKS) == 9
     assert re.search(r"chapter1_curve_fitting\.ipynb: all \d+ code cells ran", built["output"])
     text = (out / "chapter1_curve_fitting.ipynb").read_text()
     assert "every chi2 the C++ run prints is ours: True" in text

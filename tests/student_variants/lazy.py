@@ -112,6 +112,21 @@ return central_differences(residual, moves, [np.shape(P)[-1] for P in plus_jacob
     "factor_linearisation": (
         "from course.factorgraph.problem import FactorGraphProblem",
         {}),
+    "elimination": (
+        "from course.notebook_helpers.chapter8 import least_squares",
+        {}),
+    "orderings": (
+        "from cvxopt import amd",
+        {}),
+    "bayes_tree": (
+        "from course.notebook_helpers.chapter8 import bayes_tree_check",
+        {}),
+    "marginal_covariances": (
+        "from course.notebook_helpers.chapter8 import marginals_run",
+        {"marginal_covariances": """H = (R.T @ R).toarray()
+inverse = np.linalg.inv(H)
+starts = np.cumsum([0] + list(sizes))
+return [inverse[a:b, a:b] for a, b in zip(starts[:-1], starts[1:])]"""}),
 }
 
 #: the delegations issue 42 lists, each its own known mistake (``tests/test_lazy_folder.py``):
