@@ -32,6 +32,7 @@ use it see it unwritten. Standard library only (and ``course.core.impl`` for the
 """
 
 import ast
+import functools
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -193,12 +194,18 @@ def _dynamic(node: ast.AST, entries) -> list:
     return []
 
 
-def scan(source: str, entries, path="<source>") -> list:
+def scan(source: str, entries) -> list:
     """Every :class:`Refused` import of ``source`` under the contract ``entries``, by line."""
+    return list(_scan(source, tuple(entries)))
+
+
+# a class's implementations are mostly the same files (stubs left as they are, variants of one reference)
+@functools.lru_cache(maxsize=512)
+def _scan(source: str, entries: tuple) -> tuple:
     try:
-        tree = ast.parse(source, filename=str(path))
+        tree = ast.parse(source)
     except SyntaxError:
-        return []  # the child reports the syntax error with its line, as for any file
+        return ()  # the child reports the syntax error with its line, as for any file
     out: list = []
     called = {id(node.func) for node in ast.walk(tree) if isinstance(node, ast.Call)}
     for node in ast.walk(tree):
@@ -217,7 +224,7 @@ def scan(source: str, entries, path="<source>") -> list:
             continue  # read with its call
         else:
             out += _dynamic(node, entries)
-    return sorted(set(out), key=lambda r: (r.line, r.what))
+    return tuple(sorted(set(out), key=lambda r: (r.line, r.what)))
 
 
 def message(display: str, module: str, refused: list, entries) -> str:
@@ -252,7 +259,7 @@ def refusals(folder, display: str = "", contracts_by_module: dict | None = None)
         entries = PACKAGE_INIT if module == "__init__" else known.get(module)
         if entries is None or not path.is_file() or path.is_symlink():
             continue  # not an exercise file: reachable only through an import this check refuses
-        found = scan(path.read_text(errors="replace"), entries, path)
+        found = scan(path.read_text(errors="replace"), entries)
         if found:
             out[module] = message(f"{display}/{path.name}", module, found, entries)
     return out

@@ -278,7 +278,7 @@ def mark(result: CheckResult, check: Check, assignment) -> CheckResult:
 
 def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sandbox.DEFAULT_MEMORY_MB,
                workers=2, checks=None, which=None, budget=None, notices=None, on_done=None, on_check=None,
-               catalogue=True, assignment=None) -> list:
+               catalogue=True, assignment=None, each=None) -> list:
     """Grade each implementation of ``impls`` as :func:`grade` does, in one run: the expected
     outputs computed once, one sandbox session, ``workers`` children at a time across all of
     them. Returns one list of results per implementation, in order. ``budget`` is per
@@ -294,6 +294,9 @@ def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sand
     ``checks``) with its points, each result marked with its visibility, extra credit and counting,
     and each implementation composed with the assignment's solved files (:func:`compose`). Without
     it, every piece a check runs is the implementation's own, as before.
+
+    ``each``: per implementation, the names of the checks (of those selected) to grade it on; its
+    list of results holds those alone. None: every implementation on every selected check.
     """
     impls = [str(impl) for impl in impls]
     if checks is None:
@@ -306,7 +309,7 @@ def grade_many(impls, only=None, timeout=sandbox.DEFAULT_TIMEOUT, memory_mb=sand
                      for index, impl in enumerate(impls)]
         impls, refused = screen(impls, shown, Path(scratch) / "screened")
         return _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notices, on_done, on_check,
-                           catalogue, assignment, refused)
+                           catalogue, assignment, refused, each)
 
 
 def _display(impl: str) -> str:
@@ -361,7 +364,7 @@ def refusal(task: Task, why: str) -> CheckResult:
 
 
 def _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notices, on_done, on_check, catalogue,
-                assignment, refused) -> list:
+                assignment, refused, each=None) -> list:
     tasks = plan(checks, which or default_set())
     owner = module_of()
     if notices is not None:  # a refused __init__.py has no check of its own: said once
@@ -373,7 +376,9 @@ def _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notic
         peers.announce(library)
     total = None if budget is None else budget * len(impls)
     hung = [Hung() for _ in impls]
-    left = [len(tasks)] * len(impls)
+    jobs = [(index, number, task) for index in range(len(impls)) for number, task in enumerate(tasks)
+            if each is None or task.check.name in each[index]]
+    left = [sum(job[0] == index for job in jobs) for index in range(len(impls))]
     results: list = [[None] * len(tasks) for _ in impls]
     report = threading.Lock()
     with sandbox.Session(impls[0], timeout=timeout, memory_mb=memory_mb, workers=workers,
@@ -410,11 +415,12 @@ def _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notic
                 if on_check is not None:
                     on_check(index, result)
                 if left[index] == 0 and on_done is not None:
-                    on_done(index, results[index])
+                    on_done(index, results[index] if each is None else [r for r in results[index] if r is not None])
 
-        jobs = [(index, number, task) for index in range(len(impls)) for number, task in enumerate(tasks)]
         with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
             list(pool.map(one, jobs))
+    if each is not None:
+        return [[result for result in row if result is not None] for row in results]
     return results
 
 

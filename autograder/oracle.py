@@ -89,8 +89,9 @@ class ReferenceFailed(RuntimeError):
     cannot be graded (:mod:`autograder.grade` reports it as not gradable and grades the others)."""
 
 
-def _reference(calls) -> list:
-    """The reference's :class:`Outcome` of each call (raises :class:`ReferenceFailed`)."""
+def reference_outcomes(calls) -> list:
+    """The reference's :class:`Outcome` of each call (raises :class:`ReferenceFailed`): what
+    :func:`compute` gives as ``reference``, without the known mistakes."""
     from autograder.child import run_calls
 
     solutions = reference_implementation()
@@ -128,7 +129,7 @@ def compute(check, module: str, seed=None) -> Expected:
     Raises :class:`ReferenceFailed` when the reference fails on an input.
     """
     calls = check.calls(seed)
-    reference = _reference(calls)
+    reference = reference_outcomes(calls)
     known = _mistake_catalogue(module).get(check.name)
     if known is None:
         return Expected(calls, reference, [{} for _ in calls])
@@ -137,7 +138,7 @@ def compute(check, module: str, seed=None) -> Expected:
         again = mistakes
     else:
         moved = [moved_call(call) for call in calls]
-        again = [_mistakes_of(known, call, outcome) for call, outcome in zip(moved, _reference(moved))]
+        again = [_mistakes_of(known, call, outcome) for call, outcome in zip(moved, reference_outcomes(moved))]
     return Expected(calls, reference, [stable(first, second) for first, second in zip(mistakes, again)])
 
 

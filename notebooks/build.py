@@ -352,9 +352,12 @@ def execute(nb, timeout=900, cwd=HERE, small=False, impl=None, progress=None, ke
             assert client.kc is not None
             await client.async_wait_for_reply(client.kc.execute(SHORT_ERRORS, silent=True, store_history=False))
 
+        # the outputs are in ``nb`` once the last cell ran: a graceful shutdown only waits, seconds per
+        # notebook, for the kernel's interpreter to finalize
         client = NotebookClient(nb, timeout=timeout, kernel_name=kernel_name, allow_errors=keep_going,
                                 resources={"metadata": {"path": str(cwd)}}, on_notebook_start=short_errors,
-                                on_cell_start=report.on_cell_start if report else None)
+                                on_cell_start=report.on_cell_start if report else None,
+                                shutdown_kernel="immediate")
         try:
             client.execute()
         finally:

@@ -19,7 +19,15 @@ MODULES = ("jets", "autodiff_factor", "factor_linearisation")
 
 @pytest.fixture(scope="module")
 def graded(tmp_path_factory):
-    jobs = {name: MODULES for name in [*BUGS_FACTOR_GRAPH, *ALTERNATIVES_FACTOR_GRAPH, "solutions", "exercises"]}
+    """Each variant on the checks that load the file it edits (``Variant.loaded_by``: each exercise is
+    graded alone); the first mistake of each file, the reference and the stubs on every check of the
+    chapter, so that a file's mistake is seen to cost nothing in the other two exercises."""
+    first = {}
+    for name, variant in BUGS_FACTOR_GRAPH.items():
+        first.setdefault(variant.file, name)
+    jobs = {name: MODULES if name in first.values() else variant.loaded_by
+            for name, variant in {**BUGS_FACTOR_GRAPH, **ALTERNATIVES_FACTOR_GRAPH}.items()}
+    jobs |= {"solutions": MODULES, "exercises": MODULES}
     return grade_variants(tmp_path_factory.mktemp("variants"), jobs)
 
 

@@ -300,18 +300,23 @@ def test_notebooks_default_to_the_trees_implementation(tree, python):
 def core_python(solved_tree, tmp_path_factory):
     """A fresh venv with the solved tree installed as a student on a machine without the
     peers' wheels gets it: ``pip install -e .`` (no ``peers`` extra), and no qdldl (as on
-    CPython 3.15). Needs the package index (CI has it)."""
+    CPython 3.15). Needs the package index (CI has it).
+
+    This venv's pip installs into it (``pip --python``): the same ``pip install -e .``, without
+    seeding the new venv with a pip of its own first (ensurepip, a quarter of the set-up)."""
     folder = tmp_path_factory.mktemp("core-venv")
     folder.chmod(0o755)  # as root, the autograder's children run as another user
     env_dir = folder / "venv"
-    venv.create(env_dir, with_pip=True)
+    venv.create(env_dir, with_pip=False)
     exe = str(env_dir / "bin" / "python")
-    install = subprocess.run([exe, "-m", "pip", "install", "--quiet", "-e", str(solved_tree)],
+    pip = [sys.executable, "-m", "pip", "--python", exe]
+    install = subprocess.run([*pip, "install", "--quiet", "--no-compile", "-e", str(solved_tree)],
                              capture_output=True, text=True, timeout=900)
     if install.returncode != 0 and "NewConnectionError" in install.stdout + install.stderr:
         pytest.skip("the package index is not reachable here")
     assert install.returncode == 0, install.stdout + install.stderr
-    subprocess.run([exe, "-m", "pip", "uninstall", "--quiet", "--yes", "qdldl"], check=True, capture_output=True)
+    subprocess.run([*pip, "uninstall", "--quiet", "--yes", "qdldl"], check=True, capture_output=True)
+    assert subprocess.run([exe, "-c", "import qdldl"], capture_output=True).returncode != 0
     return exe
 
 

@@ -31,30 +31,44 @@ def _jr(phi):
     return np.eye(3) - (1 - np.cos(theta)) / theta**2 * W + (theta - np.sin(theta)) / theta**3 * (W @ W)
 
 
-def preintegrate(call, *, scheme="midpoint", gyro_bias=True, accel_bias=True, both_new=False, half=0.5,
-                 new_velocity=False, left=False, rot_block="E^T", per_dt=True, propagate=True, swap_q=False,
-                 jac_sign=1.0, d_g_sign=1.0):
-    """The 12 outputs of ``preintegrate`` with one slip or none."""
-    gyro, accel, dt, bg, ba, gn, an = call.args
+def _intervals(call, scheme, gyro_bias, accel_bias) -> list:
+    """Per interval ``(dt, E, J_r, a0, a1, [a0]x, [a1]x)``: what the slips that integrate the same
+    samples the same way share."""
+    gyro, accel, dt, bg, ba, _, _ = call.args
     gyro, accel = np.asarray(gyro, dtype=float), np.asarray(accel, dtype=float)
     n = len(gyro) - 1
     dt = np.broadcast_to(np.asarray(dt, dtype=float), (n,))
     bg = np.asarray(bg, dtype=float) if gyro_bias else np.zeros(3)
     ba_used = np.asarray(ba, dtype=float) if accel_bias else np.zeros(3)
-    q = np.r_[np.full(3, an**2), np.full(3, gn**2)] if swap_q else np.r_[np.full(3, gn**2), np.full(3, an**2)]
-    R, v, p, cov, J = np.eye(3), np.zeros(3), np.zeros(3), np.zeros((9, 9)), np.zeros((9, 6))
+    out = []
     for k in range(n):
         h = dt[k]
         w = ((gyro[k] + gyro[k + 1]) / 2.0 if scheme == "midpoint" else gyro[k]) - bg
         a0, a1 = accel[k] - ba_used, accel[k + 1] - ba_used
-        E, Jr = _exp(w * h), _jr(w * h)
+        out.append((h, _exp(w * h), _jr(w * h), a0, a1, skew(a0), skew(a1)))
+    return out
+
+
+def preintegrate(call, *, scheme="midpoint", gyro_bias=True, accel_bias=True, both_new=False, half=0.5,
+                 new_velocity=False, left=False, rot_block="E^T", per_dt=True, propagate=True, swap_q=False,
+                 jac_sign=1.0, d_g_sign=1.0, shared=None):
+    """The 12 outputs of ``preintegrate`` with one slip or none. ``shared``, a dict: the intervals
+    (:func:`_intervals`) kept across the slips of one call."""
+    _, _, dt, _, _, gn, an = call.args
+    key = (scheme, gyro_bias, accel_bias)
+    shared = {} if shared is None else shared
+    if key not in shared:
+        shared[key] = _intervals(call, scheme, gyro_bias, accel_bias)
+    q = np.r_[np.full(3, an**2), np.full(3, gn**2)] if swap_q else np.r_[np.full(3, gn**2), np.full(3, an**2)]
+    R, v, p, cov, J = np.eye(3), np.zeros(3), np.zeros(3), np.zeros((9, 9)), np.zeros((9, 6))
+    for h, E, Jr, a0, a1, S0, S1 in shared[key]:
         Rn = R @ E
         if scheme == "midpoint":
             acc = Rn @ (a0 + a1) / 2.0 if both_new else (R @ a0 + Rn @ a1) / 2.0
-            D_phi = -(R @ skew(a0) + Rn @ skew(a1) @ E.T) / 2.0
-            D_g, D_a = d_g_sign * Rn @ skew(a1) @ Jr * h / 2.0, -(R + Rn) / 2.0
+            D_phi = -(R @ S0 + Rn @ S1 @ E.T) / 2.0
+            D_g, D_a = d_g_sign * Rn @ S1 @ Jr * h / 2.0, -(R + Rn) / 2.0
         else:
-            acc, D_phi, D_g, D_a = R @ a0, -R @ skew(a0), np.zeros((3, 3)), -R
+            acc, D_phi, D_g, D_a = R @ a0, -R @ S0, np.zeros((3, 3)), -R
         A = np.eye(9)
         A[:3, :3] = E.T if rot_block == "E^T" else E
         A[3:6, :3], A[6:9, :3], A[6:9, 3:6] = D_phi * h, D_phi * h * h / 2.0, np.eye(3) * h
@@ -72,6 +86,7 @@ def preintegrate(call, *, scheme="midpoint", gyro_bias=True, accel_bias=True, bo
             p = p + v * h + half * acc * h * h
             v = v + acc * h
         R = Rn
+    dt = np.broadcast_to(np.asarray(dt, dtype=float), (len(shared[key]),))
     return {"delta_R": R, "delta_v": v, "delta_p": p, "delta_t": float(np.sum(dt)), "covariance": cov,
             "dR_dbg": J[:3, :3], "dv_dbg": J[3:6, :3], "dv_dba": J[3:6, 3:], "dp_dbg": J[6:9, :3],
             "dp_dba": J[6:9, 3:]}
@@ -112,8 +127,9 @@ def _known_pre(call, ref):
     out = {name: [] for name in FIELDS}
     scheme = call.kwargs.get("scheme", "midpoint")
     slips = _PRE_SLIPS if scheme == "midpoint" else [_EULER_SLIP, *_PRE_SLIPS[1:]]
+    shared: dict = {}
     for slip, why in slips:
-        for name, value in preintegrate(call, **{"scheme": scheme, **slip}).items():
+        for name, value in preintegrate(call, **{"scheme": scheme, **slip}, shared=shared).items():
             out[name].append((value, why))
     return out
 

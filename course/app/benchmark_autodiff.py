@@ -168,15 +168,16 @@ class _GtsamCustom:
         return self.solver.solve(self.graph, "levenberg-marquardt", GTSAM_CUSTOM_ITERATIONS, impl=self.impl)
 
 
-def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int = 50) -> dict:
+def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int = 50, custom_solves=True) -> dict:
     """``{backend: (seconds per linearisation, seconds per iteration, final chi2, iterations)}``, medians
     of ``repeats`` interleaved rounds; ``jax``, ``gtsam-custom`` and the references only where their
-    library is installed; under ``"jax compile"``, JAX's compile seconds (where it ran); under
-    ``"not run"``, ``{backend: why}`` for a reference that stopped at a TODO of ``impl``; under
-    ``"linearisations"``, ``{backend: [seconds of each round's linearisation]}``."""
+    library is installed (``custom_solves`` False: ``gtsam-custom``'s linearisation alone, on every
+    graph); under ``"jax compile"``, JAX's compile seconds (where it ran); under ``"not run"``,
+    ``{backend: why}`` for a reference that stopped at a TODO of ``impl``; under ``"linearisations"``,
+    ``{backend: [seconds of each round's linearisation]}``."""
     chosen = problems(name, impl)
     custom = _GtsamCustom(chosen[OURS_AUTODIFF].graph, impl) if peers.installed("gtsam") else None
-    custom_solves = name not in GTSAM_CUSTOM_LINEARISATION_ONLY
+    custom_solves = custom_solves and name not in GTSAM_CUSTOM_LINEARISATION_ONLY
     native = references(name, chosen[OURS], impl)
     names = list(chosen) + ([GTSAM_CUSTOM] if custom is not None else []) + list(native)
     not_run: dict = {}
@@ -220,7 +221,7 @@ def measure(name: str, repeats: int = 5, impl="solutions", max_iterations: int =
     return rows
 
 
-def main(repeats: int = 5, impl="solutions", graphs=GRAPHS, out=print) -> None:
+def main(repeats: int = 5, impl="solutions", graphs=GRAPHS, out=print, custom_solves=True) -> None:
     out(f"automatic against analytic Jacobians: medians of {repeats} interleaved rounds, {METHOD} "
         f"({GTSAM_CUSTOM}: GTSAM's LM, {GTSAM_CUSTOM_ITERATIONS} iterations at most; {', '.join(REFERENCES)}: "
         f"GTSAM's native factors and the compiled references, their own LM, {REFERENCE_ITERATIONS} iterations; "
@@ -229,7 +230,7 @@ def main(repeats: int = 5, impl="solutions", graphs=GRAPHS, out=print) -> None:
         f"{'iters':>5} {'final chi2':>16}")
     for name in graphs:
         try:
-            rows = measure(name, repeats, impl)
+            rows = measure(name, repeats, impl, custom_solves=custom_solves)
         except DatasetError as exc:
             out(f"{name:12} not run: {exc}")
             continue

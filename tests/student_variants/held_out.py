@@ -90,7 +90,7 @@ def catalogued(names, expected_by_check) -> list:
 def judge_without_catalogue(names, root: Path, workers: int = 2) -> list:
     """``HeldOut`` per variant of ``names``, judged on the public inputs of the checks it must fail,
     in the grader's sandbox (a variant may crash its process: passing a full matrix to qdldl does),
-    one run per group of variants that edit the same file."""
+    one run per group of variants that edit the same file, each variant on its own checks alone."""
     from autograder.checks import all_checks
     from autograder.grade import grade_many
 
@@ -103,14 +103,14 @@ def judge_without_catalogue(names, root: Path, workers: int = 2) -> list:
         only = sorted(set().union(*(VARIANTS[name].fails for name in group)))
         impls = [build(name, root) for name in group]
         for name, results in zip(group, grade_many(impls, only=only, which="public", workers=workers,
-                                                   catalogue=False)):
+                                                   catalogue=False, each=[VARIANTS[n].fails for n in group])):
             function = edited_function(name)
-            mine = [result for result in results if result.name in VARIANTS[name].fails]
-            lost = [result.name for result in mine if result.score < result.max_score]
+            assert {result.name for result in results} == set(VARIANTS[name].fails), name
+            lost = [result.name for result in results if result.score < result.max_score]
             exercises = {checks[check].exercise for check in lost}
             names_function = any(function == exercise or function.startswith(exercise + ".")
                                  for exercise in exercises)
-            feedback = "\n".join(result.message for result in mine if result.score < result.max_score)
+            feedback = "\n".join(result.message for result in results if result.score < result.max_score)
             locates = None if name not in LOCATES else LOCATES[name] in feedback
             out.append(HeldOut(name, function, lost, feedback, names_function, locates))
     return out
