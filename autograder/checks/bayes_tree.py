@@ -129,9 +129,9 @@ def _clique_of_calls(seed=None):
 
 
 def _unpack(packed):
-    from autograder.tasks.bayes_tree import unpack
+    from autograder.tasks.common import decode_lists
 
-    return unpack(packed)
+    return decode_lists(packed)
 
 
 def _parents(values):

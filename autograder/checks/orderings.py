@@ -22,7 +22,7 @@ from autograder.checks import Call, Verdict
 from autograder.checks.common import check, failed
 from autograder.checks.edges import Edge
 from autograder.feedback import call_fields, compare
-from autograder.tasks.orderings import decode_separators
+from autograder.tasks.common import decode_lists
 
 MODULES = ("orderings",)
 ELIMINATION = "orderings.symbolic_elimination"
@@ -235,7 +235,7 @@ def separators_judge(ctx):
     triples, failure = call_fields(ctx, failed=failed)
     outputs = [got["separators"] for _, got, _ in triples]
     for index, (call, got, want) in enumerate(triples):
-        mine, ref = decode_separators(got["separators"]), decode_separators(want["separators"])
+        mine, ref = decode_lists(got["separators"]), decode_lists(want["separators"])
         if mine == ref:
             continue
         text, diagnosis = _separator_text(call, mine, ref)

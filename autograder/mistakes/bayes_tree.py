@@ -4,7 +4,7 @@
 import numpy as np
 
 from autograder.checks.bayes_tree import TREE
-from autograder.tasks.bayes_tree import pack
+from autograder.tasks.common import encode_lists
 
 
 def tree(ordering, separators, *, merge="equal", parent_from="first", frontal_order="elimination",
@@ -59,8 +59,8 @@ def _known(call, ref):
     out = {"frontals": [], "separators": [], "parents": []}
     for slip, why in SLIPS:
         frontals, seps, parents = tree(ordering, separators, **slip)
-        out["frontals"].append((pack(frontals), why))
-        out["separators"].append((pack(seps), why))
+        out["frontals"].append((encode_lists(frontals), why))
+        out["separators"].append((encode_lists(seps), why))
         out["parents"].append((np.array(parents, dtype=float), why))
     return out
 

@@ -5,7 +5,7 @@ minimum-degree ordering played with one slip."""
 import numpy as np
 
 from autograder.checks.orderings import ELIMINATION, MINIMUM_DEGREE
-from autograder.tasks.orderings import encode_separators
+from autograder.tasks.common import encode_lists
 
 
 def _neighbours(n, edges, multi=False):
@@ -76,7 +76,7 @@ def _separator_slips(call):
 
 
 def known_separators(call, want):
-    return {"separators": [(encode_separators(s), why) for s, why in _separator_slips(call)]}
+    return {"separators": [(encode_lists(s), why) for s, why in _separator_slips(call)]}
 
 
 def known_parents(call, want):

@@ -1,30 +1,10 @@
 """``bayes_tree.bayes_tree``'s lists of lists as numbers (``checks/bayes_tree.py``): the child returns arrays
-only, so each list of lists comes back packed by :func:`pack` and the judge reads it with :func:`unpack`."""
+only, so each list of lists comes back packed by ``autograder.tasks.common.encode_lists`` and the judge reads
+it with ``decode_lists``."""
 
 import numpy as np
 
-from autograder.tasks.common import OutputError
-
-
-def pack(lists) -> np.ndarray:
-    """``[[a, b], [], [c]]`` as one float array ``(3, 2, a, b, 0, 1, c)``: the number of lists, then each
-    list's length and entries."""
-    out = [float(len(lists))]
-    for items in lists:
-        out.append(float(len(items)))
-        out.extend(float(x) for x in items)
-    return np.array(out, dtype=float)
-
-
-def unpack(packed) -> list:
-    """The lists of lists :func:`pack` packed (ints)."""
-    values = [int(x) for x in np.asarray(packed, dtype=float).ravel()]
-    lists, at = [], 1
-    for _ in range(values[0]):
-        size = values[at]
-        lists.append(values[at + 1: at + 1 + size])
-        at += 1 + size
-    return lists
+from autograder.tasks.common import OutputError, encode_lists
 
 
 def _ints(value, what):
@@ -48,7 +28,7 @@ def _ints(value, what):
 
 def bayes_tree_task(ordering, separators, impl):
     """``bayes_tree.bayes_tree(ordering, separators)``. Fields: ``frontals`` and ``separators`` packed
-    (:func:`pack`), ``parents`` (number of cliques,)."""
+    (``encode_lists``), ``parents`` (number of cliques,)."""
     out = impl.module("bayes_tree").bayes_tree(np.array(ordering, dtype=np.int64), [list(S) for S in separators])
     if not isinstance(out, tuple) or len(out) != 3:
         raise OutputError(f"returned {type(out).__name__}, expected a tuple (frontals, clique_separators, parents)")
@@ -57,6 +37,6 @@ def bayes_tree_task(ordering, separators, impl):
     if parents.ndim != 1 or (parents.size and parents.dtype.kind not in "iuf"):
         raise OutputError(f"returned parents of shape {parents.shape} and dtype {parents.dtype}, expected a 1-D "
                           "array of ints")
-    return {"frontals": pack(_ints(frontals, "frontals")),
-            "separators": pack(_ints(clique_separators, "clique_separators")),
+    return {"frontals": encode_lists(_ints(frontals, "frontals")),
+            "separators": encode_lists(_ints(clique_separators, "clique_separators")),
             "parents": parents.astype(float)}

@@ -26,6 +26,32 @@ def decode_text(codes) -> str:
     return "".join(chr(int(c)) for c in np.asarray(codes, dtype=float).ravel() if 0 <= c < 0x110000)
 
 
+def encode_lists(lists, what="lists") -> np.ndarray:
+    """A list of lists of numbers as one flat float array (the child returns arrays only): their number, then
+    each list's length and entries; ``[[a, b], [], [c]]`` is ``(3, 2, a, b, 0, 1, c)``. OutputError naming
+    ``what[k]`` for an entry that is not a list of numbers."""
+    out = [float(len(lists))]
+    for k, items in enumerate(lists):
+        try:
+            entries = np.asarray(items, dtype=float).ravel()
+        except (TypeError, ValueError) as exc:
+            raise OutputError(f"{what}[{k}] is not a list of numbers: {exc}") from None
+        out.append(float(len(entries)))
+        out.extend(entries.tolist())
+    return np.array(out, dtype=float)
+
+
+def decode_lists(flat) -> list:
+    """The lists of :func:`encode_lists`' array, entries as ints where they are whole numbers."""
+    flat = np.asarray(flat, dtype=float).ravel().tolist()
+    lists, at = [], 1
+    for _ in range(int(flat[0])):
+        size = int(flat[at])
+        lists.append([int(x) if float(x).is_integer() else x for x in flat[at + 1:at + 1 + size]])
+        at += 1 + size
+    return lists
+
+
 def stub_todo(call) -> str:
     """The NotImplementedError message of ``call()`` when it is an unwritten stub, else ''.
 
