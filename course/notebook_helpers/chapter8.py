@@ -132,8 +132,7 @@ def back_substitute(net: list, sizes) -> list:
     x: dict = {}
     for v, separator, R, S, d in reversed(net):
         s = np.concatenate([x[k] for k in separator]) if separator else np.zeros(0)
-        x[v] = scipy.linalg.solve_triangular(R, d - S @ s) if np.allclose(np.tril(R, -1), 0.0) else np.linalg.solve(
-            R, d - S @ s)
+        x[v] = scipy.linalg.solve_triangular(R, d - S @ s)  # back-substitution: R upper triangular by contract
     return [x[v] for v in range(len(sizes))]
 
 
