@@ -23,6 +23,7 @@ import tempfile
 import threading
 import time
 import traceback
+from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -378,7 +379,8 @@ def _grade_many(impls, checks, timeout, memory_mb, workers, which, budget, notic
     hung = [Hung() for _ in impls]
     jobs = [(index, number, task) for index in range(len(impls)) for number, task in enumerate(tasks)
             if each is None or task.check.name in each[index]]
-    left = [sum(job[0] == index for job in jobs) for index in range(len(impls))]
+    per_impl = Counter(index for index, _, _ in jobs)
+    left = [per_impl[index] for index in range(len(impls))]
     results: list = [[None] * len(tasks) for _ in impls]
     report = threading.Lock()
     with sandbox.Session(impls[0], timeout=timeout, memory_mb=memory_mb, workers=workers,
