@@ -1,5 +1,5 @@
 # %% [markdown] id="title"
-# # Chapter 8: elimination, orderings, the Bayes tree and marginal covariances
+# # Chapter 8: elimination, orderings, the Bayes tree, marginal covariances and incremental smoothing
 #
 # Every back end so far solved $H\,\delta = -b$ by a sparse Cholesky factorization it did not look inside,
 # and returned a point estimate only. This chapter opens the factorization: solving a linear factor graph
@@ -7,14 +7,16 @@
 # and a new factor on them; the order of elimination decides how much fill the factor $R$ gets; and $R$,
 # the square-root information, gives the **marginal covariances** (GTSAM's `Marginals`, Ceres'
 # `Covariance`) without the dense inverse. Grouped into cliques, the conditionals form the **Bayes tree**,
-# the data structure of GTSAM's incremental smoother iSAM2, which the next step of this chapter builds on
-# it. The chapter is a lesson in this order:
+# the data structure of GTSAM's incremental smoother iSAM2: a new measurement changes only the cliques on
+# the paths from its variables to the root, and the smoother re-eliminates those alone. The chapter is a
+# lesson in this order:
 #
 # 1. **Theory**, derived: eliminating one variable from its adjacent factors by QR or by completing the
 #    square (exercise `elimination`), the Bayes net it leaves and the solution by back-substitution; the
 #    elimination game, fill, the elimination tree and a greedy minimum-degree ordering (exercise
 #    `orderings`); the Bayes tree's cliques (exercise `bayes_tree`); the covariance recursion on $R$'s
-#    pattern (exercise `marginal_covariances`). After each
+#    pattern (exercise `marginal_covariances`); what an update changes in the tree, fluid relinearisation
+#    and the partial state update (exercise `incremental_update`). After each
 #    exercise's theory, a cell `check("...")` grades it here, with the same sandboxed judge and public
 #    checks as `python -m autograder --only ...`; before it, a cell checks your code where you work.
 # 2. **Experiments**: the fill of intel (in the full setting also M3500) under four orderings, yours among
@@ -147,7 +149,7 @@ with todo_as_one_line():
 # ordering, and the greedy minimum degree, ties to the smallest index.
 
 # %% id="hint-orderings"
-hint("orderings", 1)
+hint("symbolic_elimination", 1)  # and hint("minimum_degree_ordering", 1)
 
 # %% [markdown] id="game-md"
 # **The elimination game, seen.** Six poses around a loop and two landmarks, each seen from three poses;
@@ -235,8 +237,59 @@ with todo_as_one_line():
 # %% id="check-marginals"
 check("marginal_covariances")
 
+# %% [markdown] id="incremental-md"
+# ## 5. The incremental update (exercise `incremental_update`)
+#
+# A robot adds a pose and a few measurements every step, and needs the estimate now. Solving from
+# scratch each time repeats all the work; iSAM2 (Kaess et al., IJRR 2012) changes only the part of the
+# Bayes tree that the new information reaches. Derive which part that is.
+#
+# A clique's conditional $p(F \mid S)$ came from eliminating its frontals: it summarises the factors whose
+# first-eliminated variable is one of its frontals, and the new factors its children passed up on their
+# separators. A new factor on the keys $K$ would have been eliminated with the first-eliminated of $K$: which
+# clique's conditional changes, and why does its parent's change too? Conclude that an update re-eliminates
+# the **top**: the cliques holding a new key as a frontal and everything on their paths to the root. Below
+# the top hang the **orphans**, subtrees that did not change: each one enters the re-elimination as the
+# factor it passed up on its separator (cached when it was eliminated), and after it, hangs from the new
+# clique that its own conditional would join by the rule of section 3 (its separator's first-eliminated
+# member, in the *new* ordering).
+#
+# **Fluid relinearisation.** The tree is linear: each factor was linearised at a point $\bar x$, and the
+# tree's solution is a step $\delta$ from it. While a variable's step is small the linearisation is good;
+# once its largest entry passes a threshold (GTSAM's `relinearizeThreshold`, 0.01 by default), the variable
+# takes its step into its linearisation point and every factor on it is linearised again. Which cliques does
+# that change? Not only those holding the variable as a frontal: a factor on it may have been eliminated
+# earlier, in a clique that holds the variable in its separator.
+#
+# **The partial state update.** Back-substitution solves $R\,\delta_F = d - S\,\delta_S$ from the roots down.
+# A replaced clique has a new conditional and must be solved; any other clique's answer changes only if its
+# separator's steps did. Show that when a clique is not solved again, none of its descendants needs to be
+# (a child's separator lies within its parent's variables), so the update can stop there: iSAM2's
+# "wildfire", which stops where the change is below a second threshold. Write the four pieces
+# (`exercises/incremental_update.py`): `relinearised_keys`, `affected_cliques`, `orphan_parents` and
+# `wildfire_update`.
+
+# %% id="hint-incremental"
+hint("affected_cliques", 1)
+
+# %% [markdown] id="incremental-check-md"
+# **Check your update where you work.** The first cell applies your `affected_cliques` to the Bayes tree of
+# section 3 for three kinds of news (a measurement between recent poses, a loop closure, a relinearised pose)
+# and tests what the contract states of a top; the second runs your `wildfire_update` on the same tree with
+# random conditionals and tests that every recomputed clique satisfies its conditional and every other keeps
+# its step.
+
+# %% id="incremental-check"
+with todo_as_one_line():
+    incremental = chapter8.exercise("incremental_update", IMPL)
+    chapter8.affected_check(orderings, bayes, incremental)
+    chapter8.wildfire_check(orderings, bayes, incremental)
+
+# %% id="check-incremental"
+check("incremental_update")
+
 # %% [markdown] id="experiments-md"
-# ## 5. Experiments
+# ## 6. Experiments
 #
 # Your orderings on real graphs, and every pose's marginal covariance on intel.
 
