@@ -20,7 +20,7 @@ from course.core.impl import REPO_ROOT
 from course.notebook_helpers import chapter8
 from notebooks import build
 
-EXERCISES = ("elimination", "orderings", "bayes_tree", "marginal_covariances")
+EXERCISES = ("elimination", "orderings", "bayes_tree", "marginal_covariances", "incremental_update")
 FIGURES = ["figure-game", "figure-ellipses"]
 
 
@@ -95,6 +95,45 @@ def test_the_bayes_tree_of_the_game_and_its_properties():
     assert "parent's variables: NO" in lines[-1]
 
 
+def test_the_incremental_update_on_the_game_tree_and_its_properties():
+    orderings, bayes, incremental = (_module(name) for name in ("orderings", "bayes_tree", "incremental_update"))
+    lines: list = []
+    assert chapter8.affected_check(orderings, bayes, incremental, out=lines.append)
+    assert lines[0].startswith("a measurement between poses 4 and 5: top [0] (re-eliminates [3, 4, 5, 7]), "
+                               "orphans [1];")
+    assert "top [0, 1] (re-eliminates [2, 3, 4, 5, 7]), orphans [2]" in lines[2]  # pose 3: root and separator
+    assert "top [0, 1, 2, 3]" in lines[3]  # pose 1 is in clique 3's separator only
+    lines = []
+    assert chapter8.wildfire_check(orderings, bayes, incremental, out=lines.append)
+    assert "recomputed 4 of 4 cliques" in lines[0] and "the others kept their steps: yes" in lines[1]
+
+    def frontals_only(frontals, clique_separators, parents, new_keys, relinearised):  # the separator forgotten
+        return incremental.affected_cliques(frontals, [[] for _ in frontals], parents, new_keys, relinearised)
+
+    lines = []
+    assert not chapter8.affected_check(orderings, bayes, SimpleNamespace(affected_cliques=frontals_only),
+                                       out=lines.append)
+    assert "holds the marked cliques: NO" in lines[3]
+
+    def every_clique(frontals, clique_separators, parents, conditionals, delta, replaced, threshold):
+        return incremental.wildfire_update(frontals, clique_separators, parents, conditionals, delta,
+                                           range(len(frontals)), 0.0)  # recomputes all: right, but not a wildfire
+
+    lines = []
+    assert chapter8.wildfire_check(orderings, bayes, SimpleNamespace(wildfire_update=every_clique),
+                                   out=lines.append)  # the properties hold: the checks judge the threshold
+
+    def in_place(frontals, clique_separators, parents, conditionals, delta, replaced, threshold):
+        new, recomputed = incremental.wildfire_update(frontals, clique_separators, parents, conditionals, delta,
+                                                      replaced, threshold)
+        return [step + 1e-3 for step in new], recomputed  # a step that no conditional gives
+
+    lines = []
+    assert not chapter8.wildfire_check(orderings, bayes, SimpleNamespace(wildfire_update=in_place),
+                                       out=lines.append)
+    assert "(WRONG)" in lines[0]
+
+
 def test_orderings_on_a_generated_graph(tmp_path):
     module = _module("orderings")
     n, edges = chapter8.graph_of("manhattan:200")
@@ -143,12 +182,14 @@ def test_the_lesson_runs_with_a_hint_a_check_and_a_checker_per_exercise(executed
     assert_hints_and_checks_at_full_marks(nb, (("hint-elimination", "check-elimination", "elimination"),
                                                ("hint-orderings", "check-orderings", "orderings"),
                                                ("hint-bayes-tree", "check-bayes-tree", "bayes_tree"),
-                                               ("hint-marginals", "check-marginals", "marginal_covariances")))
+                                               ("hint-marginals", "check-marginals", "marginal_covariances"),
+                                               ("hint-incremental", "check-incremental", "incremental_update")))
     order = [c.id for c in nb.cells]
     assert order.index("eliminate-md") < order.index("elimination-check") < order.index(
         "check-elimination") < order.index("orderings-md") < order.index("check-orderings") < order.index(
         "bayes-tree-md") < order.index("bayes-tree-check") < order.index("check-bayes-tree") < order.index(
-        "marginals-md") < order.index("marginals-check") < order.index("check-marginals")
+        "marginals-md") < order.index("marginals-check") < order.index("check-marginals") < order.index(
+        "incremental-md") < order.index("incremental-check") < order.index("check-incremental")
     assert "a constant c >= 0, right" in text["elimination-check"]
     assert "|x - x_lstsq| = " in text["bayes-net"]
     assert "intel          minimum degree (yours)" in text["fill-table"]
@@ -156,6 +197,7 @@ def test_the_lesson_runs_with_a_hint_a_check_and_a_checker_per_exercise(executed
         "bayes-tree-check"]
     assert "150 poses: marginals by your recursion" in text["marginals-check"]
     assert "729 poses: marginals by your recursion" in text["marginals-intel"]
+    assert "orphans hang from it: yes" in text["incremental-check"] and "(fine)" in text["incremental-check"]
     assert _images(nb) == FIGURES
     assert_no_level_3_hint_line("\n".join(c.source for c in nb.cells) + "\n".join(text.values()), EXERCISES)
 
@@ -202,12 +244,13 @@ def test_in_a_student_tree_the_lesson_builds_and_names_its_todos(python):
     for c in nb.cells:
         for o in c.get("outputs", []):
             assert o.output_type != "error", (c.id, o.get("traceback"))
-    for check_id in ("check-elimination", "check-orderings", "check-bayes-tree", "check-marginals"):
+    for check_id in ("check-elimination", "check-orderings", "check-bayes-tree", "check-marginals",
+                     "check-incremental"):
         assert "reach a TODO" in text[check_id], text[check_id]
     for cell_id in ("elimination-check", "bayes-net", "figure-game", "fill-table", "bayes-tree-check",
-                    "marginals-check", "marginals-intel"):
+                    "marginals-check", "marginals-intel", "incremental-check"):
         lines = text[cell_id].strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("not implemented: TODO ") and len(lines[0]) < 200, (
             cell_id, lines)
-    for hint_id in ("hint-elimination", "hint-orderings", "hint-bayes-tree", "hint-marginals"):
+    for hint_id in ("hint-elimination", "hint-orderings", "hint-bayes-tree", "hint-marginals", "hint-incremental"):
         assert "hint 1 of 3" in text[hint_id]
