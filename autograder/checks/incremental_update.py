@@ -13,15 +13,18 @@ order, and the steps ``delta`` are the problem's solution. Then new factors arri
 ``affected_cliques`` gives the top, its variables (with any new ones) are ordered and eliminated again
 together with the orphans' summaries on their separators, the reference's ``orphan_parents`` hangs the
 orphans from the new cliques, and the new tree's conditionals come from the QR of the new problem in the
-combined order (the orphans' subtrees first, in their old order, then the top's new order).
+combined order (the orphans' subtrees first, in their old order, then the top's new order). The partial
+update's threshold is one the reference's update splits the tree with, 10% away from any decision.
 
 Public: a 2D pose graph of 10 poses with loop closures 0-5, 2-8 and 4-9 (variables of size 3) that gets
-a new pose by odometry 9-10 and a loop closure 10-3; a graph of 12 variables of sizes 1, 3 and 6 in two
-components that gets a factor between two of its variables. Hidden: a pose graph of 10 to 16 poses with
-random loop closures, and a random graph of sizes 1, 3 and 6, updated the same ways, from the hidden
-seed. ``relinearised_keys`` gets the solutions of these problems with thresholds in between their
-entries, and steps written exactly at the threshold; ``orphan_parents`` also gets a made-up top whose
-orphans' separators are first eliminated elsewhere than at their smallest index.
+a new pose by odometry 9-10 and a loop closure 10-3; the same graph near convergence (its old factors
+nearly agree: small steps) with a new loop closure that does not (the partial update only); a graph of
+12 variables of sizes 1, 3 and 6 in two components that gets a factor between two of its variables.
+Hidden: pose graphs of 10 to 16 poses with random loop closures and a random graph of sizes 1, 3 and 6,
+updated the same ways, from the hidden seed. ``relinearised_keys`` gets the solutions of these problems
+with thresholds between their entries, and steps written exactly at the threshold; ``orphan_parents``
+also gets a made-up top whose orphans' separators are first eliminated elsewhere than at their smallest
+index and listed in another order.
 """
 
 from functools import cache
@@ -156,19 +159,22 @@ def problem(kind, seed=None):
     from autograder import reference
 
     update = reference.solutions_module("incremental_update")
-    code = {"poses": 821, "mixed": 823}[kind]
+    code = {"poses": 821, "mixed": 823, "settled": 825}[kind]
     rng = np.random.default_rng(code if seed is None else [seed, code])
-    if kind == "poses":
+    if kind in ("poses", "settled"):
         n = 10 if seed is None else int(rng.integers(10, 17))
         sizes = [3] * n
         factors = [_factor(rng, (0,), sizes)] + [_factor(rng, (v - 1, v), sizes) for v in range(1, n)]
         loops = [(0, 5), (2, 8), (4, 9)] if seed is None else sorted(
             {tuple(sorted(rng.choice(n, 2, replace=False).tolist())) for _ in range(n // 3)})
         factors += [_factor(rng, (i, j), sizes) for i, j in loops if j - i >= 2]
+        if kind == "settled":  # the old factors nearly agree (small steps), the new loop closure does not
+            factors = [(variables, blocks, rhs / 100) for variables, blocks, rhs in factors]
         sizes_new = sizes + [3]
         k = 3 if seed is None else _closure(rng, n, factors)
         new = [_factor(rng, (n - 1, n), sizes_new), _factor(rng, (k, n), sizes_new)]
-        what = (f"a pose graph of {n} poses with loop closures {[lp for lp in loops if lp[1] - lp[0] >= 2]}, "
+        small = " near convergence (small steps)" if kind == "settled" else ""
+        what = (f"a pose graph of {n} poses{small} with loop closures {[lp for lp in loops if lp[1] - lp[0] >= 2]}, "
                 f"updated by odometry {n - 1}-{n} and a loop closure {n}-{k}")
     else:
         n = 12 if seed is None else int(rng.integers(10, 16))
@@ -401,7 +407,7 @@ def _full_calls(seed=None):
 def _partial_calls(seed=None):
     """The new trees, their top replaced, the old steps, a threshold that stops the update somewhere."""
     calls = []
-    for kind in ("poses", "mixed"):
+    for kind in ("poses", "mixed", "settled"):
         p = problem(kind, seed)
         tree, conditionals, start, replaced = p["updated"]
         calls.append(_wildfire_call(tree, conditionals, start, replaced, _threshold(p), f"after {p['what']}"))
@@ -419,17 +425,20 @@ def _ints(values) -> list:
     return [int(x) for x in np.ravel(np.asarray(values, dtype=float))]
 
 
-def _causes(whys, default):
-    """The known mistakes' sentences that match (each once; ``default`` when none)."""
-    whys = list(dict.fromkeys(whys))
+def _same(mine, value) -> bool:
+    mine, value = np.ravel(np.asarray(mine, dtype=float)), np.ravel(np.asarray(value, dtype=float))
+    return mine.shape == value.shape and np.array_equal(mine, value)
+
+
+def _causes(ctx, triples, index, field, default, same=_same):
+    """The sentences of the known mistakes whose ``field`` matches the student's on call ``index``, without
+    those another call rules out (listed there, but not what the student returned); ``default`` when none."""
+    ruled_out = {why for k, (_, got, _) in enumerate(triples)
+                 for value, why in ctx.known(k).get(field, ()) if not same(got[field], value)}
+    _, got, _ = triples[index]
+    matching = list(dict.fromkeys(why for value, why in ctx.known(index).get(field, ()) if same(got[field], value)))
+    whys = [why for why in matching if why not in ruled_out] or matching
     return "; or ".join(whys) if whys else default
-
-
-def _cause(got, known, field, default):
-    """The known mistakes whose ``field`` equals the student's, else ``default``."""
-    mine = np.ravel(np.asarray(got[field], dtype=float))
-    return _causes([why for value, why in known.get(field, ())
-                    if np.shape(np.ravel(value)) == mine.shape and np.array_equal(np.ravel(value), mine)], default)
 
 
 def _lists_judge(field, name, cause):
@@ -443,7 +452,7 @@ def _lists_judge(field, name, cause):
             mine, ref = _ints(got[field]), _ints(want[field])
             if mine == ref:
                 continue
-            why = _cause(got, ctx.known(index), field, cause)
+            why = _causes(ctx, triples, index, field, cause)
             if mine != sorted(mine) or len(set(mine)) != len(mine):
                 return Verdict(0.0, f"{name} = {mine} is not sorted ascending without repeats (expected {ref}) "
                                     f"{call.where}")
@@ -473,7 +482,7 @@ def _orphans_judge(ctx):
             parents = [int(p) for p in call.args[2]]
             ref = [c for c in range(len(parents)) if c not in set(top) and parents[c] in set(top)]
         if mine != ref:
-            why = _cause(got, ctx.known(index), "orphans", _ORPHANS_CAUSE)
+            why = _causes(ctx, triples, index, "orphans", _ORPHANS_CAUSE)
             return Verdict(0.0, f"orphans = {mine}, expected {ref} (for the top {top}) {call.where}: {why}")
     return failure or Verdict(1.0, "ok")
 
@@ -490,8 +499,7 @@ def _attach_judge(ctx):
         wrong = np.flatnonzero(mine != ref)
         if wrong.size:
             i = int(wrong[0])
-            why = _causes([text for value, text in ctx.known(index).get("value", ())
-                           if np.array_equal(np.ravel(value), mine)],
+            why = _causes(ctx, triples, index, "value",
                           "its parent is the clique holding, as a frontal, the separator's member eliminated FIRST in "
                           "the new ordering")
             return Verdict(0.0, f"orphan {i}'s parent is {mine[i]:g}, expected {ref[i]:g} (separator "
@@ -502,6 +510,12 @@ def _attach_judge(ctx):
 _STEPS_CAUSE = ("from the roots down, a clique in `replaced`, or with a separator variable whose step changed by more "
                 "than the threshold (largest absolute entry, against its old step), gets delta_F = R^-1 (d - S "
                 "delta_S); any other clique, and its subtree, keep their steps")
+
+
+def _close(mine, value) -> bool:
+    mine, value = np.asarray(mine, dtype=float), np.asarray(value, dtype=float)
+    atol = ATOL * max(float(np.max(np.abs(value), initial=0.0)), 1.0)
+    return mine.shape == value.shape and bool(np.allclose(mine, value, rtol=RTOL, atol=atol))
 
 
 def _steps_judge(ctx):
@@ -521,9 +535,7 @@ def _steps_judge(ctx):
             v = int(np.searchsorted(starts, int(np.flatnonzero(bad)[0]), side="right") - 1)
             a, b = starts[v], starts[v + 1]
             text = compare(mine[a:b], ref[a:b], f"new_delta[{v}]", RTOL, atol, call.where)
-        why = _causes([slip for value, slip in ctx.known(index).get("delta", ())
-                       if np.shape(value) == mine.shape and np.allclose(mine, value, rtol=RTOL, atol=atol)],
-                      _STEPS_CAUSE)
+        why = _causes(ctx, triples, index, "delta", _STEPS_CAUSE, _close)
         return Verdict(0.0, f"{text}: {why}")
     return failure or Verdict(1.0, "ok")
 
