@@ -33,7 +33,7 @@ strictly (``> threshold``). Lists of variables and of cliques are returned sorte
 Inputs at the edges of the contract (each is a check input):
 - relinearised_keys: threshold 0 (every step not exactly zero is marked)
 - relinearised_keys: a step exactly at the threshold (not marked)
-- affected_cliques: a relinearised variable that is only in a separator (its clique and the cliques below it are marked)
+- affected_cliques: a relinearised variable held in a separator (the clique holding it there is marked too)
 - affected_cliques: new keys of variables not yet in the tree (ignored: they join the top)
 - affected_cliques: two roots, one untouched
 - affected_cliques: nothing new and nothing relinearised (an empty top)

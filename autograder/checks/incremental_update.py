@@ -358,12 +358,15 @@ def _made_up_top(rng):
         cliques.append(ordering[at:at + k])
         at += k
     cliques = [cliques[k] for k in rng.permutation(len(cliques))]
-    separators = []
-    for _ in range(6):
-        S = [int(v) for v in rng.choice(names, int(rng.integers(1, 4)), replace=False)]
-        position = {v: k for k, v in enumerate(ordering)}
-        separators.append(sorted(S, key=lambda v: -position[v]))  # listed last eliminated first
-    return separators, ordering, cliques
+    position = {v: k for k, v in enumerate(ordering)}
+    separators = [[int(v) for v in rng.choice(names, int(rng.integers(1, 4)), replace=False)] for _ in range(6)]
+    # one separator whose first-eliminated member is not its smallest, in another clique than the smallest
+    home = {v: c for c, F in enumerate(cliques) for v in F}
+    pair = next(((a, b) for i, a in enumerate(ordering) for b in ordering[i + 1:] if a > b and home[a] != home[b]),
+                None)
+    if pair is not None:
+        separators[int(rng.integers(6))] = list(pair)
+    return [sorted(S, key=lambda v: -position[v]) for S in separators], ordering, cliques  # last eliminated first
 
 
 def _attach_calls(seed=None):
@@ -623,8 +626,8 @@ EDGES = (
     Edge("relinearised_keys: threshold 0 (every step not exactly zero is marked)", RELIN_TASK,
          lambda c: c.args[1] == 0.0),
     Edge("relinearised_keys: a step exactly at the threshold (not marked)", RELIN_TASK, _largest_at_threshold),
-    Edge("affected_cliques: a relinearised variable that is only in a separator (its clique and the cliques below "
-         "it are marked)", AFFECTED_TASK, _relinearised_in_separator),
+    Edge("affected_cliques: a relinearised variable held in a separator (the clique holding it there is marked too)",
+         AFFECTED_TASK, _relinearised_in_separator),
     Edge("affected_cliques: new keys of variables not yet in the tree (ignored: they join the top)", AFFECTED_TASK,
          lambda c: any(k >= sum(len(F) for F in c.args[0]) for k in c.args[3])),
     Edge("affected_cliques: two roots, one untouched", AFFECTED_TASK, _untouched_root),
