@@ -193,7 +193,7 @@ def wildfire_update(frontals, clique_separators, parents, conditionals, delta, r
         if not 0 <= int(c) < len(frontals):
             raise ValueError(f"replaced[{i}] = {c} is not a clique (0..{len(frontals) - 1})")
     given = {int(c) for c in replaced}
-    for c in given:
+    for c in sorted(given):
         if parents[c] != -1 and parents[c] not in given:
             raise ValueError(f"replaced must be closed upwards (the top of the tree): clique {c} is replaced, its "
                              f"parent {parents[c]} is not")

@@ -210,7 +210,7 @@ def wildfire_update(frontals, clique_separators, parents, conditionals, delta, r
         if not 0 <= int(c) < len(frontals):
             raise ValueError(f"replaced[{i}] = {c} is not a clique (0..{len(frontals) - 1})")
     given = {int(c) for c in replaced}
-    for c in given:
+    for c in sorted(given):
         if parents[c] != -1 and parents[c] not in given:
             raise ValueError(f"replaced must be closed upwards (the top of the tree): clique {c} is replaced, its "
                              f"parent {parents[c]} is not")
@@ -270,8 +270,8 @@ HINTS = {
         built the tree, which clique does a conditional hang from?""",
         """Its parent is the clique holding S's first-eliminated member, first in the NEW ordering: the old
         ordering, and the smallest index, are not it.""",
-        """position = {v: k for k, v in enumerate(ordering)}; home = {v: c for c, F in enumerate(new_frontals) for v in
-        F}; parent = home[min(S, key=position.get)] for each orphan's S.""",
+        """With position = {v: k for k, v in enumerate(ordering)} and home = {v: c for c, F in enumerate(new_frontals)
+        for v in F} (both built above): parent = home[min(S, key=position.get)] for each orphan's S.""",
     ),
     "wildfire_update": (
         """Back-substitution solves the cliques from the roots down: a clique needs only its separator's steps,
