@@ -305,21 +305,20 @@ def _strict_calls(seed=None):
             _relin_call([zeros[k] for k in order], 0.0, "steps exactly zero and steps of 2^-30 and 2^-40")]
 
 
-def _affected_call(p, new_keys, relinearised, what):
+def _affected_call(p, new_keys, relinearised):
     frontals, seps, parents = p["tree"]
-    n = len(p["sizes"])
     return Call(AFFECTED_TASK, (frontals, seps, np.array(parents, dtype=np.int64), list(new_keys),
                                 list(relinearised)), returns="dict", label=AFFECTED,
                 where=f"on the Bayes tree of {p['what'].split(', updated')[0]} (frontals {frontals}, separators "
                       f"{seps}, parents {list(parents)}), new keys {list(new_keys)}, relinearised "
-                      f"{list(relinearised)}" if n <= 16 else f"on {p['what']}")
+                      f"{list(relinearised)}")
 
 
 def _new_calls(seed=None):
     poses, mixed = problem("poses", seed), problem("mixed", seed)
-    return [_affected_call(poses, poses["new_keys"], [], "the new factors"),
-            _affected_call(mixed, mixed["new_keys"], [], "the new factor"),
-            _affected_call(mixed, [], [], "nothing new")]
+    return [_affected_call(poses, poses["new_keys"], []),
+            _affected_call(mixed, mixed["new_keys"], []),
+            _affected_call(mixed, [], [])]
 
 
 def _in_separators(p, rng, count):
@@ -332,9 +331,9 @@ def _in_separators(p, rng, count):
 def _relinearised_calls(seed=None):
     rng = np.random.default_rng(835 if seed is None else [seed, 835])
     poses, mixed = problem("poses", seed), problem("mixed", seed)
-    return [_affected_call(poses, [], _in_separators(poses, rng, 1), "a relinearised variable"),
-            _affected_call(mixed, [], _in_separators(mixed, rng, 2), "relinearised variables"),
-            _affected_call(poses, poses["new_keys"], _in_separators(poses, rng, 1), "both")]
+    return [_affected_call(poses, [], _in_separators(poses, rng, 1)),
+            _affected_call(mixed, [], _in_separators(mixed, rng, 2)),
+            _affected_call(poses, poses["new_keys"], _in_separators(poses, rng, 1))]
 
 
 def _orphan_calls(seed=None):
