@@ -23,8 +23,9 @@ point of some variables moves, only part of the tree changes:
    parents before children: ``delta_F = R^-1 (d - S delta_S)`` for clique (R, S, d). A clique is
    recomputed when it was replaced (re-eliminated: its conditional is new) or when one of its separator
    variables' steps changed, in this pass, by more than a threshold (largest absolute entry). Any other
-   clique keeps its variables' old steps. (A clique that is not recomputed has no child to recompute:
-   a child's separator lies within its parent's variables, none of which changed.)
+   clique keeps its variables' old steps. The replaced cliques are a top (with a clique, its parent), so
+   a clique that is not recomputed has no child to recompute: the child is not replaced, and its
+   separator lies within its parent's variables, none of which changed.
 
 Conventions: a variable's "largest absolute entry" is ``max(abs(delta_v))``; both thresholds compare
 strictly (``> threshold``). Lists of variables and of cliques are returned sorted ascending.
@@ -32,7 +33,7 @@ strictly (``> threshold``). Lists of variables and of cliques are returned sorte
 Inputs at the edges of the contract (each is a check input):
 - relinearised_keys: threshold 0 (every step not exactly zero is marked)
 - relinearised_keys: a step exactly at the threshold (not marked)
-- affected_cliques: a relinearised variable that is only in a separator (its clique and the cliques below it are marked)
+- affected_cliques: a relinearised variable held in a separator (the clique holding it there is marked too)
 - affected_cliques: new keys of variables not yet in the tree (ignored: they join the top)
 - affected_cliques: two roots, one untouched
 - affected_cliques: nothing new and nothing relinearised (an empty top)
@@ -41,11 +42,13 @@ Inputs at the edges of the contract (each is a check input):
 - wildfire_update: threshold 0 and every clique replaced (the full back-substitution)
 - wildfire_update: variables of sizes 1, 3 and 6 mixed
 
-Allowed imports: numpy, scipy.
+Allowed imports: numpy, scipy, course.core.errors.
 """
 
 import numpy as np
 import scipy.linalg
+
+from course.core.errors import ShapeError, SingularSystemError
 
 
 def _tree(frontals, clique_separators, parents):
@@ -64,7 +67,22 @@ def _tree(frontals, clique_separators, parents):
     n = len(seen)
     if seen != list(range(n)):
         raise ValueError(f"frontals must hold every variable of 0..{n - 1} exactly once, got {seen}")
-    return parents.astype(int), n
+    for c, S in enumerate(clique_separators):
+        for j, v in enumerate(S):
+            if not 0 <= int(v) < n:
+                raise ValueError(f"clique_separators[{c}][{j}] = {v} is not a variable of the tree (0..{n - 1})")
+    parents = parents.astype(int)
+    state = np.zeros(C, dtype=int)  # 0 not seen, 1 on the current walk up, 2 reaches a root
+    for start in range(C):
+        path, c = [], start
+        while c != -1 and state[c] == 0:
+            state[c] = 1
+            path.append(c)
+            c = int(parents[c])
+        if c != -1 and state[c] == 1:
+            raise ValueError(f"parents must describe a forest: clique {c} is its own ancestor")
+        state[path] = 2
+    return parents, n
 
 
 def relinearised_keys(delta, threshold):
@@ -130,6 +148,16 @@ def orphan_parents(orphan_separators, ordering, new_frontals):
     position = {v: k for k, v in enumerate(order)}
     if len(position) != len(order):
         raise ValueError(f"ordering must not repeat a variable, got {order}")
+    home = {}
+    for c, F in enumerate(new_frontals):
+        for j, v in enumerate(F):
+            if int(v) not in position or int(v) in home:
+                raise ValueError(f"new_frontals[{c}][{j}] = {v} is not a variable of the ordering, or is a frontal "
+                                 "of two cliques")
+            home[int(v)] = c
+    if len(home) != len(order):
+        raise ValueError(f"new_frontals must hold every variable of the ordering as a frontal, missing "
+                         f"{sorted(set(order) - set(home))}")
     for i, S in enumerate(orphan_separators):
         if len(S) == 0:
             raise ValueError(f"orphan_separators[{i}] is empty: an orphan hangs from the top through its separator")
@@ -137,7 +165,6 @@ def orphan_parents(orphan_separators, ordering, new_frontals):
             if int(v) not in position:
                 raise ValueError(f"orphan_separators[{i}][{j}] = {v} is not in the new ordering of the top")
     # BEGIN SOLUTION
-    home = {int(v): c for c, F in enumerate(new_frontals) for v in F}
     out = [home[min((int(v) for v in S), key=position.__getitem__)] for S in orphan_separators]
     return np.array(out, dtype=int)
     # END SOLUTION
@@ -150,16 +177,21 @@ def wildfire_update(frontals, clique_separators, parents, conditionals, delta, r
     ``R`` (f, f) upper triangular over the clique's frontals stacked in the order of ``frontals[c]``, ``S``
     (f, s) over its separator stacked in the order of ``clique_separators[c]``, ``d`` (f,); ``delta`` the n
     steps before the update, a list of (d_v,) arrays (the sizes d_v are read from it); ``replaced`` the
-    re-eliminated cliques; ``threshold`` >= 0.
+    re-eliminated cliques, closed upwards (with a clique, its parent: the top of the tree); ``threshold`` >= 0.
     A clique is recomputed, ``delta_F = R^-1 (d - S delta_S)``, when it is in ``replaced`` or a separator
     variable's step changed in this pass by more than ``threshold`` (largest absolute entry); parents are
     visited before children. Returns ``(new_delta, recomputed)``: a new list of n arrays (``delta`` is not
-    modified) and the sorted list of recomputed cliques. ValueError for blocks of the wrong shape.
+    modified) and the sorted list of recomputed cliques. ShapeError (a ValueError) for blocks of the wrong shape,
+    SingularSystemError for a zero on R's diagonal, ValueError for a ``replaced`` that is not the top of the
+    tree or a tree that is not one.
     """
     parents, n = _tree(frontals, clique_separators, parents)
     if len(delta) != n:
         raise ValueError(f"delta must hold one step per variable ({n}), got {len(delta)}")
     old = [np.asarray(step, dtype=float) for step in delta]
+    for v, step in enumerate(old):
+        if step.ndim != 1 or not np.all(np.isfinite(step)):
+            raise ValueError(f"delta[{v}] must be a finite 1-D step (d_v,), got shape {step.shape}")
     if len(conditionals) != len(frontals):
         raise ValueError(f"conditionals must hold one (R, S, d) per clique ({len(frontals)}), got {len(conditionals)}")
     for c, (R, S, d) in enumerate(conditionals):
@@ -167,10 +199,21 @@ def wildfire_update(frontals, clique_separators, parents, conditionals, delta, r
         s = sum(old[v].size for v in clique_separators[c])
         for name, block, shape in (("R", R, (f, f)), ("S", S, (f, s)), ("d", d, (f,))):
             if np.shape(block) != shape:
-                raise ValueError(f"conditionals[{c}]: {name} has shape {np.shape(block)}, expected {shape} (clique "
+                raise ShapeError(f"conditionals[{c}]: {name} has shape {np.shape(block)}, expected {shape} (clique "
                                  f"{c}'s frontals {list(frontals[c])}, separator {list(clique_separators[c])})")
+        zero = np.flatnonzero(np.diag(np.asarray(R, dtype=float)) == 0.0)
+        if zero.size:
+            raise SingularSystemError(f"conditionals[{c}]: R[{zero[0]}, {zero[0]}] is 0, R is singular")
     if not threshold >= 0:
         raise ValueError(f"threshold must be >= 0, got {threshold!r}")
+    for i, c in enumerate(replaced):
+        if not 0 <= int(c) < len(frontals):
+            raise ValueError(f"replaced[{i}] = {c} is not a clique (0..{len(frontals) - 1})")
+    given = {int(c) for c in replaced}
+    for c in sorted(given):
+        if parents[c] != -1 and parents[c] not in given:
+            raise ValueError(f"replaced must be closed upwards (the top of the tree): clique {c} is replaced, its "
+                             f"parent {parents[c]} is not")
     # BEGIN SOLUTION
     new = [step.copy() for step in old]
     replaced = set(int(c) for c in replaced)
@@ -227,8 +270,8 @@ HINTS = {
         built the tree, which clique does a conditional hang from?""",
         """Its parent is the clique holding S's first-eliminated member, first in the NEW ordering: the old
         ordering, and the smallest index, are not it.""",
-        """position = {v: k for k, v in enumerate(ordering)}; home = {v: c for c, F in enumerate(new_frontals) for v in
-        F}; parent = home[min(S, key=position.get)] for each orphan's S.""",
+        """With position = {v: k for k, v in enumerate(ordering)} and home = {v: c for c, F in enumerate(new_frontals)
+        for v in F} (both built above): parent = home[min(S, key=position.get)] for each orphan's S.""",
     ),
     "wildfire_update": (
         """Back-substitution solves the cliques from the roots down: a clique needs only its separator's steps,

@@ -42,6 +42,7 @@ DERIVED = {
     "orderings": ["symbolic_elimination", "minimum_degree_ordering"],
     "bayes_tree": ["bayes_tree", "clique_of"],
     "marginal_covariances": ["marginal_covariances", "joint_marginal"],
+    "incremental_update": ["relinearised_keys", "affected_cliques", "orphan_parents", "wildfire_update"],
 }
 
 

@@ -41,7 +41,7 @@ def test_the_end_of_a_chapter_names_its_lesson_then_the_next_chapter():
     line = report.next_step(_results({"factor_linearisation.BlockSparseAssembler"}))
     assert line.startswith("next: chapter 7's lesson, notebooks/chapter7_factor_graphs.ipynb (`make notebooks`), "
                            "then elimination.eliminate_variable (chapter 8;")
-    last = report.next_step(_results({"marginal_covariances.joint_marginal"}))
+    last = report.next_step(_results({"incremental_update.wildfire_update"}))
     assert last == "next: every exercise is at full marks; the last lesson is notebooks/chapter8_elimination.ipynb"
 
 

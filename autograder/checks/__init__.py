@@ -37,7 +37,8 @@ ORDER = ("curve_model", "gauss_newton", "damping", "end_to_end", "pose_graph_edg
          "initialisation", "bundle_adjustment", "robust_kernels", "gauge", "parallel_assembly",
          "imu_preintegration", "marginalisation", "pose_graph_3d", "pose_graph_3d_assembly", "chordal_3d", "gnc",
          "jets", "autodiff_factor", "factor_linearisation",
-         "elimination", "orderings", "bayes_tree", "marginal_covariances")
+         "elimination", "orderings", "bayes_tree", "marginal_covariances",
+         "incremental_update")
 
 
 def present() -> tuple:
@@ -60,7 +61,8 @@ CHAPTER = {"curve_model": "1", "gauss_newton": "1", "damping": "1", "end_to_end"
            "marginalisation": "5", "imu_preintegration": "5",
            "pose_graph_3d": "6", "pose_graph_3d_assembly": "6", "chordal_3d": "6", "gnc": "6",
            "jets": "7", "autodiff_factor": "7", "factor_linearisation": "7",
-           "elimination": "8", "orderings": "8", "bayes_tree": "8", "marginal_covariances": "8"}
+           "elimination": "8", "orderings": "8", "bayes_tree": "8", "marginal_covariances": "8",
+           "incremental_update": "8"}
 LESSONS = {"1": "notebooks/chapter1_curve_fitting.ipynb", "2": "notebooks/chapter2_pose_graphs.ipynb",
            "3": "notebooks/chapter3_dogleg.ipynb", "3b": "notebooks/chapter3b_initialisation.ipynb",
            "4": "notebooks/chapter4_bundle_adjustment.ipynb", "5": "notebooks/chapter5_vio.ipynb",

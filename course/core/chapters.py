@@ -68,7 +68,7 @@ CHAPTERS: tuple[Chapter, ...] = (
              "course/problems/bal/factor_graph.py", "course/problems/posegraph3d/factor_graph.py",
              "course/notebook_helpers/chapter7.py", "course/app/benchmark_autodiff.py", "notebooks/chapter7_*")),
     Chapter("ch8", "elimination, the Bayes tree and marginals",
-            ("elimination", "orderings", "bayes_tree", "marginal_covariances"), (),
+            ("elimination", "orderings", "bayes_tree", "marginal_covariances", "incremental_update"), (),
             ("course/notebook_helpers/chapter8.py", "notebooks/chapter8_*")),
 )
 

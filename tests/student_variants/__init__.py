@@ -81,6 +81,7 @@ LOADED_BY = {
     "bayes_tree.py": ("bayes_tree",),
     "marginal_covariances.py": ("marginal_covariances",),
     "orderings.py": ("orderings",),
+    "incremental_update.py": ("incremental_update",),
 }
 
 
@@ -1981,6 +1982,160 @@ ALTERNATIVES_MARGINAL_COVARIANCES = {
 
 
 
+# chapter 8: the incremental update of the Bayes tree
+IU_LARGEST, IU_STRICT = ("incremental_update.relinearised_keys: " + t for t in (
+    "the largest absolute entry against the threshold", "strictly above the threshold"))
+IU_NEW, IU_RELIN, IU_ORPHANS = ("incremental_update.affected_cliques: " + t for t in (
+    "the top of new factors (their cliques and the paths to the roots)",
+    "relinearised variables in frontals or separators", "the orphans (the top's children outside it)"))
+IU_ATTACH = "incremental_update.orphan_parents: each orphan's parent in the new top"
+IU_FULL, IU_PARTIAL, IU_RECOMPUTED, IU_KEPT = ("incremental_update.wildfire_update: " + t for t in (
+    "the full back-substitution (every clique replaced, threshold 0)", "the steps of a partial update",
+    "the recomputed cliques", "delta left as it was"))
+IU_IN_R = ("def relinearised_keys", "# BEGIN SOLUTION")
+IU_IN_A = ("def affected_cliques", "# BEGIN SOLUTION")
+IU_IN_O = ("def orphan_parents", "# BEGIN SOLUTION")
+IU_IN_W = ("def wildfire_update", "# BEGIN SOLUTION")
+
+BUGS_INCREMENTAL_UPDATE = {
+    "iu_euclidean_norm": V(
+        "incremental_update.py", IU_IN_R, "float(np.max(np.abs(step))) > threshold",
+        "float(np.linalg.norm(step)) > threshold", {IU_LARGEST}, "not the Euclidean norm"),
+    "iu_signed_maximum": V(
+        "incremental_update.py", IU_IN_R, "float(np.max(np.abs(step))) > threshold", "float(np.max(step)) > threshold",
+        {IU_LARGEST, IU_STRICT}, "ABSOLUTE entry"),
+    "iu_at_the_threshold": V(
+        "incremental_update.py", IU_IN_R, "> threshold]", ">= threshold]", {IU_STRICT}, "compare strictly"),
+    "iu_frontals_only": V(
+        "incremental_update.py", IU_IN_A, "relin & (set(F) | set(S))", "relin & set(F)", {IU_RELIN},
+        "in their SEPARATOR too"),
+    "iu_no_ancestors": V(
+        "incremental_update.py", IU_IN_A, "while c != -1 and c not in top:", "if c != -1:", {IU_NEW, IU_RELIN},
+        "AND all their ancestors"),
+    "iu_orphans_every_clique_below": V(
+        "incremental_update.py", IU_IN_A, "if c not in top and parents[c] in top]", "if c not in top]", {IU_ORPHANS},
+        "the orphans are"),
+    "iu_smallest_index": V(
+        "incremental_update.py", IU_IN_O, "min((int(v) for v in S), key=position.__getitem__)",
+        "min(int(v) for v in S)", {IU_ATTACH}, "not its smallest index"),
+    "iu_first_listed": V(
+        "incremental_update.py", IU_IN_O, "min((int(v) for v in S), key=position.__getitem__)", "int(S[0])",
+        {IU_ATTACH}, "not the one listed first"),
+    "iu_every_clique_recomputed": V(
+        "incremental_update.py", IU_IN_W, "if c not in replaced and not changed & set(clique_separators[c]):",
+        "if False:", {IU_PARTIAL, IU_RECOMPUTED}, "that is what makes the update partial"),
+    "iu_change_from_zero": V(
+        "incremental_update.py", IU_IN_W, "np.max(np.abs(step - old[v]))", "np.max(np.abs(step))",
+        {IU_PARTIAL, IU_RECOMPUTED}, "not when the new step itself"),
+    "iu_replaced_skipped": V(
+        "incremental_update.py", IU_IN_W, "if c not in replaced and not changed & set(clique_separators[c]):",
+        "if not changed & set(clique_separators[c]):", {IU_FULL, IU_PARTIAL, IU_RECOMPUTED},
+        "a replaced clique has a new conditional"),
+    "iu_delta_written_into": V(
+        "incremental_update.py", IU_IN_W, "new = [step.copy() for step in old]", "new = delta", {IU_KEPT},
+        "changed the delta it was given"),
+}
+
+_IU_AFFECTED_BY_ARRAYS = """    C = len(frontals)
+    clique = np.empty(n, dtype=int)
+    for c, F in enumerate(frontals):
+        clique[list(F)] = c
+    marked = np.zeros(C, dtype=bool)
+    marked[clique[[k for k in new_keys if k < n]]] = True
+    hit = np.zeros(n, dtype=bool)
+    hit[relinearised] = True
+    for c, (F, S) in enumerate(zip(frontals, clique_separators)):
+        marked[c] |= bool(hit[list(F) + list(S)].any())
+
+    def climb(c):  # the top, by recursion up the tree
+        if c == -1 or in_top[c]:
+            return
+        in_top[c] = True
+        climb(int(parents[c]))
+
+    in_top = np.zeros(C, dtype=bool)
+    for c in np.flatnonzero(marked):
+        climb(int(c))
+    has_parent = parents >= 0
+    orphans = np.flatnonzero(~in_top & has_parent & in_top[np.where(has_parent, parents, 0)])
+    return np.flatnonzero(in_top).tolist(), orphans.tolist()
+"""
+
+_IU_WILDFIRE_BREADTH_FIRST = """    import collections
+
+    sizes = [step.size for step in old]
+    new = [np.array(step) for step in old]
+    replaced = {int(c) for c in replaced}
+    changed = np.zeros(n, dtype=bool)
+    recomputed = []
+    queue = collections.deque(np.flatnonzero(parents == -1).tolist())
+    while queue:
+        c = queue.popleft()
+        S = list(clique_separators[c])
+        if c in replaced or changed[S].any():
+            R, Sb, d = (np.asarray(block, dtype=float) for block in conditionals[c])
+            s = np.concatenate([new[v] for v in S] + [np.zeros(0)])
+            x = np.linalg.solve(R, d - Sb @ s)  # R is triangular, a general solve is fine too
+            for v, step in zip(frontals[c], np.split(x, np.cumsum([sizes[v] for v in frontals[c]])[:-1])):
+                changed[v] = step.size > 0 and np.abs(step - old[v]).max() > threshold
+                new[v] = step
+            recomputed.append(c)
+            queue.extend(np.flatnonzero(parents == c).tolist())
+    return new, sorted(recomputed)
+"""
+
+_IU_WILDFIRE_RECURSIVE = """    new = list(old)
+    replaced = set(replaced)
+    changed = set()
+    recomputed = []
+
+    def visit(c):
+        if c not in replaced and changed.isdisjoint(clique_separators[c]):
+            return
+        R, S, d = conditionals[c]
+        rhs = np.array(d, dtype=float)
+        if len(clique_separators[c]):
+            rhs = rhs - np.asarray(S) @ np.hstack([new[v] for v in clique_separators[c]])
+        x = scipy.linalg.solve_triangular(R, rhs, lower=False)
+        at = 0
+        for v in frontals[c]:
+            step = x[at:at + len(old[v])]
+            at += len(old[v])
+            if len(step) and np.linalg.norm(step - old[v], np.inf) > threshold:
+                changed.add(v)
+            new[v] = step
+        recomputed.append(c)
+        for child in np.flatnonzero(parents == c):
+            visit(int(child))
+
+    for root in np.flatnonzero(parents == -1):
+        visit(int(root))
+    return new, sorted(recomputed)
+"""
+
+ALTERNATIVES_INCREMENTAL_UPDATE = {
+    "iu_relinearised_vectorised": V(
+        "incremental_update.py", IU_IN_R, _solution_lines("incremental_update.py", "relinearised_keys"),
+        "    largest = np.array([np.abs(step).max(initial=0.0) for step in steps])\n"
+        "    return np.flatnonzero(largest > threshold).tolist()\n", set()),
+    "iu_affected_by_arrays_and_recursion": V(
+        "incremental_update.py", IU_IN_A, _solution_lines("incremental_update.py", "affected_cliques"),
+        _IU_AFFECTED_BY_ARRAYS, set()),
+    "iu_orphan_parents_by_scanning_the_ordering": V(
+        "incremental_update.py", IU_IN_O, _solution_lines("incremental_update.py", "orphan_parents"),
+        "    out = []\n    for S in orphan_separators:\n"
+        "        first = next(v for v in order if v in set(int(u) for u in S))\n"
+        "        out.append(next(c for c, F in enumerate(new_frontals) if first in F))\n"
+        "    return out\n", set()),
+    "iu_wildfire_breadth_first": V(
+        "incremental_update.py", IU_IN_W, _solution_lines("incremental_update.py", "wildfire_update"),
+        _IU_WILDFIRE_BREADTH_FIRST, set()),
+    "iu_wildfire_recursive": V(
+        "incremental_update.py", IU_IN_W, _solution_lines("incremental_update.py", "wildfire_update"),
+        _IU_WILDFIRE_RECURSIVE, set()),
+}
+
+
 VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BUGS_INITIALISATION,
             **ALTERNATIVES_INITIALISATION, **ALTERNATIVES_WRAP, **BUGS_WRAP,
             **BUGS_BUNDLE_ADJUSTMENT, **ALTERNATIVES_BUNDLE_ADJUSTMENT, **BUGS_ROBUST_KERNELS,
@@ -1993,7 +2148,8 @@ VARIANTS = {**ALTERNATIVES_DERIVED, **BUGS, **HOSTILE, **BUGS_CHAPTERS_2_3, **BU
             **BUGS_GNC, **ALTERNATIVES_GNC, **BUGS_FACTOR_GRAPH, **ALTERNATIVES_FACTOR_GRAPH,
             **BUGS_ELIMINATION, **ALTERNATIVES_ELIMINATION, **BUGS_BAYES_TREE, **ALTERNATIVES_BAYES_TREE,
             **BUGS_MARGINAL_COVARIANCES, **ALTERNATIVES_MARGINAL_COVARIANCES,
-            **BUGS_ORDERINGS, **ALTERNATIVES_ORDERINGS}
+            **BUGS_ORDERINGS, **ALTERNATIVES_ORDERINGS,
+            **BUGS_INCREMENTAL_UPDATE, **ALTERNATIVES_INCREMENTAL_UPDATE}
 
 
 def apply(text: str, variant: Variant) -> str:

@@ -127,6 +127,9 @@ return central_differences(residual, moves, [np.shape(P)[-1] for P in plus_jacob
 inverse = np.linalg.inv(H)
 starts = np.cumsum([0] + list(sizes))
 return [inverse[a:b, a:b] for a, b in zip(starts[:-1], starts[1:])]"""}),
+    "incremental_update": (
+        "import gtsam",
+        {}),
 }
 
 #: the delegations issue 42 lists, each its own known mistake (``tests/test_lazy_folder.py``):
