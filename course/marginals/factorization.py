@@ -47,7 +47,7 @@ def square_root_information(H_upper, starts, perm) -> sp.csr_matrix:
     perm = np.asarray(perm, dtype=np.int64)
     upper = with_whole_blocks(H_upper, starts)
     if installed("cvxopt"):
-        return _cholmod(upper, perm)
+        return _checked(_cholmod(upper, perm), upper)
     if n > DENSE_LIMIT:
         raise SingularSystemError(f"cvxopt (CHOLMOD) is not installed here and H has {n} rows, above the dense "
                                   f"factorisation's {DENSE_LIMIT}: pip install cvxopt")
@@ -58,7 +58,23 @@ def square_root_information(H_upper, starts, perm) -> sp.csr_matrix:
     except np.linalg.LinAlgError:
         raise SingularSystemError("H is not positive definite (numpy's Cholesky failed)") from None
     rows, cols = np.triu_indices(n)
-    return sp.csr_matrix((L.T[rows, cols], (rows, cols)), shape=(n, n))
+    return _checked(sp.csr_matrix((L.T[rows, cols], (rows, cols)), shape=(n, n)), upper)
+
+
+#: a pivot ``R_ii^2`` below this times H's largest diagonal entry is a singular direction's rounding
+PIVOT_FLOOR = 1e-13
+
+
+def _checked(R, upper) -> sp.csr_matrix:
+    """``R``, or ``SingularSystemError`` naming the smallest pivot when it is rounding's (a singular H
+    that the factorisation got through with tiny positive pivots)."""
+    pivots = R.diagonal() ** 2
+    largest = float(np.max(upper.diagonal(), initial=0.0))
+    k = int(np.argmin(pivots))
+    if not np.all(np.isfinite(R.data)) or pivots[k] <= PIVOT_FLOOR * largest:
+        raise SingularSystemError(f"H is singular to rounding: the pivot R_kk^2 = {pivots[k]:.3g} (row {k} of the "
+                                  f"ordered H) against its largest diagonal entry {largest:.3g}")
+    return R
 
 
 def _cholmod(upper, perm) -> sp.csr_matrix:

@@ -5,6 +5,10 @@ A :class:`Layout` names the variables of a problem's step ``h`` (n,) in its orde
 still (a fixed pose: its rows and columns of H are the identity's, its covariance is 0), and ``gauge``,
 what is free when nothing holds the problem in place (said when H is singular).
 
+A pose graph with no fixed pose, bundle adjustment without its gauge fixed, a factor graph with a free
+part and a VIO problem without an anchor or a prior are refused (:class:`GaugeError`, naming the gauge):
+rounding leaves a singular H with small positive pivots, which a factorisation need not notice.
+
 The covariances are in each family's tangent, the coordinates of its step ``h``:
 
 - curve fit: one variable, key ``"params"``, the parameters (3,) as they are (``p + h``);
@@ -24,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from course.core.errors import SingularSystemError
 from course.factorgraph.problem import FactorGraphProblem
 from course.problems.bal.problem import BundleAdjustmentProblem
 from course.problems.curve.problem import CurveProblem
@@ -32,7 +37,7 @@ from course.problems.posegraph3d.problem import PoseGraph3DProblem
 from course.problems.vio.problem import FRAME_DOF, POINT_DOF, VioProblem
 
 
-class GaugeError(ValueError):
+class GaugeError(SingularSystemError):
     """The problem's H is singular along a gauge freedom that nothing holds: no marginals."""
 
 
@@ -65,11 +70,17 @@ def layout_of(problem) -> Layout:
         return Layout(["params"], np.array([n]), np.zeros(n, dtype=bool))
     if isinstance(problem, PoseGraphProblem):
         g = problem.graph
+        if not len(g.fixed):
+            raise GaugeError(f"{g.name}: H is singular along the gauge: no pose is fixed, so the whole graph can "
+                             "move (3 gauge freedoms: x, y, theta); fix one pose (graph.fixed)")
         return Layout(list(range(g.num_poses)), np.full(g.num_poses, 3), _held_poses(g.num_poses, 3, g.fixed),
                       f"{g.name}: no pose is fixed, so the whole graph can move (3 gauge freedoms: x, y, theta); "
                       "fix one pose")
     if isinstance(problem, PoseGraph3DProblem):
         g3 = problem.graph
+        if not len(g3.fixed):
+            raise GaugeError(f"{g3.name}: H is singular along the gauge: no pose is fixed, so the whole graph can "
+                             "move (6 gauge freedoms); fix one pose (graph.fixed)")
         return Layout(list(range(g3.num_poses)), np.full(g3.num_poses, 6), _held_poses(g3.num_poses, 6, g3.fixed),
                       f"{g3.name}: no pose is fixed, so the whole graph can move (6 gauge freedoms); fix one pose")
     if isinstance(problem, BundleAdjustmentProblem):
@@ -86,6 +97,11 @@ def layout_of(problem) -> Layout:
     if isinstance(problem, FactorGraphProblem):
         return _factor_graph(problem)
     if isinstance(problem, VioProblem):
+        d = problem.data
+        if d.anchor is None and d.linear_prior is None and not d.frame_priors:
+            raise GaugeError("vio: H is singular along the gauge: a visual-inertial problem without an anchor or a "
+                             "prior has 4 gauge freedoms (the yaw and the position); give VioData an anchor or a "
+                             "frame prior")
         F, L = problem.num_frames, problem.num_landmarks
         keys = [("frame", f) for f in range(F)] + [("landmark", k) for k in range(L)]
         return Layout(keys, np.array([FRAME_DOF] * F + [POINT_DOF] * L), np.zeros(problem.n, dtype=bool),
