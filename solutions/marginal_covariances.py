@@ -124,12 +124,22 @@ def marginal_covariances(R, sizes):
     # ``R Sigma = R^-T``, with X = R_FF^-1:
     #     Sigma_FK = -X R_FK Sigma_KK,    Sigma_FF = X (X^T - R_FK Sigma_FK^T)
     # Each variable keeps Sigma on (F + K) x (F + K) (its *front*) until its children have read theirs.
+    # A variable whose rows nest into the next one's (the next is its parent, it is the parent's only child,
+    # and its K is the parent's F + K) runs with it as one block of rows: fewer, larger steps.
     indptr, indices, data = R.indptr, R.indices, R.data
-    n, count = R.shape[0], len(starts) - 1
-    sizes = np.diff(starts)
+    n = R.shape[0]
+    rows_after = indptr[starts[1:]] - indptr[starts[1:] - 1] - 1  # |K| of each variable's last row
+    first_after = indices[np.minimum(indptr[starts[1:] - 1] + 1, len(indices) - 1)]
+    nested = (rows_after[:-1] > 0) & (first_after[:-1] == starts[1:-1])
+    only_child = np.bincount(np.searchsorted(starts, first_after[rows_after > 0], side="right") - 1,
+                             minlength=len(rows_after)) == 1
+    nested &= only_child[1:] & (rows_after[:-1] == np.diff(starts)[1:] + rows_after[1:])
+    bounds = starts[np.flatnonzero(np.concatenate([[True], ~nested, [True]]))]
+    count = len(bounds) - 1
+    sizes = np.diff(bounds)
     owner = np.repeat(np.arange(count), sizes)
     # K of each variable: the columns after its rows in its last row; F + K its columns, in one array
-    last = starts[1:] - 1
+    last = bounds[1:] - 1
     in_last = np.concatenate([np.arange(indptr[i], indptr[i + 1]) for i in last.tolist()])
     K_owner = np.repeat(np.arange(count), np.diff(indptr)[last])
     keep = indices[in_last] > last[K_owner]
@@ -155,19 +165,19 @@ def marginal_covariances(R, sizes):
                              "pattern)")
         return at - col_ptr[v]
 
-    # every stored entry's place in its variable's (|F|, |F| + |K|) block of rows
+    # every stored entry's place in its (|F|, |F| + |K|) block of rows
     rows = np.repeat(np.arange(n), np.diff(indptr))
     local = position(owner[rows], indices, lambda k: f"row {rows[k]} stores column {indices[k]}, which the last "
-                                                     f"row of its variable, {last[owner[rows[k]]]}, does not")
+                                                     f"row of its rows' block, {last[owner[rows[k]]]}, does not")
     row_ptr = np.concatenate([[0], np.cumsum(sizes * width)])
     blocks = np.zeros(row_ptr[-1])
-    blocks[row_ptr[owner[rows]] + (rows - starts[owner[rows]]) * width[owner[rows]] + local] = data
+    blocks[row_ptr[owner[rows]] + (rows - bounds[owner[rows]]) * width[owner[rows]] + local] = data
     parent = np.full(count, -1)
     parent[K_count > 0] = owner[cols[(col_ptr[:-1] + sizes)[K_count > 0]]]
     # K's places in the parent's columns
-    where = position(parent[K_owner], K_cols, lambda k: f"row {last[K_owner[k]]} stores column {K_cols[k]}, "
-                                                        f"which variable {parent[K_owner[k]]}'s rows do not")
-    # X = R_FF^-1 of every variable, a size at a time
+    where = position(parent[K_owner], K_cols, lambda k: f"row {last[K_owner[k]]} stores column {K_cols[k]}, which "
+                                                        f"the rows from {bounds[parent[K_owner[k]]]} on do not")
+    # X = R_FF^-1 of every block of rows, a size at a time
     X_all: list = [None] * count
     for d in np.unique(sizes).tolist():
         group = np.flatnonzero(sizes == d)
@@ -195,10 +205,16 @@ def marginal_covariances(R, sizes):
                 fronts[p] = None
         else:
             front[:, :] = X @ X.T
-        out[v] = 0.5 * (front[:d, :d] + front[:d, :d].T)
+        out[v] = front[:d, :d]
         if waiting[v]:
             fronts[v] = front
-    return out
+    # each variable's block of its block of rows' front
+    block = np.searchsorted(bounds, starts[:-1], side="right") - 1
+    marginals = []
+    for v, b in enumerate(block.tolist()):
+        a, e = starts[v] - bounds[b], starts[v + 1] - bounds[b]
+        marginals.append(0.5 * (out[b][a:e, a:e] + out[b][a:e, a:e].T))
+    return marginals
     # END SOLUTION
 
 

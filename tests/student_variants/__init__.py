@@ -1950,12 +1950,12 @@ BUGS_MARGINAL_COVARIANCES = {
         "marginal_covariances.py", MC_IN_M, *_mc_scalar_slip("s = -(r @ S) / d", "s = (r @ S) / d"),
         {MC_ROOT, MC_EVERY, MC_CHAIN}, "wrong sign"),
     "mc_inverse_of_the_information_block": V(
-        "marginal_covariances.py", MC_IN_M, "    return out",
+        "marginal_covariances.py", MC_IN_M, "    return marginals",
         "    return [np.linalg.inv((C[:, a:b].T @ C[:, a:b]).toarray()) for C in [R.tocsc()] for a, b in "
         + _MC_BLOCKS + "]",
         {MC_ROOT, MC_EVERY, MC_CHAIN}, "given all the other variables"),
     "mc_conditional_on_the_separator": V(
-        "marginal_covariances.py", MC_IN_M, "    return out",
+        "marginal_covariances.py", MC_IN_M, "    return marginals",
         "    return [np.linalg.inv(B.T @ B) for B in (R[a:b, a:b].toarray() for a, b in " + _MC_BLOCKS + ")]",
         {MC_EVERY, MC_CHAIN}, "given its separator"),
     "mc_stored_zeros_dropped": V(
