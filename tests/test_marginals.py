@@ -250,3 +250,23 @@ def test_a_singular_h_that_the_factorisation_gets_through_is_refused():
     H = np.array([[1.0, -1.0], [-1.0, 1.0 + 1e-17]])
     with pytest.raises(SingularSystemError, match="singular"):
         Marginals.of_information(H, [1, 1]).covariances()
+
+
+def test_r_stores_each_diagonal_block_whole_even_where_h_has_a_structural_zero():
+    # variable 0 (size 3) with H's entry (0, 2) not stored, coupled to variable 1 (size 2)
+    import scipy.sparse as sp
+
+    H = np.array([[4.0, 1.0, 0.0, 1.0, 0.0],
+                  [1.0, 5.0, 1.0, 0.0, 0.0],
+                  [0.0, 1.0, 6.0, 0.0, 1.0],
+                  [1.0, 0.0, 0.0, 3.0, 0.5],
+                  [0.0, 0.0, 1.0, 0.5, 2.0]])
+    M = Marginals.of_information(sp.csc_matrix(H), [3, 2])
+    R = sp.csr_matrix(M.R)
+    starts = np.concatenate([[0], np.cumsum(M.sizes)])
+    for a, b in zip(starts[:-1], starts[1:]):
+        stored = {(i, int(j)) for i in range(a, b) for j in R.indices[R.indptr[i]:R.indptr[i + 1]] if a <= j < b}
+        assert stored == {(i, j) for i in range(a, b) for j in range(i, b)}
+    inverse = np.linalg.inv(H)
+    np.testing.assert_allclose(M.covariance(0), inverse[:3, :3], rtol=1e-12)
+    np.testing.assert_allclose(M.covariance(1), inverse[3:, 3:], rtol=1e-12)

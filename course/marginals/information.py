@@ -9,14 +9,13 @@ fit, a small VIO window), or bundle adjustment's blocks ``U`` (C, 9, 9), ``V`` (
 import numpy as np
 import scipy.sparse as sp
 
-from course.problems.bal.problem import BlockLinearization
 from course.solver.linearization import Linearization
 
 
 def upper_of(lin: Linearization) -> sp.csc_matrix:
     """The upper triangle (n, n), CSC, of ``lin``'s H in whichever storage it holds it."""
-    if isinstance(lin, BlockLinearization):
-        return _from_blocks(lin.U, lin.V, lin.W, lin.camera_index, lin.point_index)
+    if lin.H is None and getattr(lin, "U", None) is not None:  # bundle adjustment's BlockLinearization
+        return _from_blocks(*(getattr(lin, name) for name in ("U", "V", "W", "camera_index", "point_index")))
     if lin.upper:
         return sp.csc_matrix(sp.triu(lin.H))
     return sp.csc_matrix(np.triu(np.asarray(lin.H, dtype=float)))
