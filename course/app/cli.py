@@ -511,7 +511,9 @@ def cmd_marginals(args) -> int:
                                     dense_limit=limit)
     print(marginals.format_rows(rows, facts))
     if args.json:
-        print(f"wrote {write_json(args.json, {'facts': facts, 'rows': [asdict(r) for r in rows]}, indent=1)}")
+        rows_json = [{k: (None if isinstance(v, float) and v != v else v) for k, v in asdict(r).items()}
+                     for r in rows]  # NaN (not measured) as null
+        print(f"wrote {write_json(args.json, {'facts': facts, 'rows': rows_json}, indent=1)}")
     return 0
 
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from course.core.impl import not_implemented_reason
+from course.core.impl import failure_reason, not_implemented_reason
 from course.core.peers import installed, missing_message
 from course.marginals import Marginals
 from course.marginals.information import upper_of
@@ -118,7 +118,14 @@ def compare(dataset: str, impl="solutions", repeat: int = 3, dense_limit: int = 
         if not installed(library):
             rows.append(MarginalsRow(method, skipped=missing_message(library)))
             return
-        result, seconds = _median(run, repeat)
+        try:
+            result, seconds = _median(run, repeat)
+        except NotImplementedError as exc:  # Ceres' cost is the implementation's: its TODO is a row
+            rows.append(MarginalsRow(method, skipped=not_implemented_reason(exc)))
+            return
+        except ArithmeticError as exc:
+            rows.append(MarginalsRow(method, skipped=failure_reason(exc)))
+            return
         rows.append(MarginalsRow(method, seconds, difference(result)))
 
     def gtsam_linear():
