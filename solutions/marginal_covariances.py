@@ -117,32 +117,104 @@ def marginal_covariances(R, sizes):
     """
     R, starts = check_inputs(R, sizes)
     # BEGIN SOLUTION
-    n = R.shape[0]
+    # The scalar recursion, a variable's rows at a time (its diagonal block is stored whole). For variable
+    # v, rows F, let K be the columns after F that its last row stores: by the closure every row of F
+    # stores only columns of F and K, every pair of K is on the pattern, and K lies in the columns
+    # F_p + K_p of the variable p that owns K[0] (v's parent in the elimination tree). Rows F of
+    # ``R Sigma = R^-T``, with X = R_FF^-1:
+    #     Sigma_FK = -X R_FK Sigma_KK,    Sigma_FF = X (X^T - R_FK Sigma_FK^T)
+    # Each variable keeps Sigma on (F + K) x (F + K) (its *front*) until its children have read theirs.
+    # A variable whose rows nest into the next one's (the next is its parent, it is the parent's only child,
+    # and its K is the parent's F + K) runs with it as one block of rows: fewer, larger steps.
     indptr, indices, data = R.indptr, R.indices, R.data
-    diagonal = R.diagonal()
-    sigma: dict = {}  # (i, j), i <= j, R[i, j] stored: Sigma[i, j]
-    for i in range(n - 1, -1, -1):
-        lo, hi = indptr[i], indptr[i + 1]
-        above = indices[lo:hi] > i
-        K, r = indices[lo:hi][above].tolist(), data[lo:hi][above]
-        d = diagonal[i]
-        if not K:
-            sigma[(i, i)] = 1.0 / (d * d)
-            continue
-        try:
-            S = np.array([[sigma[(a, b)] if a <= b else sigma[(b, a)] for b in K] for a in K])
-        except KeyError:
-            raise ValueError(f"R's pattern is not closed under elimination: row {i} stores columns {K}, but not "
-                             "every R[a, b] between them is stored (a stored 0 is part of the pattern)") from None
-        s = -(r @ S) / d  # Sigma[i, K]
-        for k, value in zip(K, s.tolist()):
-            sigma[(i, k)] = value
-        sigma[(i, i)] = (1.0 / d - r @ s) / d
-    out = []
-    for v in range(len(starts) - 1):
-        block = np.arange(starts[v], starts[v + 1]).tolist()
-        out.append(np.array([[sigma[(a, b)] if a <= b else sigma[(b, a)] for b in block] for a in block]))
-    return out
+    n = R.shape[0]
+    rows_after = indptr[starts[1:]] - indptr[starts[1:] - 1] - 1  # |K| of each variable's last row
+    first_after = indices[np.minimum(indptr[starts[1:] - 1] + 1, len(indices) - 1)]
+    nested = (rows_after[:-1] > 0) & (first_after[:-1] == starts[1:-1])
+    only_child = np.bincount(np.searchsorted(starts, first_after[rows_after > 0], side="right") - 1,
+                             minlength=len(rows_after)) == 1
+    nested &= only_child[1:] & (rows_after[:-1] == np.diff(starts)[1:] + rows_after[1:])
+    bounds = starts[np.flatnonzero(np.concatenate([[True], ~nested, [True]]))]
+    count = len(bounds) - 1
+    sizes = np.diff(bounds)
+    owner = np.repeat(np.arange(count), sizes)
+    # K of each variable: the columns after its rows in its last row; F + K its columns, in one array
+    last = bounds[1:] - 1
+    in_last = np.concatenate([np.arange(indptr[i], indptr[i + 1]) for i in last.tolist()])
+    K_owner = np.repeat(np.arange(count), np.diff(indptr)[last])
+    keep = indices[in_last] > last[K_owner]
+    K_cols, K_owner = indices[in_last][keep], K_owner[keep]
+    K_count = np.bincount(K_owner, minlength=count)
+    K_ptr = np.concatenate([[0], np.cumsum(K_count)])
+    width = sizes + K_count  # |F| + |K|
+    col_ptr = np.concatenate([[0], np.cumsum(width)])
+    cols = np.empty(col_ptr[-1], dtype=np.int64)
+    K_at = col_ptr[K_owner] + sizes[K_owner] + np.arange(len(K_cols)) - K_ptr[K_owner]
+    cols[K_at] = K_cols
+    F_at = np.setdiff1d(np.arange(col_ptr[-1]), K_at, assume_unique=True)
+    cols[F_at] = np.arange(n)
+    key = np.repeat(np.arange(count), width) * n + cols  # ascending: variable, then column
+
+    def position(v, c, what):
+        """Where columns ``c`` of variable ``v`` (arrays) sit in ``cols``; ValueError off the pattern."""
+        at = np.searchsorted(key, v * n + c)
+        bad = (at >= len(key)) | (key[np.minimum(at, len(key) - 1)] != v * n + c)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"R's pattern is not closed under elimination: {what(k)} (a stored 0 is part of the "
+                             "pattern)")
+        return at - col_ptr[v]
+
+    # every stored entry's place in its (|F|, |F| + |K|) block of rows
+    rows = np.repeat(np.arange(n), np.diff(indptr))
+    local = position(owner[rows], indices, lambda k: f"row {rows[k]} stores column {indices[k]}, which the last "
+                                                     f"row of its rows' block, {last[owner[rows[k]]]}, does not")
+    row_ptr = np.concatenate([[0], np.cumsum(sizes * width)])
+    blocks = np.zeros(row_ptr[-1])
+    blocks[row_ptr[owner[rows]] + (rows - bounds[owner[rows]]) * width[owner[rows]] + local] = data
+    parent = np.full(count, -1)
+    parent[K_count > 0] = owner[cols[(col_ptr[:-1] + sizes)[K_count > 0]]]
+    # K's places in the parent's columns
+    where = position(parent[K_owner], K_cols, lambda k: f"row {last[K_owner[k]]} stores column {K_cols[k]}, which "
+                                                        f"the rows from {bounds[parent[K_owner[k]]]} on do not")
+    # X = R_FF^-1 of every block of rows, a size at a time
+    X_all: list = [None] * count
+    for d in np.unique(sizes).tolist():
+        group = np.flatnonzero(sizes == d)
+        R_FF = np.stack([blocks[row_ptr[v]:row_ptr[v + 1]].reshape(d, -1)[:, :d] for v in group.tolist()])
+        for v, X in zip(group.tolist(), np.linalg.inv(np.triu(R_FF))):
+            X_all[v] = X
+    waiting = np.bincount(parent[parent >= 0], minlength=count)  # children yet to read a front
+    fronts: list = [None] * count
+    out: list = [None] * count
+    for v in range(count - 1, -1, -1):
+        d, w, X = sizes[v], width[v], X_all[v]
+        front = np.empty((w, w))
+        if w > d:
+            p = parent[v]
+            at = where[K_ptr[v]:K_ptr[v + 1]]
+            S = fronts[p][at[:, None], at]
+            R_FK = blocks[row_ptr[v]:row_ptr[v + 1]].reshape(d, w)[:, d:]
+            S_FK = -X @ (R_FK @ S)
+            front[:d, :d] = X @ (X.T - R_FK @ S_FK.T)
+            front[:d, d:] = S_FK
+            front[d:, :d] = S_FK.T
+            front[d:, d:] = S
+            waiting[p] -= 1
+            if not waiting[p]:
+                fronts[p] = None
+        else:
+            front[:, :] = X @ X.T
+        out[v] = front[:d, :d]
+        if waiting[v]:
+            fronts[v] = front
+    # each variable's block of its block of rows' front
+    block = np.searchsorted(bounds, starts[:-1], side="right") - 1
+    marginals = []
+    for v, b in enumerate(block.tolist()):
+        a, e = starts[v] - bounds[b], starts[v + 1] - bounds[b]
+        marginals.append(0.5 * (out[b][a:e, a:e] + out[b][a:e, a:e].T))
+    return marginals
     # END SOLUTION
 
 

@@ -114,6 +114,21 @@ def build_parser(plugins=None) -> argparse.ArgumentParser:
                               "rotation); only such edges are touched, and every row says how many were")
     compare.set_defaults(func=cmd_compare)
 
+    # a command of its own, not a flag of compare: compare solves a dataset with every method and peer and
+    # takes their options (--methods, --backends, --init, --solver); this one solves once (ours) and times
+    # the peers' marginals at that optimum, a table of other columns
+    marg = sub.add_parser("marginals", help="chapter 8: every pose's marginal covariance at our optimum, ours "
+                                            "against GTSAM's Marginals, Ceres' Covariance and the dense inverse "
+                                            "(median times, ratio to GTSAM, largest difference to ours)")
+    marg.add_argument("dataset", help="a named 2D or 3D pose graph (see `python -m course datasets`), manhattan:N "
+                                      "or a TORO/g2o file")
+    marg.add_argument("--repeat", type=int, default=3, help="runs per method, the median kept (default 3)")
+    marg.add_argument("--dense-limit", type=int, default=None, metavar="ROWS",
+                      help="the dense inverse runs where H has at most ROWS rows (default 3000)")
+    marg.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
+    marg.add_argument("--json", metavar="FILE", help="write {facts, rows[]} as JSON")
+    marg.set_defaults(func=cmd_marginals)
+
     listing = sub.add_parser("datasets", help="list the named datasets, their sizes and where each comes from")
     listing.set_defaults(func=cmd_datasets)
 
@@ -482,6 +497,24 @@ def _say_what_to_check(runs, kind, impl) -> None:
         lines.append(hint)
     if lines:
         print("\n".join(lines))
+
+
+def cmd_marginals(args) -> int:
+    from dataclasses import asdict
+
+    from course.app import marginals
+
+    if args.repeat < 1:
+        raise ValueError(f"--repeat {args.repeat}: at least 1")
+    limit = marginals.DENSE_LIMIT if args.dense_limit is None else args.dense_limit
+    rows, facts = marginals.compare(args.dataset, impl=args.impl or default_impl(), repeat=args.repeat,
+                                    dense_limit=limit)
+    print(marginals.format_rows(rows, facts))
+    if args.json:
+        rows_json = [{k: (None if isinstance(v, float) and v != v else v) for k, v in asdict(r).items()}
+                     for r in rows]  # NaN (not measured) as null
+        print(f"wrote {write_json(args.json, {'facts': facts, 'rows': rows_json}, indent=1)}")
+    return 0
 
 
 def cmd_outliers3d(args) -> int:

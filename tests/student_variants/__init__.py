@@ -1893,28 +1893,75 @@ _MC_BLOCKS = "zip(starts[:-1], starts[1:])"
 #: the position in keys of the variable each row of the joint marginal belongs to
 _MC_OWNER = "np.repeat(np.arange(len(keys)), [starts[v + 1] - starts[v] for v in keys])"
 
+# the recursion entry by entry (the reference runs it a variable's rows at a time): the slips below are
+# written into it, as a student who follows the hints would write them
+_MC_SCALAR = """    n = R.shape[0]
+    indptr, indices, data = R.indptr, R.indices, R.data
+    diagonal = R.diagonal()
+    sigma: dict = {}  # (i, j), i <= j, R[i, j] stored: Sigma[i, j]
+    for i in range(n - 1, -1, -1):
+        lo, hi = indptr[i], indptr[i + 1]
+        above = indices[lo:hi] > i
+        K, r = indices[lo:hi][above].tolist(), data[lo:hi][above]
+        d = diagonal[i]
+        if not K:
+            sigma[(i, i)] = 1.0 / (d * d)
+            continue
+        try:
+            S = np.array([[sigma[(a, b)] if a <= b else sigma[(b, a)] for b in K] for a in K])
+        except KeyError:
+            raise ValueError(f"R's pattern is not closed under elimination: row {i} stores columns {K}, but not "
+                             "every R[a, b] between them is stored (a stored 0 is part of the pattern)") from None
+        s = -(r @ S) / d  # Sigma[i, K]
+        for k, value in zip(K, s.tolist()):
+            sigma[(i, k)] = value
+        sigma[(i, i)] = (1.0 / d - r @ s) / d
+    out = []
+    for v in range(len(starts) - 1):
+        block = np.arange(starts[v], starts[v + 1]).tolist()
+        out.append(np.array([[sigma[(a, b)] if a <= b else sigma[(b, a)] for b in block] for a in block]))
+    return out
+"""
+
+
+def _mc_solution(function: str) -> str:
+    text = (SOLUTIONS / "marginal_covariances.py").read_text()
+    start = text.index("# BEGIN SOLUTION\n", text.index(f"def {function}")) + len("# BEGIN SOLUTION\n")
+    return text[start:text.index("    # END SOLUTION", start)]
+
+
+def _mc_scalar_slip(old: str, new: str) -> tuple:
+    """``(old, new)`` of a variant that replaces the reference's recursion by the scalar one with ``old`` made
+    ``new``."""
+    assert old in _MC_SCALAR, old
+    return _mc_solution("marginal_covariances"), _MC_SCALAR.replace(old, new)
+
+
 # chapter 8: marginal covariances
 BUGS_MARGINAL_COVARIANCES = {
     "mc_diagonal_without_its_own_term": V(
-        "marginal_covariances.py", MC_IN_M, "sigma[(i, i)] = (1.0 / d - r @ s) / d", "sigma[(i, i)] = (-r @ s) / d",
+        "marginal_covariances.py", MC_IN_M,
+        *_mc_scalar_slip("sigma[(i, i)] = (1.0 / d - r @ s) / d", "sigma[(i, i)] = (-r @ s) / d"),
         {MC_ROOT, MC_EVERY, MC_CHAIN}, "needs its own term"),
     "mc_diagonal_without_the_sum": V(
-        "marginal_covariances.py", MC_IN_M, "sigma[(i, i)] = (1.0 / d - r @ s) / d", "sigma[(i, i)] = 1.0 / (d * d)",
+        "marginal_covariances.py", MC_IN_M,
+        *_mc_scalar_slip("sigma[(i, i)] = (1.0 / d - r @ s) / d", "sigma[(i, i)] = 1.0 / (d * d)"),
         {MC_ROOT, MC_EVERY, MC_CHAIN}, "holds only for the last row"),
     "mc_off_diagonal_sign": V(
-        "marginal_covariances.py", MC_IN_M, "s = -(r @ S) / d", "s = (r @ S) / d",
+        "marginal_covariances.py", MC_IN_M, *_mc_scalar_slip("s = -(r @ S) / d", "s = (r @ S) / d"),
         {MC_ROOT, MC_EVERY, MC_CHAIN}, "wrong sign"),
     "mc_inverse_of_the_information_block": V(
-        "marginal_covariances.py", MC_IN_M, "    return out",
+        "marginal_covariances.py", MC_IN_M, "    return marginals",
         "    return [np.linalg.inv((C[:, a:b].T @ C[:, a:b]).toarray()) for C in [R.tocsc()] for a, b in "
         + _MC_BLOCKS + "]",
         {MC_ROOT, MC_EVERY, MC_CHAIN}, "given all the other variables"),
     "mc_conditional_on_the_separator": V(
-        "marginal_covariances.py", MC_IN_M, "    return out",
+        "marginal_covariances.py", MC_IN_M, "    return marginals",
         "    return [np.linalg.inv(B.T @ B) for B in (R[a:b, a:b].toarray() for a, b in " + _MC_BLOCKS + ")]",
         {MC_EVERY, MC_CHAIN}, "given its separator"),
     "mc_stored_zeros_dropped": V(
-        "marginal_covariances.py", MC_IN_M, "    n = R.shape[0]", "    R.eliminate_zeros()\n    n = R.shape[0]",
+        "marginal_covariances.py", MC_IN_M,
+        *_mc_scalar_slip("    n = R.shape[0]", "    R.eliminate_zeros()\n    n = R.shape[0]"),
         {MC_EVERY}, "a stored 0 is part of the pattern"),
     "jm_keys_sorted": V(
         "marginal_covariances.py", MC_IN_J, "for v in keys])", "for v in sorted(keys)])",
@@ -1957,12 +2004,6 @@ _MC_BY_COLUMNS = """    n = R.shape[0]
         out.append(np.array([[get(a, b) for b in block] for a in block]))
     return out
 """
-
-
-def _mc_solution(function: str) -> str:
-    text = (SOLUTIONS / "marginal_covariances.py").read_text()
-    start = text.index("# BEGIN SOLUTION\n", text.index(f"def {function}")) + len("# BEGIN SOLUTION\n")
-    return text[start:text.index("    # END SOLUTION", start)]
 
 
 #: correct but different: the recursion column by column; the joint marginal as Y^T Y from one solve, or by

@@ -84,22 +84,15 @@ class _Trace(pyceres.IterationCallback):
         return pyceres.CallbackReturnType.SOLVER_CONTINUE
 
 
-def solve(graph: PoseGraph3D, method: str, max_iterations: int = 100, *, impl="solutions",
-          function_tolerance: float = 1e-12, parameter_tolerance: float = 1e-12,
-          gradient_tolerance: float = 1e-14) -> RunResult:
-    """Optimize ``graph`` from its poses with Ceres' ``levenberg-marquardt`` (``METHODS``),
-    ``SPARSE_NORMAL_CHOLESKY``, one thread; the tolerances far below Ceres' own, as in 2D.
-
-    ``params`` is ``pack(t, R)`` (12N,); ``seconds`` is ``pyceres.solve`` alone; ``iterations``
-    the step attempts (Ceres' successful and unsuccessful steps, its iteration 0 not counted).
-    """
-    if method not in METHODS:
-        raise ValueError(f"unknown Ceres method {method!r}; choose one of {METHODS}")
-    edges = impl_loader.load(impl).module("pose_graph_3d").edge_errors_and_jacobians
-    # once outside Ceres: a TODO (NotImplementedError) or a crash surfaces here, not in a callback
-    edges(graph.t, graph.R, graph.edges_i[:1], graph.edges_j[:1], graph.t_z[:1], graph.R_z[:1])
-    quats = quaternion.from_matrix(graph.R)
-    t_blocks = [np.array(v, dtype=np.float64, order="C", copy=True) for v in graph.t]
+def build_problem(graph: PoseGraph3D, edges, t=None, R=None):
+    """``(problem, t_blocks, q_blocks, costs)``: the Ceres problem of ``graph`` at poses ``t`` (N, 3), ``R``
+    (N, 3, 3) (default the graph's), one ``SE3EdgeCost`` per edge (``edges`` the implementation's
+    ``edge_errors_and_jacobians``; an edge between two fixed poses left out), ``EigenQuaternionManifold`` on
+    every quaternion, the fixed poses constant. Keep ``costs`` (the manifold too) alive as long as the
+    problem."""
+    t = graph.t if t is None else np.asarray(t, dtype=float)
+    quats = quaternion.from_matrix(graph.R if R is None else np.asarray(R, dtype=float))
+    t_blocks = [np.array(v, dtype=np.float64, order="C", copy=True) for v in t]
     q_blocks = [np.array(v, dtype=np.float64, order="C", copy=True) for v in quats]
     roots = np.swapaxes(np.linalg.cholesky(graph.information), 1, 2)  # U with U^T U = Omega
     problem = pyceres.Problem()
@@ -118,6 +111,25 @@ def solve(graph: PoseGraph3D, method: str, max_iterations: int = 100, *, impl="s
             if k in fixed:
                 problem.set_parameter_block_constant(t_blocks[k])
                 problem.set_parameter_block_constant(q_blocks[k])
+    costs.append(manifold)  # the problem holds it by pointer: alive as long as the costs
+    return problem, t_blocks, q_blocks, costs
+
+
+def solve(graph: PoseGraph3D, method: str, max_iterations: int = 100, *, impl="solutions",
+          function_tolerance: float = 1e-12, parameter_tolerance: float = 1e-12,
+          gradient_tolerance: float = 1e-14) -> RunResult:
+    """Optimize ``graph`` from its poses with Ceres' ``levenberg-marquardt`` (``METHODS``),
+    ``SPARSE_NORMAL_CHOLESKY``, one thread; the tolerances far below Ceres' own, as in 2D.
+
+    ``params`` is ``pack(t, R)`` (12N,); ``seconds`` is ``pyceres.solve`` alone; ``iterations``
+    the step attempts (Ceres' successful and unsuccessful steps, its iteration 0 not counted).
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown Ceres method {method!r}; choose one of {METHODS}")
+    edges = impl_loader.load(impl).module("pose_graph_3d").edge_errors_and_jacobians
+    # once outside Ceres: a TODO (NotImplementedError) or a crash surfaces here, not in a callback
+    edges(graph.t, graph.R, graph.edges_i[:1], graph.edges_j[:1], graph.t_z[:1], graph.R_z[:1])
+    problem, t_blocks, q_blocks, costs = build_problem(graph, edges)
     options = pyceres.SolverOptions()
     options.linear_solver_type = pyceres.LinearSolverType.SPARSE_NORMAL_CHOLESKY
     options.trust_region_strategy_type = pyceres.TrustRegionStrategyType.LEVENBERG_MARQUARDT
