@@ -502,6 +502,7 @@ def _say_what_to_check(runs, kind, impl) -> None:
 def cmd_marginals(args) -> int:
     from dataclasses import asdict
 
+    chapters.require("ch8", "marginals")
     from course.app import marginals
 
     if args.repeat < 1:

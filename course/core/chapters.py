@@ -67,9 +67,12 @@ CHAPTERS: tuple[Chapter, ...] = (
             ("course/factorgraph", "course/backends/factorgraph", "course/problems/posegraph/factor_graph.py",
              "course/problems/bal/factor_graph.py", "course/problems/posegraph3d/factor_graph.py",
              "course/notebook_helpers/chapter7.py", "course/app/benchmark_autodiff.py", "notebooks/chapter7_*")),
-    Chapter("ch8", "elimination, the Bayes tree and marginals",
+    Chapter("ch8", "elimination, the Bayes tree, marginals and incremental smoothing",
             ("elimination", "orderings", "bayes_tree", "marginal_covariances", "incremental_update"), (),
-            ("course/notebook_helpers/chapter8.py", "notebooks/chapter8_*")),
+            ("course/marginals", "course/app/marginals.py", "course/backends/posegraph/gtsam_marginals.py",
+             "course/backends/posegraph/ceres_covariance.py", "course/backends/posegraph3d/gtsam_marginals.py",
+             "course/backends/posegraph3d/ceres_covariance.py", "course/backends/factorgraph/gtsam_marginals.py",
+             "course/notebook_helpers/chapter8.py", "notebooks/chapter8_*")),
 )
 
 BY_NAME = {chapter.name: chapter for chapter in CHAPTERS}
