@@ -59,7 +59,7 @@ class IncrementalSmoother:
         self.factors = FactorStore(self.impl)
         self.tree = NumericBayesTree()
         self._reeliminator = Reeliminator(self.impl, self.keys)
-        self._checked = 0  # variables below it whose step has not changed since the last check
+        self._changed: set = set()  # the variables whose step the last update recomputed
 
     # ------------------------------------------------------------ the update
 
@@ -71,7 +71,11 @@ class IncrementalSmoother:
         new_vars, new_ids = added
         n_tree = len(self.keys) - len(new_vars)
         incremental = self.impl.module("incremental_update")
-        relin = incremental.relinearised_keys(self.delta[:n_tree], self.relinearize_threshold) if n_tree else []
+        # only the steps the last wildfire update recomputed can have crossed the threshold since the last
+        # check (any other is as it was then, at or below it): those alone are checked
+        candidates = sorted(v for v in self._changed if v < n_tree)
+        relin = [candidates[k] for k in incremental.relinearised_keys([self.delta[v] for v in candidates],
+                                                                      self.relinearize_threshold)]
         new_keys = sorted({v for i in new_ids for v in self.factors.keys[i]})
         if len(self.tree):
             top, orphans = incremental.affected_cliques(self.tree.frontals, self.tree.separators, self.tree.parents,
@@ -112,6 +116,7 @@ class IncrementalSmoother:
                 self.tree.frontals, self.tree.separators, self.tree.parents, self.tree.conditionals, self.delta,
                 replaced, self.wildfire_threshold)
             self.delta = [np.asarray(step, dtype=float) for step in self.delta]
+            self._changed = {v for c in recomputed for v in self.tree.frontals[c]}
         return UpdateResult(len(relin), len(variables), len(recomputed), len(self.tree))
 
     def _add(self, graph, values: dict) -> tuple:
@@ -180,6 +185,10 @@ class IncrementalSmoother:
     def estimate(self) -> dict:
         """Every variable's value ``theta (+) delta``, by key (stored values, the kind's shape)."""
         return {key: self._retract(v, self.delta[v]) for v, key in enumerate(self.keys)}
+
+    def estimate_of(self, v: int) -> np.ndarray:
+        """Variable ``v``'s value ``theta_v (+) delta_v`` (by index, the order added)."""
+        return self._retract(v, self.delta[v])
 
     def estimate_list(self) -> list:
         """The estimate as a list by variable index (the order added)."""
