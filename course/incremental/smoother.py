@@ -14,7 +14,8 @@ new_values)``:
    and the new ones re-eliminated (``course.incremental.reelimination``) from the factors whose
    variables all lie in the top and the orphans' cached factors, the new factors' variables ordered
    last; each orphan hangs from its new parent (``orphan_parents``);
-4. the wildfire update of the steps (``wildfire_update``, ``wildfire_threshold``).
+4. the wildfire update of the steps (``wildfire_update``, ``wildfire_threshold``), handed the tree front
+   by front (``course.incremental.wildfire``).
 
 ``estimate()`` is ``theta (+) delta``. ``marginal(key)``/``marginals(keys)``: the covariance of the
 current linearised system from the tree's conditionals (the implementation's ``marginal_covariances``).
@@ -30,6 +31,7 @@ from course.factorgraph import noise
 from course.incremental.bayes_tree import NumericBayesTree
 from course.incremental.factors import FactorStore
 from course.incremental.reelimination import LinearFactor, Reeliminator
+from course.incremental.wildfire import wildfire_in_fronts
 
 
 @dataclass
@@ -112,10 +114,8 @@ class IncrementalSmoother:
             replaced = self.tree.replace_top(top, orphans, parents_of_orphans, new_tree)
         recomputed: list = []
         if len(self.tree):
-            self.delta, recomputed = incremental.wildfire_update(
-                self.tree.frontals, self.tree.separators, self.tree.parents, self.tree.conditionals, self.delta,
-                replaced, self.wildfire_threshold)
-            self.delta = [np.asarray(step, dtype=float) for step in self.delta]
+            self.delta, recomputed = wildfire_in_fronts(incremental.wildfire_update, self.tree, self.delta, replaced,
+                                                        self.wildfire_threshold, self.dims)
             self._changed = {v for c in recomputed for v in self.tree.frontals[c]}
         return UpdateResult(len(relin), len(variables), len(recomputed), len(self.tree))
 
