@@ -271,8 +271,9 @@ def format_table(result: dict) -> str:
         lines.append(f"{row.label:<28}{len(ms):>6}{np.median(ms):>11.3f}{np.percentile(ms, 90):>9.3f}{ms.max():>10.1f}"
                      f"{ms.sum() / 1e3:>9.2f}{_number(row.relinearized):>11}{_number(row.reeliminated):>12}"
                      f"{row.chi2:>14.6f}{ratio:>12}")
-    lines.append(f"batch minimum (ours, LM on the whole dataset): chi2 {minimum:.6f}")
-    if np.isfinite(result["iterated"]):
+    if np.isfinite(minimum):
+        lines.append(f"batch minimum (ours, LM on the whole dataset): chi2 {minimum:.6f}")
+    if np.isfinite(result["iterated"]) and np.isfinite(minimum):
         lines.append(f"ours, the last update iterated to convergence: chi2 {result['iterated']:.6f} "
                      f"({result['iterated'] / minimum - 1:+.2e} vs the minimum)")
     return "\n".join(lines)
