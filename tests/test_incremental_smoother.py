@@ -3,8 +3,19 @@
 import numpy as np
 import pytest
 
-from course.factorgraph import (BETWEEN_SE2, BETWEEN_SE3, PRIOR_SE2, PRIOR_SE3, RANGE_BEARING, SE2, SE3, FactorGraph,
-                                FactorGraphProblem, Vector, prior)
+from course.factorgraph import (
+    BETWEEN_SE2,
+    BETWEEN_SE3,
+    PRIOR_SE2,
+    PRIOR_SE3,
+    RANGE_BEARING,
+    SE2,
+    SE3,
+    FactorGraph,
+    FactorGraphProblem,
+    Vector,
+    prior,
+)
 from course.incremental import IncrementalSmoother
 from course.incremental.online import OnlineSequence, compose
 from course.problems.posegraph.dataset import manhattan

@@ -168,8 +168,8 @@ def build_parser(plugins=None) -> argparse.ArgumentParser:
     outliers.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
     outliers.set_defaults(func=cmd_outliers3d)
 
-    online = sub.add_parser("online", help="chapter 8: a pose graph fed one pose at a time to our incremental smoother, "
-                                           "GTSAM's ISAM2 and batch re-solves (course.app.online)")
+    online = sub.add_parser("online", help="chapter 8: a pose graph fed one pose at a time to our incremental "
+                                           "smoother, GTSAM's ISAM2 and batch re-solves (course.app.online)")
     online.add_argument("dataset", help="a 2D or 3D pose graph (m3500, intel, sphere2500, manhattan:N[:seed], a file)")
     online.add_argument("--every", type=int, default=None, metavar="K",
                         help="the batch re-solves every K steps (default: about 20 over the sequence)")

@@ -56,10 +56,10 @@ def _is_3d(path: str) -> bool:
 
 def factor_graph(graph, dim: int):
     if dim == 2:
-        from course.problems.posegraph.factor_graph import as_factor_graph
-    else:
-        from course.problems.posegraph3d.factor_graph import as_factor_graph
-    return as_factor_graph(graph)
+        from course.problems.posegraph import factor_graph as planar
+        return planar.as_factor_graph(graph)
+    from course.problems.posegraph3d import factor_graph as spatial
+    return spatial.as_factor_graph(graph)
 
 
 def chi2_of(graph, dim: int, values) -> float:
@@ -109,14 +109,14 @@ def run_gtsam(graph, dim: int) -> OnlineRow:
     if not peers.installed("gtsam"):
         return OnlineRow(label, note=peers.missing_message("gtsam"))
     if dim == 2:
-        from course.backends.posegraph.gtsam_isam2 import run_online
+        from course.backends.posegraph import gtsam_isam2 as planar
 
-        out = run_online(graph, PRIOR_SIGMA)
+        out = planar.run_online(graph, PRIOR_SIGMA)
         chi2 = chi2_of(graph, 2, out["poses"])
     else:
-        from course.backends.posegraph3d.gtsam_isam2 import run_online
+        from course.backends.posegraph3d import gtsam_isam2 as spatial
 
-        out = run_online(graph, PRIOR_SIGMA)
+        out = spatial.run_online(graph, PRIOR_SIGMA)
         chi2 = float(graph.chi2(out["t"], out["R"]))
     return OnlineRow(label, out["seconds"], float(out["relinearized"].mean()), float(out["reeliminated"].mean()), chi2)
 
@@ -178,17 +178,22 @@ def run_batch(graph, dim: int, every: int, solve) -> OnlineRow:
     return OnlineRow("", np.array(seconds), chi2=chi2_of(graph, dim, estimate))
 
 
+def _problem(graph, dim: int, impl):
+    """The chapter-2 or chapter-6 problem of ``graph``."""
+    if dim == 2:
+        from course.problems.posegraph.problem import PoseGraphProblem
+        return PoseGraphProblem(graph, impl=impl)
+    from course.problems.posegraph3d.problem import PoseGraph3DProblem
+    return PoseGraph3DProblem(graph, impl=impl)
+
+
 def ours_batch_solve(impl, dim: int, method="gauss-newton", max_iterations=20):
     from course.solver.minimizer import minimize
     from course.solver.options import SolverOptions
 
     def solve(sub):
-        if dim == 2:
-            from course.problems.posegraph.problem import PoseGraphProblem as Problem
-        else:
-            from course.problems.posegraph3d.problem import PoseGraph3DProblem as Problem
         start = time.perf_counter()
-        problem = Problem(sub, impl=impl)
+        problem = _problem(sub, dim, impl)
         result = minimize(problem, method, impl, SolverOptions(max_iterations=max_iterations))
         return np.asarray(result.params), time.perf_counter() - start
     return solve
@@ -213,11 +218,7 @@ def batch_minimum(graph, dim: int, impl) -> float:
     from course.solver.minimizer import minimize
     from course.solver.options import SolverOptions
 
-    if dim == 2:
-        from course.problems.posegraph.problem import PoseGraphProblem as Problem
-    else:
-        from course.problems.posegraph3d.problem import PoseGraph3DProblem as Problem
-    result = minimize(Problem(graph, impl=impl), "lm-type3", impl, SolverOptions(max_iterations=200))
+    result = minimize(_problem(graph, dim, impl), "lm-type3", impl, SolverOptions(max_iterations=200))
     return float(result.final_chi2)
 
 

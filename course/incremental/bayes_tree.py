@@ -65,7 +65,7 @@ class NumericBayesTree:
         """An elimination order of the tree's variables: every clique's frontals (in their order) after
         those of all its descendants (children before parents)."""
         children: list = [[] for _ in self.frontals]
-        roots = []
+        roots: list = []
         for c, p in enumerate(self.parents.tolist()):
             (roots if p < 0 else children[p]).append(c)
         order, stack = [], list(roots)
@@ -84,7 +84,7 @@ class NumericBayesTree:
         start = np.zeros(len(dims) + 1, dtype=int)
         start[np.array(order, dtype=int)] = np.concatenate([[0], np.cumsum(sizes)[:-1]])
         rows, cols, vals = [], [], []
-        for F, Sep, (R, S, d) in zip(self.frontals, self.separators, self.conditionals):
+        for F, Sep, (R, S, _) in zip(self.frontals, self.separators, self.conditionals):
             index = np.concatenate([start[v] + np.arange(dims[v]) for v in F + Sep])
             f = R.shape[0]
             block = np.hstack([np.triu(R), S])

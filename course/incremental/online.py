@@ -11,7 +11,7 @@ anchor the smoothers take: ``prior_sigma`` on every tangent entry).
 import numpy as np
 
 from course.factorgraph import FactorGraph, between, prior
-from course.geometry import se2, se3
+from course.geometry import se2
 
 
 def compose(kind, value, z) -> np.ndarray:

@@ -45,7 +45,10 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) 
         variables = list(solved_root) + [v for c in cliques for v in tree.frontals[c]]
         local = {v: k for k, v in enumerate(variables)}
         number = {c: k + (1 if solved_root else 0) for k, c in enumerate(cliques)}
-        frontals, separators, parents, conditionals = [], [], [], []
+        frontals: list = []
+        separators: list = []
+        parents: list = []
+        conditionals: list = []
         if solved_root:
             frontals.append([local[v] for v in solved_root])
             separators.append([])
