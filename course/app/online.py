@@ -148,17 +148,21 @@ def _stored(graph, dim: int, k=None):
 def _compose_tail(graph, dim: int, estimate, start: int, stop: int):
     """Poses ``start..stop-1`` appended to ``estimate`` by the odometry from the last one (or the file's)."""
     from course.factorgraph import SE2, SE3
-    from course.incremental.online import compose
+    from course.incremental.online import compose, inverse
 
+    kind = SE2 if dim == 2 else SE3
     odometry = {}
     for e in range(len(graph.edges_i)):
         i, j = int(graph.edges_i[e]), int(graph.edges_j[e])
+        z = graph.measurements[e] if dim == 2 else np.concatenate([graph.t_z[e], graph.R_z[e].ravel()])
         if j == i + 1 and j not in odometry:
-            odometry[j] = graph.measurements[e] if dim == 2 else np.concatenate([graph.t_z[e], graph.R_z[e].ravel()])
+            odometry[j] = z
+        elif i == j + 1 and i not in odometry:
+            odometry[i] = inverse(kind, z)
     file = _stored(graph, dim)
     out = list(estimate)
     for k in range(start, stop):
-        out.append(compose(SE2 if dim == 2 else SE3, out[-1], odometry[k]) if k in odometry and out else file[k])
+        out.append(compose(kind, out[-1], odometry[k]) if k in odometry and out else file[k])
     return out
 
 

@@ -3,7 +3,7 @@
 Step ``k`` brings variable ``k`` (the order the graph's variables were added: a pose graph's odometry
 order) and every factor whose last variable is ``k``: the odometry edge to ``k - 1`` and the loop
 closures to earlier variables, as they arrive. Its initial value composes the factor to ``k - 1`` (a
-between factor of its kind) onto the smoother's current estimate of ``k - 1``; where there is none,
+between factor of its kind, either way round) onto the smoother's current estimate of ``k - 1``; where there is none,
 the graph's own value. Step 0 also brings a prior on variable 0 (the graph's fixed variable becomes an
 anchor the smoothers take: ``prior_sigma`` on every tangent entry).
 """
@@ -27,6 +27,17 @@ def compose(kind, value, z) -> np.ndarray:
     raise ValueError(f"no composition for a {kind.name} variable")
 
 
+def inverse(kind, z) -> np.ndarray:
+    """The between measurement ``z`` reversed (``x_j^-1 x_i`` from ``x_i^-1 x_j``)."""
+    if kind.name == "SE2":
+        c, s = np.cos(z[2]), np.sin(z[2])
+        return np.array([-c * z[0] - s * z[1], s * z[0] - c * z[1], -z[2]])
+    if kind.name == "SE3":
+        R = z[3:].reshape(3, 3)
+        return np.concatenate([-R.T @ z[:3], R.T.ravel()])
+    raise ValueError(f"no inverse for a {kind.name} measurement")
+
+
 class OnlineSequence:
     """The steps of ``graph`` (a chapter-7 ``FactorGraph``): ``len(seq)`` steps, ``seq.step(k, estimate)``."""
 
@@ -44,8 +55,9 @@ class OnlineSequence:
                 self._rows[k].append((name, keys[row], z[row], None if info is None else info[row]))
                 kind = group.type.kinds[0]
                 if kind.name in ("SE2", "SE3") and group.type == between(kind) and self._odometry[k] is None \
-                        and keys[row, 0] == k - 1 and keys[row, 1] == k:
-                    self._odometry[k] = z[row]
+                        and {int(keys[row, 0]), int(keys[row, 1])} == {k - 1, k}:
+                    # an edge from k to k - 1 (intel's order) measures the inverse
+                    self._odometry[k] = z[row] if keys[row, 1] == k else inverse(kind, z[row])
 
     def __len__(self) -> int:
         return self.graph.num_variables

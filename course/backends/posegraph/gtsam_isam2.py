@@ -2,7 +2,7 @@
 
 Step k adds pose k (``BetweenFactorPose2`` per edge whose later pose is k, ``noiseModel.Gaussian.Information``
 of the edge's information; step 0 a ``PriorFactorPose2`` on pose 0 of isotropic ``prior_sigma``) with its
-initial value the odometry edge from k - 1 composed onto ISAM2's current estimate of pose k - 1 (the
+initial value the odometry edge between k - 1 and k (either way round) composed onto ISAM2's current estimate of pose k - 1 (the
 file's value where there is no such edge). ``ISAM2Params``: ``relinearizeThreshold`` and
 ``relinearizeSkip = 1``, the rest GTSAM's defaults. Only ``isam.update`` is timed.
 """
@@ -39,6 +39,8 @@ def run_online(graph: PoseGraph, prior_sigma: float = 1e-3, relinearize_threshol
             factors.add(gtsam.BetweenFactorPose2(i, j, z, gtsam.noiseModel.Gaussian.Information(graph.information[e])))
             if (i, j) == (k - 1, k) and k > 0:
                 initial = isam.calculateEstimatePose2(k - 1).compose(z)
+            elif (i, j) == (k, k - 1) and k > 0:  # the odometry from k to k - 1 (intel's order)
+                initial = isam.calculateEstimatePose2(k - 1).compose(z.inverse())
         values.insert(k, initial)
         start = time.perf_counter()
         result = isam.update(factors, values)

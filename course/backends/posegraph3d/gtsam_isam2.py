@@ -38,6 +38,8 @@ def run_online(graph: PoseGraph3D, prior_sigma: float = 1e-3, relinearize_thresh
             factors.add(gtsam.BetweenFactorPose3(i, j, z, gtsam.noiseModel.Gaussian.Information(info[e])))
             if (i, j) == (k - 1, k) and k > 0:
                 initial = isam.calculateEstimatePose3(k - 1).compose(z)
+            elif (i, j) == (k, k - 1) and k > 0:  # the odometry from k to k - 1 (intel's order)
+                initial = isam.calculateEstimatePose3(k - 1).compose(z.inverse())
         values.insert(k, initial)
         start = time.perf_counter()
         result = isam.update(factors, values)
