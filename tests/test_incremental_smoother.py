@@ -297,3 +297,27 @@ def test_a_3d_prior_and_between_chain_of_one_step():
     smoother.update(g, {"x0": value})
     assert prior(SE3) is PRIOR_SE3
     np.testing.assert_allclose(smoother.estimate()["x0"], value, atol=1e-12)
+
+
+def test_the_wildfire_in_fronts_is_the_wildfire_on_the_whole_tree(monkeypatch):
+    """Every update's fronts give the steps and the recomputed cliques of one call on the whole tree."""
+    import course.incremental.smoother as smoother_module
+    from course.core import impl
+
+    whole = impl.load("solutions").module("incremental_update").wildfire_update
+    in_fronts = smoother_module.wildfire_in_fronts
+    compared = []
+
+    def both(wildfire_update, tree, delta, replaced, threshold, dims):
+        steps, recomputed = in_fronts(wildfire_update, tree, delta, replaced, threshold, dims)
+        expected, expected_recomputed = whole(tree.frontals, tree.separators, tree.parents, tree.conditionals, delta,
+                                              replaced, threshold)
+        assert recomputed == expected_recomputed
+        for ours, theirs in zip(steps, expected):
+            np.testing.assert_array_equal(ours, theirs)
+        compared.append(len(recomputed) < len(tree))
+        return steps, recomputed
+
+    monkeypatch.setattr(smoother_module, "wildfire_in_fronts", both)
+    feed(as_factor_graph(manhattan(40, seed=5)), IncrementalSmoother(wildfire_threshold=0.01))
+    assert any(compared)  # some update stopped before the leaves

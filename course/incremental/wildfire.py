@@ -6,10 +6,11 @@ After an update it can only reach the re-eliminated top and what hangs below it,
 one level under the top: handing it the whole tree every time costs a pass over every clique. So the
 tree is handed over in fronts, each a small tree of the same contract, with the same answer:
 
-1. the first front: the replaced cliques (a top, closed under parents: its roots are roots) and their
-   children that are not replaced (the candidates);
-2. a later front: the candidates the previous front recomputed (the frontier: solved again, marked
-   replaced, which gives the same steps), their children as the new candidates, and one root clique
+1. the first front: the replaced cliques (a top, closed under parents: its roots are roots) and the
+   cliques not replaced down to ``DEPTH`` levels below them (the candidates);
+2. a later front: the candidates of the deepest level the previous front recomputed (the frontier: solved
+   again, marked replaced, which gives the same steps), the cliques down to ``DEPTH`` levels below them as
+   the new candidates, and one root clique
    holding the variables of the frontier's separators as its frontals with the conditional
    ``(R = I, S empty, d = their new steps)``, marked replaced: it reproduces those steps, and, given
    their steps before the update as ``delta``, marks changed exactly the ones the whole pass marks;
@@ -20,6 +21,9 @@ exactly when it is recomputed in its front.
 """
 
 import numpy as np
+
+#: the levels of candidates below the frontier in one front (fewer calls, each a little larger)
+DEPTH = 4
 
 
 def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) -> tuple:
@@ -38,7 +42,12 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) 
     solved_root: list = []  # the variables of the fake root (none for the first front)
     first = True
     while frontier:
-        candidates = [ch for c in frontier for ch in children[c] if not is_replaced[ch]]
+        # the candidates: DEPTH levels below the frontier; the next frontier is among the deepest
+        candidates, level = [], list(frontier)
+        for _ in range(DEPTH):
+            level = [ch for c in level for ch in children[c] if not is_replaced[ch]]
+            candidates += level
+        deepest = set(level)
         if not candidates and not first:
             break
         cliques = frontier + candidates
@@ -69,8 +78,8 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) 
             if number[c] in done:
                 for v in tree.frontals[c]:
                     new[v] = np.asarray(steps[local[v]], dtype=float)
-        frontier = [c for c in candidates if number[c] in done]
-        recomputed += frontier
+        recomputed += [c for c in candidates if number[c] in done]
+        frontier = [c for c in candidates if number[c] in done and c in deepest]
         solved_root = list(dict.fromkeys(v for c in frontier for v in tree.separators[c]))
         first = False
     return new, sorted(recomputed)
