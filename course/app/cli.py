@@ -173,6 +173,7 @@ def build_parser(plugins=None) -> argparse.ArgumentParser:
     online.add_argument("dataset", help="a 2D or 3D pose graph (m3500, intel, sphere2500, manhattan:N[:seed], a file)")
     online.add_argument("--every", type=int, default=None, metavar="K",
                         help="the batch re-solves every K steps (default: about 20 over the sequence)")
+    online.add_argument("--poses", type=int, default=None, metavar="N", help="the first N poses only (default all)")
     online.add_argument("--no-batch", action="store_true", help="the two smoothers only (no batch re-solves)")
     online.add_argument("--plot", metavar="FILE", help="write the time per step over the sequence (PNG)")
     online.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
@@ -577,7 +578,7 @@ def cmd_online(args) -> int:
     from course.app import online
 
     result = online.compare(args.dataset, impl=args.impl or default_impl(), every=args.every,
-                            batches=not args.no_batch)
+                            batches=not args.no_batch, poses=args.poses)
     print(f"{result['name']}: {result['poses']} poses, {result['edges']} edges, fed one pose per step; batch re-solves "
           f"every {result['every']} steps (from the previous solution); chi2 = sum e^T Omega e over the edges "
           "(GTSAM's error is half of it)")

@@ -226,9 +226,15 @@ def batch_minimum(graph, dim: int, impl) -> float:
     return float(result.final_chi2)
 
 
-def compare(name: str, impl, every=None, batches: bool = True) -> dict:
-    """Every method's row on dataset ``name``: ``{"rows", "every", "minimum", "iterated", "poses"}``."""
+def compare(name: str, impl, every=None, batches: bool = True, poses=None) -> dict:
+    """Every method's row on dataset ``name`` (its first ``poses`` poses where given): ``{"rows", "every",
+    "minimum", "iterated", "poses", "name", "edges"}``."""
     graph, dim = load(name)
+    if poses is not None and poses < graph.num_poses:
+        if poses < 2:
+            raise ValueError(f"--poses must be at least 2, got {poses}")
+        graph = _prefix(graph, dim, poses - 1, _stored(graph, dim)[:poses])
+        name = f"{name}[:{poses}]"
     n = graph.num_poses
     every = every or max(1, n // BATCHES)
     rows = []
