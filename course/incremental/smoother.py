@@ -62,6 +62,7 @@ class IncrementalSmoother:
         self.tree = NumericBayesTree()
         self._reeliminator = Reeliminator(self.impl, self.keys)
         self._changed: set = set()  # the variables whose step the last update recomputed
+        self._checked_at = self.relinearize_threshold  # the threshold of the last check
 
     # ------------------------------------------------------------ the update
 
@@ -74,7 +75,11 @@ class IncrementalSmoother:
         n_tree = len(self.keys) - len(new_vars)
         incremental = self.impl.module("incremental_update")
         # only the steps the last wildfire update recomputed can have crossed the threshold since the last
-        # check (any other is as it was then, at or below it): those alone are checked
+        # check (any other is as it was then, at or below it): those alone are checked, unless the threshold
+        # has been lowered since
+        if self.relinearize_threshold < self._checked_at:
+            self._changed = set(range(n_tree))
+        self._checked_at = self.relinearize_threshold
         candidates = sorted(v for v in self._changed if v < n_tree)
         relin = [candidates[k] for k in incremental.relinearised_keys([self.delta[v] for v in candidates],
                                                                       self.relinearize_threshold)]
