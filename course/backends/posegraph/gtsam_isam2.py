@@ -2,8 +2,8 @@
 
 Step k adds pose k (``BetweenFactorPose2`` per edge whose later pose is k, ``noiseModel.Gaussian.Information``
 of the edge's information; step 0 a ``PriorFactorPose2`` on pose 0 of isotropic ``prior_sigma``) with its
-initial value the odometry edge between k - 1 and k (either way round) composed onto ISAM2's current estimate of pose k - 1 (the
-file's value where there is no such edge). ``ISAM2Params``: ``relinearizeThreshold`` and
+initial value the odometry edge between k - 1 and k (either way round) composed onto ISAM2's current
+estimate of pose k - 1 (the file's value where there is no such edge). ``ISAM2Params``: ``relinearizeThreshold`` and
 ``relinearizeSkip = 1``, the rest GTSAM's defaults. Only ``isam.update`` is timed.
 """
 
