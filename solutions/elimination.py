@@ -101,6 +101,9 @@ def eliminate_variable(A_x, A_s, b):
                 factor = np.column_stack([L_new.T, scipy.linalg.solve_triangular(L_new, eta_new, lower=True)])
         except np.linalg.LinAlgError:
             pass
+    if factor is None and 0 < len(b) - n_x < n_s:  # fewer rows than unknowns: the rows of a QR, rank-deficient
+        T = np.linalg.qr(np.column_stack([A_x, A_s, b]), mode="r")
+        factor = T[n_x:, n_x:]
     if factor is None:  # pivot by pivot, skipping those at the floor
         W = np.column_stack([Lam_new, eta_new])
         rows = []
