@@ -1,0 +1,156 @@
+"""Chapter 8: the incremental update of a Bayes tree (iSAM2: Kaess et al., IJRR 2012, Algorithms 4-7).
+
+A smoother keeps the Bayes tree of its linearised problem: cliques numbered 0..C-1, clique c holding
+its frontal variables ``frontals[c]``, its separator ``clique_separators[c]``, its parent
+``parents[c]`` (-1 for a root) and its Gaussian conditional ``p(F_c | S_c)``. The n variables are
+0..n-1; every one is a frontal of exactly one clique. When new factors arrive, or the linearisation
+point of some variables moves, only part of the tree changes:
+
+1. **Fluid relinearisation.** ``delta`` holds the current solution of the linearised system, one
+   (d_v,) tangent step per variable, taken at the variable's linearisation point. A variable whose
+   step has grown past a threshold is relinearised: its linearisation point takes the step, and every
+   factor touching it is linearised again.
+2. **The affected top.** A new factor changes the conditional of the clique that holds its
+   first-eliminated variable, and so every clique on the path from there to the root; a relinearised
+   variable changes every factor on it, so every clique whose variables (frontals *or* separator)
+   hold it, and again their paths to the root. These cliques, the *top*, are removed and their
+   variables re-eliminated (with a new ordering) together with the new variables. The subtrees hanging
+   below the top, rooted at the *orphans* (the children of top cliques that are not in the top), are
+   kept whole: each one's summary on its separator (its cached factor) enters the re-elimination.
+3. **Reattaching.** After the re-elimination each orphan hangs from the new clique that holds, as a
+   frontal, its separator's first-eliminated variable in the new ordering.
+4. **The partial state update (wildfire).** The new solution is back-substituted from the roots,
+   parents before children: ``delta_F = R^-1 (d - S delta_S)`` for clique (R, S, d). A clique is
+   recomputed when it was replaced (re-eliminated: its conditional is new) or when one of its separator
+   variables' steps changed, in this pass, by more than a threshold (largest absolute entry). Any other
+   clique keeps its variables' old steps. (A clique that is not recomputed has no child to recompute:
+   a child's separator lies within its parent's variables, none of which changed.)
+
+Conventions: a variable's "largest absolute entry" is ``max(abs(delta_v))``; both thresholds compare
+strictly (``> threshold``). Lists of variables and of cliques are returned sorted ascending.
+
+Inputs at the edges of the contract (each is a check input):
+- relinearised_keys: threshold 0 (every step not exactly zero is marked)
+- relinearised_keys: a step exactly at the threshold (not marked)
+- affected_cliques: a relinearised variable that is only in a separator (its clique and the cliques below it are marked)
+- affected_cliques: new keys of variables not yet in the tree (ignored: they join the top)
+- affected_cliques: two roots, one untouched
+- affected_cliques: nothing new and nothing relinearised (an empty top)
+- orphan_parents: a separator whose first-eliminated member in the new ordering is not its smallest index
+- wildfire_update: a change below the threshold stops the update (the subtree keeps its steps)
+- wildfire_update: threshold 0 and every clique replaced (the full back-substitution)
+- wildfire_update: variables of sizes 1, 3 and 6 mixed
+
+Allowed imports: numpy, scipy.
+"""
+
+import numpy as np
+import scipy.linalg
+
+
+def _tree(frontals, clique_separators, parents):
+    """``(parents as an int array, n)`` or a ``ValueError`` naming the argument and the entry."""
+    parents = np.asarray(parents)
+    C = len(frontals)
+    if len(clique_separators) != C or parents.shape != (C,):
+        raise ValueError(f"frontals, clique_separators and parents must describe the same cliques: got {C}, "
+                         f"{len(clique_separators)} and parents of shape {parents.shape}")
+    if C and not np.issubdtype(parents.dtype, np.integer):
+        raise ValueError(f"parents must hold ints, got dtype {parents.dtype}")
+    bad = np.flatnonzero((parents < -1) | (parents >= C))
+    if bad.size:
+        raise ValueError(f"parents[{bad[0]}] = {parents[bad[0]]} is not a clique (0..{C - 1}) or -1 for a root")
+    seen = sorted(int(v) for F in frontals for v in F)
+    n = len(seen)
+    if seen != list(range(n)):
+        raise ValueError(f"frontals must hold every variable of 0..{n - 1} exactly once, got {seen}")
+    return parents.astype(int), n
+
+
+def relinearised_keys(delta, threshold):
+    """Fluid relinearisation: the variables v with ``max(abs(delta[v])) > threshold``, sorted.
+
+    Args: ``delta`` a list of n arrays (d_v,), each variable's current step; ``threshold`` a float >= 0.
+    Returns a sorted list of ints. ValueError for a negative threshold or a step that is not finite.
+    """
+    if not threshold >= 0:
+        raise ValueError(f"threshold must be >= 0, got {threshold!r}")
+    steps = [np.asarray(step, dtype=float) for step in delta]
+    for v, step in enumerate(steps):
+        if not np.all(np.isfinite(step)):
+            raise ValueError(f"delta[{v}] has entries that are not finite")
+    raise NotImplementedError("TODO incremental_update.relinearised_keys: not implemented yet")
+
+
+def affected_cliques(frontals, clique_separators, parents, new_keys, relinearised):
+    """The top an update removes, and the orphans it leaves.
+
+    Args: the tree (``frontals``, ``clique_separators``: lists of C lists of ints; ``parents`` (C,) ints, -1
+    for a root); ``new_keys`` the variables the new factors touch (those >= n, not yet in the tree, are
+    ignored: they join the top); ``relinearised`` the relinearised variables (all in the tree).
+    Marked: a clique holding a new key as a frontal, and a clique whose frontals or separator hold a
+    relinearised variable. Returns ``(top, orphans)``: sorted lists of cliques, ``top`` the marked cliques
+    and all their ancestors, ``orphans`` the cliques outside the top whose parent is in it.
+    ValueError for a negative key or a relinearised variable that is not in the tree.
+    """
+    parents, n = _tree(frontals, clique_separators, parents)
+    new_keys, relinearised = [int(k) for k in new_keys], [int(k) for k in relinearised]
+    for name, keys in (("new_keys", new_keys), ("relinearised", relinearised)):
+        for i, k in enumerate(keys):
+            if k < 0 or (name == "relinearised" and k >= n):
+                raise ValueError(f"{name}[{i}] = {k} is not a variable of the tree (0..{n - 1})")
+    raise NotImplementedError("TODO incremental_update.affected_cliques: not implemented yet")
+
+
+def orphan_parents(orphan_separators, ordering, new_frontals):
+    """Each orphan's parent in the re-eliminated top.
+
+    Args: ``orphan_separators`` a list of the orphans' separators (lists of ints, none empty; their members
+    are variables of the top); ``ordering`` the top's new elimination order (a list of its variables,
+    the first eliminated first); ``new_frontals`` the new top's cliques' frontals (a list of lists).
+    Returns (number of orphans,) ints: for each orphan the index, in ``new_frontals``, of the clique that
+    holds as a frontal its separator's member eliminated first in ``ordering``. ValueError for an empty
+    separator or a member that is not in ``ordering``.
+    """
+    order = [int(v) for v in ordering]
+    position = {v: k for k, v in enumerate(order)}
+    if len(position) != len(order):
+        raise ValueError(f"ordering must not repeat a variable, got {order}")
+    for i, S in enumerate(orphan_separators):
+        if len(S) == 0:
+            raise ValueError(f"orphan_separators[{i}] is empty: an orphan hangs from the top through its separator")
+        for j, v in enumerate(S):
+            if int(v) not in position:
+                raise ValueError(f"orphan_separators[{i}][{j}] = {v} is not in the new ordering of the top")
+    raise NotImplementedError("TODO incremental_update.orphan_parents: not implemented yet")
+
+
+def wildfire_update(frontals, clique_separators, parents, conditionals, delta, replaced, threshold):
+    """The partial state update: back-substitution from the roots that stops where nothing changed.
+
+    Args: the tree (as in :func:`affected_cliques`); ``conditionals`` a list of C triples ``(R, S, d)``:
+    ``R`` (f, f) upper triangular over the clique's frontals stacked in the order of ``frontals[c]``, ``S``
+    (f, s) over its separator stacked in the order of ``clique_separators[c]``, ``d`` (f,); ``delta`` the n
+    steps before the update, a list of (d_v,) arrays (the sizes d_v are read from it); ``replaced`` the
+    re-eliminated cliques; ``threshold`` >= 0.
+    A clique is recomputed, ``delta_F = R^-1 (d - S delta_S)``, when it is in ``replaced`` or a separator
+    variable's step changed in this pass by more than ``threshold`` (largest absolute entry); parents are
+    visited before children. Returns ``(new_delta, recomputed)``: a new list of n arrays (``delta`` is not
+    modified) and the sorted list of recomputed cliques. ValueError for blocks of the wrong shape.
+    """
+    parents, n = _tree(frontals, clique_separators, parents)
+    if len(delta) != n:
+        raise ValueError(f"delta must hold one step per variable ({n}), got {len(delta)}")
+    old = [np.asarray(step, dtype=float) for step in delta]
+    if len(conditionals) != len(frontals):
+        raise ValueError(f"conditionals must hold one (R, S, d) per clique ({len(frontals)}), got {len(conditionals)}")
+    for c, (R, S, d) in enumerate(conditionals):
+        f = sum(old[v].size for v in frontals[c])
+        s = sum(old[v].size for v in clique_separators[c])
+        for name, block, shape in (("R", R, (f, f)), ("S", S, (f, s)), ("d", d, (f,))):
+            if np.shape(block) != shape:
+                raise ValueError(f"conditionals[{c}]: {name} has shape {np.shape(block)}, expected {shape} (clique "
+                                 f"{c}'s frontals {list(frontals[c])}, separator {list(clique_separators[c])})")
+    if not threshold >= 0:
+        raise ValueError(f"threshold must be >= 0, got {threshold!r}")
+    raise NotImplementedError("TODO incremental_update.wildfire_update: not implemented yet")
