@@ -10,7 +10,6 @@ anchor the smoothers take: ``prior_sigma`` on every tangent entry).
 
 import numpy as np
 
-from course.factorgraph import FactorGraph, between, prior
 from course.geometry import se2
 
 
@@ -41,7 +40,9 @@ def inverse(kind, z) -> np.ndarray:
 class OnlineSequence:
     """The steps of ``graph`` (a chapter-7 ``FactorGraph``): ``len(seq)`` steps, ``seq.step(k, estimate)``."""
 
-    def __init__(self, graph: FactorGraph, prior_sigma: float = 1e-3):
+    def __init__(self, graph, prior_sigma: float = 1e-3):
+        from course.factorgraph import between  # chapter 7's (imported where used: this package loads in any tree)
+
         self.graph = graph
         self.prior_sigma = float(prior_sigma)
         n = graph.num_variables
@@ -71,6 +72,8 @@ class OnlineSequence:
 
     def step(self, k: int, previous=None) -> tuple:
         """``(factors, new_values)``: a ``FactorGraph`` of step k's factors and ``{key_k: initial value}``."""
+        from course.factorgraph import FactorGraph, prior
+
         g = self.graph
         out = FactorGraph(f"{g.name} step {k}")
         value = self.initial_value(k, previous)

@@ -27,7 +27,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from course.core import impl as impl_loader
-from course.factorgraph import noise
 from course.incremental.bayes_tree import NumericBayesTree
 from course.incremental.factors import FactorStore
 from course.incremental.reelimination import LinearFactor, Reeliminator
@@ -157,6 +156,8 @@ class IncrementalSmoother:
             if key in self.index and graph.kinds[graph.index[key]] != self.kinds[self.index[key]]:
                 raise ValueError(f"{graph.name}: variable {key!r} is a {graph.kinds[graph.index[key]].name} there "
                                  f"but a {self.kinds[self.index[key]].name} in the smoother")
+        from course.factorgraph import noise  # chapter 7's (imported where used: this package loads in any tree)
+
         groups = []
         for group in graph.groups.values():
             keys, z, info = group.arrays()
