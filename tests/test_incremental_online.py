@@ -44,3 +44,9 @@ def test_a_3d_graph_loads_as_3d():
     row, iterated, _ = online.run_ours(graph, dim, "solutions")
     assert len(row.seconds) == graph.num_poses
     assert iterated <= row.chi2 * (1 + 1e-9)
+
+
+def test_the_first_poses_only(capsys):
+    assert main(["online", "manhattan:40", "--poses", "12", "--no-batch"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("manhattan:40[:12]: 12 poses")
