@@ -92,17 +92,30 @@ def eliminate_variable(A_x, A_s, b):
     # the new factor: an upper Cholesky factor of [Lam_new | eta_new] that skips the pivots rounding
     # leaves of a direction no row measures (Lam_new is singular when m - n_x < n_s)
     # (a pivot at or below 1e-10 of its diagonal in Lambda_ss is zero up to rounding: no row measures it)
-    W = np.column_stack([Lam_new, eta_new])
-    rows = []
-    for j in range(n_s):
-        pivot = W[j, j]
-        if pivot <= 1e-10 * Lam[n_x + j, n_x + j]:
-            continue
-        row = W[j] / np.sqrt(pivot)
-        row[:j] = 0.0
-        W = W - np.outer(row[:n_s], row)
-        rows.append(row)
-    factor = np.array(rows).reshape(len(rows), n_s + 1)
+    floor = 1e-10 * np.diagonal(Lam)[n_x:]
+    factor = None
+    if n_s and len(b) >= n_x + n_s:  # most often definite: one factorisation, when no pivot is at the floor
+        try:
+            L_new = np.linalg.cholesky(Lam_new)
+            if np.all(np.diagonal(L_new) ** 2 > floor):
+                factor = np.column_stack([L_new.T, scipy.linalg.solve_triangular(L_new, eta_new, lower=True)])
+        except np.linalg.LinAlgError:
+            pass
+    if factor is None and 0 < len(b) - n_x < n_s:  # fewer rows than unknowns: the rows of a QR, rank-deficient
+        T = np.linalg.qr(np.column_stack([A_x, A_s, b]), mode="r")
+        factor = T[n_x:, n_x:]
+    if factor is None:  # pivot by pivot, skipping those at the floor
+        W = np.column_stack([Lam_new, eta_new])
+        rows = []
+        for j in range(n_s):
+            pivot = W[j, j]
+            if pivot <= floor[j]:
+                continue
+            row = W[j] / np.sqrt(pivot)
+            row[:j] = 0.0
+            W = W - np.outer(row[:n_s], row)
+            rows.append(row)
+        factor = np.array(rows).reshape(len(rows), n_s + 1)
     return R, S, d, factor[:, :n_s], factor[:, n_s]
     # END SOLUTION
 

@@ -183,6 +183,17 @@ def build_parser(plugins=None) -> argparse.ArgumentParser:
     outliers.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
     outliers.set_defaults(func=cmd_outliers3d)
 
+    online = sub.add_parser("online", help="chapter 8: a pose graph fed one pose at a time to our incremental "
+                                           "smoother, GTSAM's ISAM2 and batch re-solves (course.app.online)")
+    online.add_argument("dataset", help="a 2D or 3D pose graph (m3500, intel, sphere2500, manhattan:N[:seed], a file)")
+    online.add_argument("--every", type=int, default=None, metavar="K",
+                        help="the batch re-solves every K steps (default: about 20 over the sequence)")
+    online.add_argument("--poses", type=int, default=None, metavar="N", help="the first N poses only (default all)")
+    online.add_argument("--no-batch", action="store_true", help="the two smoothers only (no batch re-solves)")
+    online.add_argument("--plot", metavar="FILE", help="write the time per step over the sequence (PNG)")
+    online.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
+    online.set_defaults(func=cmd_online)
+
     vio = sub.add_parser("vio", help="chapter 5: the sliding window with and without the marginalisation prior, "
                                      "the batch, and GTSAM's, on simulated visual-inertial data (APE, time per solve)")
     vio.add_argument("name", nargs="?", default="vio-sim:12:0", help="vio-sim[:seconds[:seed]] (default vio-sim:12:0)")
@@ -593,6 +604,23 @@ def _benchmark_suite(args) -> int:
     return benchmark_suite.main(repeats=args.repeats, impl=args.impl or default_impl(), only=_names(args.only),
                                 json_path=args.json, compare_with=args.compare, command=args.command,
                                 note=args.note)
+
+
+def cmd_online(args) -> int:
+    """``online DATASET``: :func:`course.app.online.compare`'s table (and ``--plot``)."""
+    chapters.require("ch8", "online")
+    from course.app import online
+
+    result = online.compare(args.dataset, impl=args.impl or default_impl(), every=args.every,
+                            batches=not args.no_batch, poses=args.poses)
+    print(f"{result['name']}: {result['poses']} poses, {result['edges']} edges, fed one pose per step; batch re-solves "
+          f"every {result['every']} steps (from the previous solution); chi2 = sum e^T Omega e over the edges "
+          "(GTSAM's error is half of it)")
+    print(online.format_table(result))
+    if args.plot:
+        online.plot(result, args.plot)
+        print(f"wrote {args.plot}")
+    return 0
 
 
 def cmd_vio(args) -> int:

@@ -1,0 +1,85 @@
+"""The wildfire update of a large tree, fed to the implementation's ``wildfire_update`` front by front.
+
+``wildfire_update`` takes a whole tree (its cliques numbered 0..C-1, its variables 0..n-1) and visits, from
+the roots, the cliques that are replaced or whose separator changed, skipping any other clique's subtree.
+After an update it can only reach the re-eliminated top and what hangs below it, and most updates stop
+one level under the top: handing it the whole tree every time costs a pass over every clique. So the
+tree is handed over in fronts, each a small tree of the same contract, with the same answer:
+
+1. the first front: the replaced cliques (a top, closed under parents: its roots are roots) and the
+   cliques not replaced down to ``DEPTH`` levels below them (the candidates);
+2. a later front: the candidates of the deepest level the previous front recomputed (the frontier: solved
+   again, marked replaced, which gives the same steps), the cliques down to ``DEPTH`` levels below them as
+   the new candidates, and one root clique
+   holding the variables of the frontier's separators as its frontals with the conditional
+   ``(R = I, S empty, d = their new steps)``, marked replaced: it reproduces those steps, and, given
+   their steps before the update as ``delta``, marks changed exactly the ones the whole pass marks;
+3. until a front recomputes no candidate.
+
+Each front's variables are numbered 0..n'-1 for the call; a clique is recomputed by the whole pass
+exactly when it is recomputed in its front.
+"""
+
+import numpy as np
+
+#: the levels of candidates below the frontier in one front (fewer calls, each a little larger)
+DEPTH = 4
+
+
+def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) -> tuple:
+    """``(new delta (list of n arrays), recomputed cliques (sorted))``, as ``wildfire_update(tree.frontals,
+    tree.separators, tree.parents, tree.conditionals, delta, replaced, threshold)`` on the whole tree."""
+    C = len(tree)
+    children: list = [[] for _ in range(C)]
+    for c, p in enumerate(tree.parents.tolist()):
+        if p >= 0:
+            children[p].append(c)
+    is_replaced = np.zeros(C, dtype=bool)
+    is_replaced[list(replaced)] = True
+    new = list(delta)
+    recomputed = list(replaced)
+    frontier = list(replaced)
+    solved_root: list = []  # the variables of the fake root (none for the first front)
+    first = True
+    while frontier:
+        # the candidates: DEPTH levels below the frontier; the next frontier is among the deepest
+        candidates, level = [], list(frontier)
+        for _ in range(DEPTH):
+            level = [ch for c in level for ch in children[c] if not is_replaced[ch]]
+            candidates += level
+        deepest = set(level)
+        if not candidates and not first:
+            break
+        cliques = frontier + candidates
+        variables = list(solved_root) + [v for c in cliques for v in tree.frontals[c]]
+        local = {v: k for k, v in enumerate(variables)}
+        number = {c: k + (1 if solved_root else 0) for k, c in enumerate(cliques)}
+        frontals: list = []
+        separators: list = []
+        parents: list = []
+        conditionals: list = []
+        if solved_root:
+            frontals.append([local[v] for v in solved_root])
+            separators.append([])
+            parents.append(-1)
+            f = sum(dims[v] for v in solved_root)
+            conditionals.append((np.eye(f), np.zeros((f, 0)), np.concatenate([new[v] for v in solved_root])))
+        for c in cliques:
+            frontals.append([local[v] for v in tree.frontals[c]])
+            separators.append([local[v] for v in tree.separators[c]])
+            p = int(tree.parents[c])
+            parents.append(number.get(p, 0 if solved_root else -1) if p >= 0 else -1)
+            conditionals.append(tree.conditionals[c])
+        marked = ([0] if solved_root else []) + [number[c] for c in frontier]
+        steps, done = wildfire_update(frontals, separators, np.array(parents, dtype=int), conditionals,
+                                      [delta[v] for v in variables], marked, threshold)
+        done = set(int(c) for c in done)
+        for c in cliques:
+            if number[c] in done:
+                for v in tree.frontals[c]:
+                    new[v] = np.asarray(steps[local[v]], dtype=float)
+        recomputed += [c for c in candidates if number[c] in done]
+        frontier = [c for c in candidates if number[c] in done and c in deepest]
+        solved_root = list(dict.fromkeys(v for c in frontier for v in tree.separators[c]))
+        first = False
+    return new, sorted(recomputed)
