@@ -20,7 +20,8 @@
 #    exercise's theory, a cell `check("...")` grades it here, with the same sandboxed judge and public
 #    checks as `python -m autograder --only ...`; before it, a cell checks your code where you work.
 # 2. **Experiments**: the fill of intel (in the full setting also M3500) under four orderings, yours among
-#    them; every pose's marginal covariance on intel by your recursion, against the dense inverse.
+#    them; every pose's marginal covariance on intel by your recursion, against the dense inverse; intel fed
+#    one pose per step to the smoother built on your pieces, against GTSAM's `ISAM2`.
 # 3. **Written questions.**
 #
 # Stuck on a derivation? `hint("elimination", 1)` (or `python -m autograder hint NAME LEVEL` in a terminal)
@@ -291,7 +292,7 @@ check("incremental_update")
 # %% [markdown] id="experiments-md"
 # ## 6. Experiments
 #
-# Your orderings on real graphs, and every pose's marginal covariance on intel.
+# Your orderings on real graphs, every pose's marginal covariance on intel, and intel online.
 
 # %% [markdown] id="fill-md"
 # **On real graphs.** The table eliminates intel (and M3500 in the full setting) under the natural
@@ -329,6 +330,28 @@ with todo_as_one_line():
 if run is not None:
     display(Image(plot.to_png(chapter8.ellipse_figure(info, run["covariances"]))))
 
+# %% [markdown] id="online-md"
+# **Online, one pose per step.** Intel (its first 300 poses in the quick setting) fed to the smoother built on
+# your five pieces (`course/incremental`: your `elimination` for each clique, your `orderings` and
+# `bayes_tree` for the top's new structure, your `incremental_update` for the rest), to GTSAM's `ISAM2` with
+# the same relinearisation threshold (0.01, checked every step), and to batch re-solves of the graph so far
+# every K steps. Each method starts a new pose from the odometry composed onto its own estimate of the last
+# one. The table gives the time per step, the variables relinearised and re-eliminated per step, and the
+# final chi2 against the batch minimum; the figure the time of every step. Look for the loop closures.
+
+# %% id="online"
+online_result = None
+with todo_as_one_line():
+    try:
+        online_result = chapter8.online_run("intel", IMPL, poses=300 if SMALL else None)
+        print(chapter8.online_table(online_result))
+    except DatasetError as exc:
+        print(f"not run: {exc}")
+
+# %% id="figure-online"
+if online_result is not None:
+    display(Image(plot.to_png(chapter8.online_figure(online_result))))
+
 # %% [markdown] id="questions-md"
 # ## Questions
 #
@@ -357,6 +380,13 @@ if run is not None:
 # holding its variables as frontals to the root)? And one between poses 0 and 3? Which variables would an
 # incremental update re-eliminate in each case, and why does iSAM2 order the newest variables last?
 
+# **Question 6.** In the online table of section 6, how many variables does each smoother relinearise and
+# re-eliminate per step, on average, and how does that compare with the number of poses? Where in the
+# figure are the slowest steps, and what happened at them (look at the dataset's loop closures)? Compare the
+# final chi2 of both smoothers with the batch minimum, and say why neither is at it until the last update is
+# iterated. Our smoother is written in Python on top of your functions, GTSAM's in C++: where does the time
+# of one of our steps go, and which of your functions is called once per clique?
+
 # %% [markdown] tags=["answer"] id="answer-1"
 # *Your answer to question 1.*
 
@@ -371,3 +401,6 @@ if run is not None:
 
 # %% [markdown] tags=["answer"] id="answer-5"
 # *Your answer to question 5.*
+
+# %% [markdown] tags=["answer"] id="answer-6"
+# *Your answer to question 6.*

@@ -123,6 +123,29 @@ def test_each_update_solves_the_linearised_system_exactly():
     feed(path_with_loops_2d(), IncrementalSmoother(wildfire_threshold=0.0), assert_step_is_batch)
 
 
+def counting(smoother, counts: list):
+    """``smoother`` with its ``update`` appending the number of variables it relinearised to ``counts``."""
+    update = smoother.update
+
+    def counted(*args):
+        result = update(*args)
+        counts.append(result.relinearized)
+        return result
+
+    smoother.update = counted
+    return smoother
+
+
+def test_gtsams_rule_relinearises_the_separators_cliques_and_stays_exact():
+    totals = {}
+    for neighbours in (True, False):
+        smoother = IncrementalSmoother(wildfire_threshold=0.0, relinearize_neighbours=neighbours)
+        counts: list = []
+        feed(path_with_loops_2d(), counting(smoother, counts), assert_step_is_batch)
+        totals[neighbours] = sum(counts)
+    assert totals[True] > totals[False] > 0  # the rule adds variables on this graph's loop closures
+
+
 def test_the_default_thresholds_stay_near_the_batch_step():
     def close(smoother, k):
         ours = np.concatenate(smoother.delta)

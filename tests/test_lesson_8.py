@@ -21,7 +21,7 @@ from course.notebook_helpers import chapter8
 from notebooks import build
 
 EXERCISES = ("elimination", "orderings", "bayes_tree", "marginal_covariances", "incremental_update")
-FIGURES = ["figure-game", "figure-ellipses"]
+FIGURES = ["figure-game", "figure-ellipses", "figure-online"]
 
 
 def _module(name):
@@ -198,6 +198,8 @@ def test_the_lesson_runs_with_a_hint_a_check_and_a_checker_per_exercise(executed
     assert "150 poses: marginals by your recursion" in text["marginals-check"]
     assert "729 poses: marginals by your recursion" in text["marginals-intel"]
     assert "orphans hang from it: yes" in text["incremental-check"] and "(fine)" in text["incremental-check"]
+    assert "ours (incremental)             300" in text["online"] and "GTSAM ISAM2" in text["online"]
+    assert "ours, the last update iterated to convergence" in text["online"]
     assert _images(nb) == FIGURES
     assert_no_level_3_hint_line("\n".join(c.source for c in nb.cells) + "\n".join(text.values()), EXERCISES)
 
@@ -205,8 +207,8 @@ def test_the_lesson_runs_with_a_hint_a_check_and_a_checker_per_exercise(executed
 def test_the_written_questions_and_their_answer_cells():
     nb = build.read(build.NOTEBOOKS[build.CHAPTER8])
     markdown = {c.id: c for c in nb.cells if c.cell_type == "markdown"}
-    assert list(markdown)[-6] == "questions-md"
-    for k in range(1, 6):
+    assert list(markdown)[-7] == "questions-md"
+    for k in range(1, 7):
         assert f"**Question {k}.**" in markdown["questions-md"].source
         cell = markdown[f"answer-{k}"]
         assert cell.metadata["tags"] == [build.ANSWER_TAG] and f"Your answer to question {k}" in cell.source
@@ -221,7 +223,7 @@ def test_reference_answers_stay_out_of_the_student_tree():
 
     answers = (REPO_ROOT / "solutions" / "answers" / "chapter8.md").read_text()
     assert answers.startswith("# RELEASE: omit")
-    for k in range(1, 6):
+    for k in range(1, 7):
         assert f"## Question {k}:" in answers
     assert not [name for name in release.render(REPO_ROOT / "solutions") if name.startswith("answers")]
 

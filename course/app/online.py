@@ -294,14 +294,13 @@ def _number(value: float) -> str:
     return "-" if not np.isfinite(value) else f"{value:.1f}"
 
 
-def plot(result: dict, path) -> None:
-    """The time per step over the sequence: ours, GTSAM's, and the batch re-solves at their steps."""
-    import matplotlib
+def figure(result: dict):
+    """The time per step over the sequence: ours, GTSAM's, and the batch re-solves at their steps (a
+    matplotlib Figure, log scale)."""
+    from course.app.plot import figure as new_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(9, 4))
+    fig = new_figure(9, 4)
+    ax = fig.add_subplot()
     n, every = result["poses"], result["every"]
     for row in result["rows"]:
         if not len(row.seconds):
@@ -316,6 +315,11 @@ def plot(result: dict, path) -> None:
     ax.set_ylabel("time per step (ms)")
     ax.set_title(f"{result['name']}: online, one pose per step")
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return fig
+
+
+def plot(result: dict, path) -> None:
+    """:func:`figure` written as a PNG at ``path``."""
+    from course.app.plot import save
+
+    save(figure(result), path)

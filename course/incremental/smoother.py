@@ -9,7 +9,8 @@ new_values)``:
 2. fluid relinearisation: the variables whose step's largest entry exceeds ``relinearize_threshold``
    (the implementation's ``relinearised_keys``; checked every update, GTSAM's ``relinearizeSkip = 1``)
    move their linearisation point, ``theta_v <- theta_v (+) delta_v``, ``delta_v <- 0``, and every factor
-   on them is linearised again; the new factors are linearised;
+   on them is linearised again (with GTSAM's rule, by default: also the frontals of every clique whose
+   separator holds such a variable); the new factors are linearised;
 3. the affected top and its orphans (``affected_cliques``): the top's cliques are removed, its variables
    and the new ones re-eliminated (``course.incremental.reelimination``) from the factors whose
    variables all lie in the top and the orphans' cached factors, the new factors' variables ordered
@@ -45,10 +46,17 @@ class UpdateResult:
 
 
 class IncrementalSmoother:
-    """``IncrementalSmoother(impl="solutions", relinearize_threshold=0.01, wildfire_threshold=0.001)``."""
+    """``IncrementalSmoother(impl="solutions", relinearize_threshold=0.01, wildfire_threshold=0.001,
+    relinearize_neighbours=True)``.
 
-    def __init__(self, impl="solutions", relinearize_threshold: float = 0.01, wildfire_threshold: float = 0.001):
+    ``relinearize_neighbours``: as GTSAM's ISAM2 does, a variable whose step crossed the threshold also
+    relinearises the frontal variables of every clique that holds it in its separator (those cliques are
+    re-eliminated anyway); False relinearises the variables past the threshold alone."""
+
+    def __init__(self, impl="solutions", relinearize_threshold: float = 0.01, wildfire_threshold: float = 0.001,
+                 relinearize_neighbours: bool = True):
         self.impl = impl_loader.load(impl)
+        self.relinearize_neighbours = bool(relinearize_neighbours)
         self.relinearize_threshold = float(relinearize_threshold)
         self.wildfire_threshold = float(wildfire_threshold)
         self.keys: list = []
@@ -82,6 +90,8 @@ class IncrementalSmoother:
         candidates = sorted(v for v in self._changed if v < n_tree)
         relin = [candidates[k] for k in incremental.relinearised_keys([self.delta[v] for v in candidates],
                                                                       self.relinearize_threshold)]
+        if relin and self.relinearize_neighbours:
+            relin = self._with_neighbours(relin)
         new_keys = sorted({v for i in new_ids for v in self.factors.keys[i]})
         if len(self.tree):
             top, orphans = incremental.affected_cliques(self.tree.frontals, self.tree.separators, self.tree.parents,
@@ -122,6 +132,15 @@ class IncrementalSmoother:
                                                         self.wildfire_threshold, self.dims)
             self._changed = {v for c in recomputed for v in self.tree.frontals[c]}
         return UpdateResult(len(relin), len(variables), len(recomputed), len(self.tree))
+
+    def _with_neighbours(self, relin: list) -> list:
+        """``relin`` and the frontals of every clique whose separator holds one of them, sorted."""
+        marked = set(relin)
+        out = set(relin)
+        for frontals, separator in zip(self.tree.frontals, self.tree.separators):
+            if not marked.isdisjoint(separator):
+                out.update(frontals)
+        return sorted(out)
 
     def _add(self, graph, values: dict) -> tuple:
         """Check, then store, the new variables and factors: ``(new variable indices, new factor ids)``."""

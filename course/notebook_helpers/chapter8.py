@@ -13,6 +13,8 @@ student's own ``elimination``, ``orderings`` and ``marginal_covariances`` run):
   Bayes tree has (every variable frontal in one clique, each separator inside its parent's variables).
 * ``affected_check``, ``wildfire_check``: the student's incremental update on the game's Bayes tree: the
   top and orphans of a few updates, and the partial state update, tested by the properties the contract states.
+* ``online_run``, ``online_table``, ``online_figure``: a pose graph fed one pose per step to the smoother on
+  the student's pieces, GTSAM's ISAM2 and batch re-solves (``course.app.online``), and the time per step.
 * ``graph_of``, ``ordering_rows``, ``ordering_table``: the fill and the factor's size under the natural order,
   the student's minimum degree, reverse Cuthill-McKee (scipy) and AMD (cvxopt, where installed).
 * ``pose_graph_information``, ``square_root_information``, ``marginals_run``, ``ellipse_figure``: a 2D pose
@@ -489,3 +491,28 @@ def ellipse_figure(info: Information, covariances, every: int = 10, sigmas: floa
     ax.set_ylabel("y (m)")
     ax.set_title(f"{sigmas:g}-sigma position ellipses (every {every}th pose), relative to the first pose", fontsize=9)
     return fig
+
+
+# ---------------------------------------------------------------- section 6: online
+
+
+def online_run(name: str, impl, poses: int | None = None) -> dict:
+    """``name`` (its first ``poses`` poses) fed one pose per step to the smoother built on ``impl``'s five
+    functions (``course.incremental``), to GTSAM's ISAM2 and to batch re-solves: ``course.app.online.compare``'s
+    result (its rows name an unwritten TODO or a missing peer)."""
+    from course.app import online
+
+    return online.compare(name, impl, poses=poses)
+
+
+def online_table(result: dict) -> str:
+    from course.app import online
+
+    return online.format_table(result)
+
+
+def online_figure(result: dict):
+    """The time per step over the sequence, log scale (``course.app.online.figure``)."""
+    from course.app import online
+
+    return online.figure(result)
