@@ -89,7 +89,7 @@ def compare(dataset: str, impl="solutions", repeat: int = 3, dense_limit: int = 
     from course.solver import minimize
 
     kind, graph, problem = _load(dataset, impl)
-    x = minimize(problem, "lm-type3").params
+    x = minimize(problem, "lm-type3", impl).params
     dof = 3 if kind == "posegraph" else 6
     N = graph.num_poses
     free = np.setdiff1d(np.arange(N), graph.fixed)
