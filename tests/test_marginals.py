@@ -270,3 +270,18 @@ def test_r_stores_each_diagonal_block_whole_even_where_h_has_a_structural_zero()
     inverse = np.linalg.inv(H)
     np.testing.assert_allclose(M.covariance(0), inverse[:3, :3], rtol=1e-12)
     np.testing.assert_allclose(M.covariance(1), inverse[3:, 3:], rtol=1e-12)
+
+
+def test_the_marginals_command_solves_with_the_chosen_implementation(capsys, tmp_path):
+    import shutil
+
+    from course.app.cli import main
+    from course.core.impl import REPO_ROOT
+
+    # the reference with chapter 1's damping left a TODO: the batch solve must stop there, named in one line
+    # (it used to take the reference's damping whatever the implementation, which a student tree does not have)
+    shutil.copytree(REPO_ROOT / "solutions", tmp_path / "impl", ignore=shutil.ignore_patterns("answers", "rubrics"))
+    shutil.copy(REPO_ROOT / "exercises" / "damping.py", tmp_path / "impl" / "damping.py")
+    assert main(["marginals", "tinyGrid3D", "--repeat", "1", "--impl", str(tmp_path / "impl")]) != 0
+    captured = capsys.readouterr()
+    assert "TODO damping" in captured.err and "Traceback" not in captured.err
