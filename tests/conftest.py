@@ -18,6 +18,26 @@ if _WORKER.startswith("gw") and _WORKER[2:].isdigit():
     os.environ["AUTOGRADER_FIRST_ID"] = str(61700 + 200 * int(_WORKER[2:]))
 
 
+@pytest.fixture(scope="session", autouse=True)
+def oracle_cache(tmp_path_factory):
+    """The reference's data (``autograder.oracle.compute``) kept for the whole run, shared by the xdist
+    workers and every grading process they start: the hidden data of one seed is computed once, not
+    once per grading run. Its key holds the calls' inputs, the sources and numpy's build; a test that
+    swaps what the reference computes with (a LAPACK driver) unsets it."""
+    from autograder.oracle import CACHE_VARIABLE
+
+    base = tmp_path_factory.getbasetemp()
+    folder = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "oracle-cache"
+    folder.mkdir(exist_ok=True)
+    before = os.environ.get(CACHE_VARIABLE)
+    os.environ[CACHE_VARIABLE] = str(folder)
+    yield folder
+    if before is None:
+        os.environ.pop(CACHE_VARIABLE, None)
+    else:
+        os.environ[CACHE_VARIABLE] = before
+
+
 @pytest.fixture
 def data_folder():
     """The shared data folder (``course.core.data.data_dir()``); skip when it is absent."""

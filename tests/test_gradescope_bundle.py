@@ -14,6 +14,7 @@ import pytest
 from conftest import gradescope_zip
 
 from autograder import submission as uploads
+from autograder.oracle import CACHE_VARIABLE
 from autograder.release import gradescope
 from course.core.impl import REPO_ROOT
 
@@ -123,6 +124,8 @@ def start_autograder(bundle, name, submission_files, setup=None):
         setup(root)
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "AUTOGRADER"))}
     env["AUTOGRADER_ROOT"] = str(root)
+    if CACHE_VARIABLE in os.environ:  # the test run's cache: the runs of one bundle share its seed's data
+        env[CACHE_VARIABLE] = os.environ[CACHE_VARIABLE]
     env["PATH"] = f"{bundle['bin']}{os.pathsep}{env.get('PATH', '/usr/bin:/bin')}"
     process = subprocess.Popen(["bash", str(root / "source" / "run_autograder")], cwd=str(root), env=env,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
