@@ -26,6 +26,7 @@ Inputs at the edges of the contract (each is a check input):
 - scalar variables only (every size 1)
 - variables of sizes 1, 2, 3 and 6 mixed, with loop closures (fill-in in R)
 - a filled-in entry of R stored with the value 0
+- a variable with two or more children in the elimination tree (R's rows branch)
 - R given as CSR
 - R given as CSC
 - a chain of 20,000 scalar variables (a dense Sigma needs 3.2 GB)

@@ -26,6 +26,7 @@ Inputs at the edges of the contract (each is a check input):
 - scalar variables only (every size 1)
 - variables of sizes 1, 2, 3 and 6 mixed, with loop closures (fill-in in R)
 - a filled-in entry of R stored with the value 0
+- a variable with two or more children in the elimination tree (R's rows branch)
 - R given as CSR
 - R given as CSC
 - a chain of 20,000 scalar variables (a dense Sigma needs 3.2 GB)
@@ -160,9 +161,8 @@ def marginal_covariances(R, sizes):
         at = np.searchsorted(key, v * n + c)
         bad = (at >= len(key)) | (key[np.minimum(at, len(key) - 1)] != v * n + c)
         if bad.any():
-            k = int(np.flatnonzero(bad)[0])
-            raise ValueError(f"R's pattern is not closed under elimination: {what(k)} (a stored 0 is part of the "
-                             "pattern)")
+            raise ValueError(f"R's pattern is not closed under elimination: {what(int(np.flatnonzero(bad)[0]))} (a "
+                             "stored 0 is part of the pattern)")
         return at - col_ptr[v]
 
     # every stored entry's place in its (|F|, |F| + |K|) block of rows

@@ -55,9 +55,11 @@ def symbolic(coupled) -> list:
     return rows
 
 
-def factor_graph(rng, sizes, loops):
+def factor_graph(rng, sizes, loops, tree=False):
     """``(R dense (n, n), pattern rows, coupled)`` of a chain of variables of ``sizes`` with ``loops``
-    closures (pairs of variables at least 2 apart), a prior on the first and ``PRIOR`` I."""
+    closures (pairs of variables at least 2 apart), a prior on the first and ``PRIOR`` I. ``tree``: each
+    variable but the last tied to a later one drawn at random instead of the next (the first two to the
+    last), so that the elimination tree branches."""
     sizes = list(sizes)
     m = len(sizes)
     starts = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
@@ -77,7 +79,11 @@ def factor_graph(rng, sizes, loops):
 
     factor([0])
     for v in range(1, m):
-        factor([v - 1, v])
+        if tree:
+            u = v - 1
+            factor([u, m - 1 if u < 2 else int(rng.integers(u + 1, m))])
+        else:
+            factor([v - 1, v])
     pairs = set()
     while len(pairs) < min(loops, max(0, (m - 1) * (m - 2) // 2)):
         i, j = sorted(rng.choice(m, 2, replace=False).tolist())
@@ -120,8 +126,8 @@ def _sizes(rng, count, last):
 @cache
 def problem(kind, seed=None):
     """``{n, fmt, indptr, indices, data, sizes, where}`` of one kind of input: ``graph``, ``zero``,
-    ``scalar``, ``one`` or ``chain``."""
-    code = {"graph": 801, "zero": 801, "scalar": 803, "one": 805, "chain": 807}[kind]
+    ``scalar``, ``one``, ``tree`` or ``chain``."""
+    code = {"graph": 801, "zero": 801, "scalar": 803, "one": 805, "chain": 807, "tree": 809}[kind]
     rng = np.random.default_rng(code if seed is None else [seed, code])
     if kind == "chain":
         d = rng.uniform(1.0, 2.0, CHAIN)
@@ -139,15 +145,20 @@ def problem(kind, seed=None):
         sizes, loops = [d], 0
     elif kind == "scalar":
         sizes, loops = [1] * (12 if seed is None else int(rng.integers(8, 16))), 3
+    elif kind == "tree":
+        count = 10 if seed is None else int(rng.integers(8, 14))
+        sizes, loops = _sizes(rng, count, 3), 1
     else:
         count = 14 if seed is None else int(rng.integers(10, 18))
         sizes, loops = _sizes(rng, count, 6 if seed is None else int(rng.choice([2, 3, 6]))), 3
-    R, rows, coupled = factor_graph(rng, sizes, loops)
-    fmt = {"graph": "csc", "zero": "csr", "scalar": "csr", "one": "csc"}[kind]
+    R, rows, coupled = factor_graph(rng, sizes, loops, tree=kind == "tree")
+    fmt = {"graph": "csc", "zero": "csr", "scalar": "csr", "one": "csc", "tree": "csr"}[kind]
     where = {"graph": f"on a factor graph of {len(sizes)} variables of sizes {sizes} with loop closures "
                       f"(R as CSC, {sum(len(c) for c in rows)} stored entries)",
              "scalar": f"on a factor graph of {len(sizes)} scalar variables with loop closures (R as CSR)",
              "one": f"on one variable of size {sizes[0]} (R (n, n) upper triangular, CSC)",
+             "tree": f"on a factor graph of {len(sizes)} variables of sizes {sizes} whose elimination tree "
+                     "branches (a variable with two or more children; R as CSR)",
              "zero": ""}[kind]
     if kind == "zero":
         fill = [(i, j) for i, cols in enumerate(rows) for j in cols if j > i and not coupled[i, j]]
@@ -174,7 +185,7 @@ def _root_calls(seed=None):
 
 
 def _every_calls(seed=None):
-    return [_marginals_call(problem(kind, seed)) for kind in ("graph", "scalar", "zero", "one")]
+    return [_marginals_call(problem(kind, seed)) for kind in ("graph", "scalar", "zero", "one", "tree")]
 
 
 def _chain_calls(seed=None):
@@ -329,6 +340,21 @@ def _fill(call):
     return bool(np.any(np.abs(owner[outer] - owner[indices]) >= 2))
 
 
+def _branching(call):
+    """Some variable is the parent of two or more in R's elimination tree (first column right of its rows)."""
+    sizes = _sizes_of(call)
+    owner = np.repeat(np.arange(len(sizes)), sizes)
+    indptr, indices = np.asarray(call.args[2]), np.asarray(call.args[3])
+    outer = np.repeat(np.arange(call.args[0]), np.diff(indptr))
+    if call.args[1] == "csc":
+        outer, indices = indices, outer
+    later = owner[indices] > owner[outer]
+    parent = np.full(len(sizes), len(sizes))
+    np.minimum.at(parent, owner[outer][later], owner[indices][later])
+    children = np.bincount(parent[parent < len(sizes)], minlength=len(sizes))
+    return bool(np.any(children >= 2))
+
+
 EDGES = (
     Edge("one variable (the root is the whole of R)", MARGINALS_TASK, lambda c: len(_sizes_of(c)) == 1),
     Edge("scalar variables only (every size 1)", MARGINALS_TASK,
@@ -336,6 +362,8 @@ EDGES = (
     Edge("variables of sizes 1, 2, 3 and 6 mixed, with loop closures (fill-in in R)", MARGINALS_TASK,
          lambda c: _mixed(c) and _fill(c)),
     Edge("a filled-in entry of R stored with the value 0", MARGINALS_TASK, _stored_zero),
+    Edge("a variable with two or more children in the elimination tree (R's rows branch)", MARGINALS_TASK,
+         _branching),
     Edge("R given as CSR", MARGINALS_TASK, lambda c: c.args[1] == "csr"),
     Edge("R given as CSC", MARGINALS_TASK, lambda c: c.args[1] == "csc"),
     Edge("a chain of 20,000 scalar variables (a dense Sigma needs 3.2 GB)", MARGINALS_TASK,
