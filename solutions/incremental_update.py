@@ -45,6 +45,8 @@ Inputs at the edges of the contract (each is a check input):
 Allowed imports: numpy, scipy, course.core.errors.
 """
 
+import itertools
+
 import numpy as np
 import scipy.linalg.lapack
 
@@ -63,12 +65,12 @@ def _tree(frontals, clique_separators, parents):
     bad = np.flatnonzero((parents < -1) | (parents >= C))
     if bad.size:
         raise ValueError(f"parents[{bad[0]}] = {parents[bad[0]]} is not a clique (0..{C - 1}) or -1 for a root")
-    flat = np.fromiter((int(v) for F in frontals for v in F), dtype=np.int64)
+    flat = np.fromiter(itertools.chain.from_iterable(frontals), dtype=np.int64)
     n = len(flat)
     if n and (flat.min() < 0 or flat.max() >= n or np.bincount(flat, minlength=n).max() > 1):
         seen = sorted(flat.tolist())
         raise ValueError(f"frontals must hold every variable of 0..{n - 1} exactly once, got {seen}")
-    members = np.fromiter((int(v) for S in clique_separators for v in S), dtype=np.int64)
+    members = np.fromiter(itertools.chain.from_iterable(clique_separators), dtype=np.int64)
     if members.size and (members.min() < 0 or members.max() >= n):
         for c, S in enumerate(clique_separators):
             for j, v in enumerate(S):
@@ -129,10 +131,20 @@ def affected_cliques(frontals, clique_separators, parents, new_keys, relinearise
             if k < 0 or (name == "relinearised" and k >= n):
                 raise ValueError(f"{name}[{i}] = {k} is not a variable of the tree (0..{n - 1})")
     # BEGIN SOLUTION
-    home = {v: c for c, F in enumerate(frontals) for v in F}
-    marked = {home[k] for k in new_keys if k < n}
+    C = len(frontals)
+    home = np.empty(n, dtype=int)  # the clique holding each variable as a frontal
+    home[np.fromiter(itertools.chain.from_iterable(frontals), dtype=int, count=n)] = np.repeat(
+        np.arange(C), [len(F) for F in frontals])
+    marked = {int(home[k]) for k in new_keys if k < n}
     relin = set(relinearised)
-    marked |= {c for c, (F, S) in enumerate(zip(frontals, clique_separators)) if relin & (set(F) | set(S))}
+    # the cliques that may hold a relinearised variable (its home, a clique listing it in its separator): only
+    # those are tested, not every clique
+    hit = np.zeros(n, dtype=bool)
+    hit[relinearised] = True
+    in_separator = np.repeat(np.arange(C), [len(S) for S in clique_separators])[
+        hit[np.fromiter(itertools.chain.from_iterable(clique_separators), dtype=int)]]
+    near = set(home[relinearised].tolist()) | set(in_separator.tolist())
+    marked |= {c for c, F, S in ((c, frontals[c], clique_separators[c]) for c in near) if relin & (set(F) | set(S))}
     top: set = set()
     for c in marked:
         while c != -1 and c not in top:
