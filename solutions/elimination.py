@@ -101,8 +101,8 @@ def eliminate_variable(A_x, A_s, b):
     eta = A.T @ b
     L = np.linalg.cholesky(Lam[:n_x, :n_x])
     R = L.T
-    S = scipy.linalg.solve_triangular(L, Lam[:n_x, n_x:], lower=True, check_finite=False)  # R^-T Lambda_xs
-    d = scipy.linalg.solve_triangular(L, eta[:n_x], lower=True, check_finite=False)  # R^-T eta_x
+    S = scipy.linalg.lapack.dtrtrs(L, Lam[:n_x, n_x:], lower=1)[0]  # R^-T Lambda_xs (LAPACK's triangular solve)
+    d = scipy.linalg.lapack.dtrtrs(L, eta[:n_x], lower=1)[0]  # R^-T eta_x
     Lam_new = Lam[n_x:, n_x:] - S.T @ S
     eta_new = eta[n_x:] - S.T @ d
     # the new factor: an upper Cholesky factor of [Lam_new | eta_new] that skips the pivots rounding
@@ -114,7 +114,7 @@ def eliminate_variable(A_x, A_s, b):
         try:
             L_new = np.linalg.cholesky(Lam_new)
             if np.all(np.diagonal(L_new) ** 2 > floor):
-                eta_rows = scipy.linalg.solve_triangular(L_new, eta_new, lower=True, check_finite=False)
+                eta_rows = scipy.linalg.lapack.dtrtrs(L_new, eta_new, lower=1)[0]
                 factor = np.column_stack([L_new.T, eta_rows])
         except np.linalg.LinAlgError:
             pass
