@@ -188,15 +188,17 @@ def wildfire_update(frontals, clique_separators, parents, conditionals, delta, r
             raise ValueError(f"delta[{v}] must be a finite 1-D step (d_v,), got shape {step.shape}")
     if len(conditionals) != len(frontals):
         raise ValueError(f"conditionals must hold one (R, S, d) per clique ({len(frontals)}), got {len(conditionals)}")
+    sizes = [step.size for step in old]
     for c, (R, S, d) in enumerate(conditionals):
-        f = sum(old[v].size for v in frontals[c])
-        s = sum(old[v].size for v in clique_separators[c])
+        f = sum(sizes[v] for v in frontals[c])
+        s = sum(sizes[v] for v in clique_separators[c])
         for name, block, shape in (("R", R, (f, f)), ("S", S, (f, s)), ("d", d, (f,))):
             if np.shape(block) != shape:
                 raise ShapeError(f"conditionals[{c}]: {name} has shape {np.shape(block)}, expected {shape} (clique "
                                  f"{c}'s frontals {list(frontals[c])}, separator {list(clique_separators[c])})")
-        zero = np.flatnonzero(np.diag(np.asarray(R, dtype=float)) == 0.0)
-        if zero.size:
+        diagonal = np.asarray(R, dtype=float).diagonal()
+        if not diagonal.all():
+            zero = np.flatnonzero(diagonal == 0.0)
             raise SingularSystemError(f"conditionals[{c}]: R[{zero[0]}, {zero[0]}] is 0, R is singular")
     if not threshold >= 0:
         raise ValueError(f"threshold must be >= 0, got {threshold!r}")
