@@ -66,7 +66,7 @@ def _inputs(A_x, A_s, b):
     for name, a, ndim in (("A_x", A_x, 2), ("A_s", A_s, 2), ("b", b, 1)):
         if a.ndim != ndim:
             raise ShapeError(f"{name} must be a {ndim}-D array, got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"{name} has entries that are not finite")
     m = len(b)
     for name, a in (("A_x", A_x), ("A_s", A_s)):

@@ -66,7 +66,7 @@ def _inputs(A_x, A_s, b):
     for name, a, ndim in (("A_x", A_x, 2), ("A_s", A_s, 2), ("b", b, 1)):
         if a.ndim != ndim:
             raise ShapeError(f"{name} must be a {ndim}-D array, got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"{name} has entries that are not finite")
     m = len(b)
     for name, a in (("A_x", A_x), ("A_s", A_s)):
@@ -130,7 +130,7 @@ def eliminate_variable(A_x, A_s, b):
                 continue
             row = W[j] / np.sqrt(pivot)
             row[:j] = 0.0
-            W = W - np.outer(row[:n_s], row)
+            W[j + 1:] -= row[j + 1:n_s, None] * row  # the rows after j (the only ones read again)
             rows.append(row)
         factor = np.array(rows).reshape(len(rows), n_s + 1)
     return R, S, d, factor[:, :n_s], factor[:, n_s]
