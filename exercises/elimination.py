@@ -43,8 +43,22 @@ Allowed imports: numpy, scipy, course.core.errors.
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 
 from course.core.errors import ShapeError, SingularSystemError
+
+
+def _clearly_full_rank(A_x) -> bool:
+    """True when A_x (m, n_x) has rank n_x by a margin no rounding reaches, from the Cholesky factor R of its
+    Gram matrix (cheaper than the SVD of ``matrix_rank``): ``sigma_min(A_x)^2 >= 1 / ||R^-1||_F^2`` up to the
+    Gram matrix's rounding (about ``eps ||A_x||_F^2``). False (then the SVD decides) when not clear."""
+    G = A_x.T @ A_x
+    L, info = scipy.linalg.lapack.dpotrf(G, lower=1)  # LAPACK directly: a failure is info > 0, not an exception
+    if info:
+        return False
+    L_inv, info = scipy.linalg.lapack.dtrtri(L, lower=1)
+    margin = 1e3 * A_x.shape[1] * np.finfo(float).eps * np.trace(G)
+    return not info and bool(margin * float(np.vdot(L_inv, L_inv)) < 1.0)
 
 
 def _inputs(A_x, A_s, b):
@@ -52,7 +66,7 @@ def _inputs(A_x, A_s, b):
     for name, a, ndim in (("A_x", A_x, 2), ("A_s", A_s, 2), ("b", b, 1)):
         if a.ndim != ndim:
             raise ShapeError(f"{name} must be a {ndim}-D array, got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"{name} has entries that are not finite")
     m = len(b)
     for name, a in (("A_x", A_x), ("A_s", A_s)):
@@ -60,6 +74,8 @@ def _inputs(A_x, A_s, b):
             raise ShapeError(f"{name} has {len(a)} rows but b has {m}: every row is one whitened measurement")
     if A_x.shape[1] == 0:
         raise ShapeError("A_x has no columns: the eliminated variable has at least one unknown")
+    if m >= A_x.shape[1] and _clearly_full_rank(A_x):
+        return A_x, A_s, b
     rank = int(np.linalg.matrix_rank(A_x)) if m else 0
     if rank < A_x.shape[1]:
         raise SingularSystemError(

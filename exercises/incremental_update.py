@@ -45,8 +45,10 @@ Inputs at the edges of the contract (each is a check input):
 Allowed imports: numpy, scipy, course.core.errors.
 """
 
+import itertools
+
 import numpy as np
-import scipy.linalg
+import scipy.linalg.lapack
 
 from course.core.errors import ShapeError, SingularSystemError
 
@@ -63,15 +65,24 @@ def _tree(frontals, clique_separators, parents):
     bad = np.flatnonzero((parents < -1) | (parents >= C))
     if bad.size:
         raise ValueError(f"parents[{bad[0]}] = {parents[bad[0]]} is not a clique (0..{C - 1}) or -1 for a root")
-    seen = sorted(int(v) for F in frontals for v in F)
-    n = len(seen)
-    if seen != list(range(n)):
+    flat = np.fromiter(itertools.chain.from_iterable(frontals), dtype=np.int64)
+    n = len(flat)
+    if n and (flat.min() < 0 or flat.max() >= n or np.bincount(flat, minlength=n).max() > 1):
+        seen = sorted(flat.tolist())
         raise ValueError(f"frontals must hold every variable of 0..{n - 1} exactly once, got {seen}")
-    for c, S in enumerate(clique_separators):
-        for j, v in enumerate(S):
-            if not 0 <= int(v) < n:
-                raise ValueError(f"clique_separators[{c}][{j}] = {v} is not a variable of the tree (0..{n - 1})")
+    members = np.fromiter(itertools.chain.from_iterable(clique_separators), dtype=np.int64)
+    if members.size and (members.min() < 0 or members.max() >= n):
+        for c, S in enumerate(clique_separators):
+            for j, v in enumerate(S):
+                if not 0 <= int(v) < n:
+                    raise ValueError(f"clique_separators[{c}][{j}] = {v} is not a variable of the tree (0..{n - 1})")
     parents = parents.astype(int)
+    # a forest: every clique's 2^k-th ancestor is -1 once 2^k >= C (pointer doubling); else walk to name a cycle
+    ancestor = parents.copy()
+    for _ in range(int(C).bit_length()):
+        ancestor = np.where(ancestor >= 0, ancestor[ancestor], -1)
+    if not np.any(ancestor >= 0):
+        return parents, n
     state = np.zeros(C, dtype=int)  # 0 not seen, 1 on the current walk up, 2 reaches a root
     for start in range(C):
         path, c = [], start
@@ -177,15 +188,17 @@ def wildfire_update(frontals, clique_separators, parents, conditionals, delta, r
             raise ValueError(f"delta[{v}] must be a finite 1-D step (d_v,), got shape {step.shape}")
     if len(conditionals) != len(frontals):
         raise ValueError(f"conditionals must hold one (R, S, d) per clique ({len(frontals)}), got {len(conditionals)}")
+    sizes = [step.size for step in old]
     for c, (R, S, d) in enumerate(conditionals):
-        f = sum(old[v].size for v in frontals[c])
-        s = sum(old[v].size for v in clique_separators[c])
+        f = sum(sizes[v] for v in frontals[c])
+        s = sum(sizes[v] for v in clique_separators[c])
         for name, block, shape in (("R", R, (f, f)), ("S", S, (f, s)), ("d", d, (f,))):
             if np.shape(block) != shape:
                 raise ShapeError(f"conditionals[{c}]: {name} has shape {np.shape(block)}, expected {shape} (clique "
                                  f"{c}'s frontals {list(frontals[c])}, separator {list(clique_separators[c])})")
-        zero = np.flatnonzero(np.diag(np.asarray(R, dtype=float)) == 0.0)
-        if zero.size:
+        diagonal = np.asarray(R, dtype=float).diagonal()
+        if not diagonal.all():
+            zero = np.flatnonzero(diagonal == 0.0)
             raise SingularSystemError(f"conditionals[{c}]: R[{zero[0]}, {zero[0]}] is 0, R is singular")
     if not threshold >= 0:
         raise ValueError(f"threshold must be >= 0, got {threshold!r}")

@@ -43,8 +43,22 @@ Allowed imports: numpy, scipy, course.core.errors.
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 
 from course.core.errors import ShapeError, SingularSystemError
+
+
+def _clearly_full_rank(A_x) -> bool:
+    """True when A_x (m, n_x) has rank n_x by a margin no rounding reaches, from the Cholesky factor R of its
+    Gram matrix (cheaper than the SVD of ``matrix_rank``): ``sigma_min(A_x)^2 >= 1 / ||R^-1||_F^2`` up to the
+    Gram matrix's rounding (about ``eps ||A_x||_F^2``). False (then the SVD decides) when not clear."""
+    G = A_x.T @ A_x
+    L, info = scipy.linalg.lapack.dpotrf(G, lower=1)  # LAPACK directly: a failure is info > 0, not an exception
+    if info:
+        return False
+    L_inv, info = scipy.linalg.lapack.dtrtri(L, lower=1)
+    margin = 1e3 * A_x.shape[1] * np.finfo(float).eps * np.trace(G)
+    return not info and bool(margin * float(np.vdot(L_inv, L_inv)) < 1.0)
 
 
 def _inputs(A_x, A_s, b):
@@ -52,7 +66,7 @@ def _inputs(A_x, A_s, b):
     for name, a, ndim in (("A_x", A_x, 2), ("A_s", A_s, 2), ("b", b, 1)):
         if a.ndim != ndim:
             raise ShapeError(f"{name} must be a {ndim}-D array, got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"{name} has entries that are not finite")
     m = len(b)
     for name, a in (("A_x", A_x), ("A_s", A_s)):
@@ -60,6 +74,8 @@ def _inputs(A_x, A_s, b):
             raise ShapeError(f"{name} has {len(a)} rows but b has {m}: every row is one whitened measurement")
     if A_x.shape[1] == 0:
         raise ShapeError("A_x has no columns: the eliminated variable has at least one unknown")
+    if m >= A_x.shape[1] and _clearly_full_rank(A_x):
+        return A_x, A_s, b
     rank = int(np.linalg.matrix_rank(A_x)) if m else 0
     if rank < A_x.shape[1]:
         raise SingularSystemError(
@@ -85,8 +101,8 @@ def eliminate_variable(A_x, A_s, b):
     eta = A.T @ b
     L = np.linalg.cholesky(Lam[:n_x, :n_x])
     R = L.T
-    S = scipy.linalg.solve_triangular(L, Lam[:n_x, n_x:], lower=True)  # R^-T Lambda_xs
-    d = scipy.linalg.solve_triangular(L, eta[:n_x], lower=True)  # R^-T eta_x
+    S = scipy.linalg.lapack.dtrtrs(L, Lam[:n_x, n_x:], lower=1)[0]  # R^-T Lambda_xs (LAPACK's triangular solve)
+    d = scipy.linalg.lapack.dtrtrs(L, eta[:n_x], lower=1)[0]  # R^-T eta_x
     Lam_new = Lam[n_x:, n_x:] - S.T @ S
     eta_new = eta[n_x:] - S.T @ d
     # the new factor: an upper Cholesky factor of [Lam_new | eta_new] that skips the pivots rounding
@@ -98,7 +114,8 @@ def eliminate_variable(A_x, A_s, b):
         try:
             L_new = np.linalg.cholesky(Lam_new)
             if np.all(np.diagonal(L_new) ** 2 > floor):
-                factor = np.column_stack([L_new.T, scipy.linalg.solve_triangular(L_new, eta_new, lower=True)])
+                eta_rows = scipy.linalg.lapack.dtrtrs(L_new, eta_new, lower=1)[0]
+                factor = np.column_stack([L_new.T, eta_rows])
         except np.linalg.LinAlgError:
             pass
     if factor is None and 0 < len(b) - n_x < n_s:  # fewer rows than unknowns: the rows of a QR, rank-deficient
@@ -113,7 +130,7 @@ def eliminate_variable(A_x, A_s, b):
                 continue
             row = W[j] / np.sqrt(pivot)
             row[:j] = 0.0
-            W = W - np.outer(row[:n_s], row)
+            W[j + 1:] -= row[j + 1:n_s, None] * row  # the rows after j (the only ones read again)
             rows.append(row)
         factor = np.array(rows).reshape(len(rows), n_s + 1)
     return R, S, d, factor[:, :n_s], factor[:, n_s]

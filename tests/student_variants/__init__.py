@@ -1813,18 +1813,19 @@ EL_R, EL_SD, EL_NEW = ("elimination.eliminate_variable: " + t for t in (
     "the conditional's S and d: R^T S = Lambda_xs, R^T d = eta_x",
     "the new factor on the separator: A_new^T A_new and A_new^T b_new"))
 EL_IN = ("def eliminate_variable", "# BEGIN SOLUTION")
+EL_S_LINE = "S = scipy.linalg.lapack.dtrtrs(L, Lam[:n_x, n_x:], lower=1)[0]"
 BUGS_ELIMINATION = {
     # R^T S and R^T d are judged with the student's own R: a lower R costs the S-and-d check too
     "elim_R_lower": V("elimination.py", EL_IN, "    R = L.T\n", "    R = L\n", {EL_R, EL_SD}, "R is lower triangular"),
     "elim_S_is_Lambda_xs": V(
-        "elimination.py", EL_IN, "S = scipy.linalg.solve_triangular(L, Lam[:n_x, n_x:], lower=True)",
+        "elimination.py", EL_IN, EL_S_LINE,
         "S = Lam[:n_x, n_x:]", {EL_SD, EL_NEW}, "not Lambda_xs itself"),
     "elim_S_by_R_inverse": V(
-        "elimination.py", EL_IN, "S = scipy.linalg.solve_triangular(L, Lam[:n_x, n_x:], lower=True)",
+        "elimination.py", EL_IN, EL_S_LINE,
         "S = scipy.linalg.solve_triangular(L.T, Lam[:n_x, n_x:])", {EL_SD, EL_NEW}, "not R S = Lambda_xs"),
     "elim_d_is_eta_x": V(
-        "elimination.py", EL_IN, "d = scipy.linalg.solve_triangular(L, eta[:n_x], lower=True)", "d = eta[:n_x]",
-        {EL_SD, EL_NEW}, "not eta_x itself"),
+        "elimination.py", EL_IN, "d = scipy.linalg.lapack.dtrtrs(L, eta[:n_x], lower=1)[0]",
+        "d = eta[:n_x]", {EL_SD, EL_NEW}, "not eta_x itself"),
     "elim_no_schur_complement": V(
         "elimination.py", EL_IN, "Lam_new = Lam[n_x:, n_x:] - S.T @ S", "Lam_new = Lam[n_x:, n_x:]", {EL_NEW},
         "the Schur complement Lambda_ss - S^T S"),
@@ -1875,7 +1876,7 @@ ALTERNATIVES_ELIMINATION = {
                                  _after("elimination.py", "eliminate_variable", "    # the new factor:"),
                                  _EIGH_WRITE_BACK, set()),
     "elim_cholesky_by_numpy_solve": V(
-        "elimination.py", EL_IN, "S = scipy.linalg.solve_triangular(L, Lam[:n_x, n_x:], lower=True)",
+        "elimination.py", EL_IN, EL_S_LINE,
         "S = np.linalg.solve(R.T, Lam[:n_x, n_x:])", set()),
 }
 
