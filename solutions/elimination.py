@@ -37,6 +37,7 @@ Inputs at the edges of the contract (each is a check input):
 - a planar pose (n_x = 3) with factors of different sizes: a prior, odometry and a landmark
 - ill-scaled whitened blocks (entries from 1e-3 to 1e3)
 - fewer rows than n_x + n_s: the new factor's information is singular but not zero
+- as many rows as n_x + n_s or more, with a separator direction no row measures (a singular new factor)
 
 Allowed imports: numpy, scipy, course.core.errors.
 """

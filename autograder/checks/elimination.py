@@ -89,6 +89,11 @@ def problems(seed=None) -> list:
                         ([1e3, 1.0, 1.0], [1.0, 1.0, 1e-3])),
                 "on a pose with ill-scaled whitened blocks: a precise prior (entries near 1e3), odometry and a "
                 "landmark in other units (entries near 1e-3) (m = 8, n_s = 5)"))
+    rng = _rng(seed, 93)
+    out.append((*_stack(rng, [(3, [0]), (3, [0]), (3, [0, 1]), (1, [0, 2])], [POSE, POSE, LANDMARK]),
+                "on a pose with two priors, odometry and a landmark seen by one bearing (one row) (m = 10 >= n_x + n_s "
+                "= 8): enough rows, but no row measures one direction of the landmark, so the new factor's "
+                "information is singular"))
     return out
 
 
@@ -247,6 +252,12 @@ def _row_kinds(call) -> int:
     return len({tuple(np.flatnonzero(row)) for row in A_s})
 
 
+def _unmeasured(call) -> bool:
+    """The stacked rows ``[A_x A_s]`` have rank below n_x + n_s: some direction of the separator no row measures."""
+    A = np.hstack([np.asarray(a, dtype=float) for a in call.args[:2]])
+    return int(np.linalg.matrix_rank(A)) < A.shape[1]
+
+
 EDGES = (
     Edge("one factor of n_x rows (m = n_x): the new factor is empty", TARGET, lambda c: _sizes(c)[0] == _sizes(c)[1]),
     Edge("no separator (n_s = 0)", TARGET, lambda c: _sizes(c)[2] == 0),
@@ -256,4 +267,6 @@ EDGES = (
     Edge("ill-scaled whitened blocks (entries from 1e-3 to 1e3)", TARGET, lambda c: _spread(c) >= 1e5),
     Edge("fewer rows than n_x + n_s: the new factor's information is singular but not zero", TARGET,
          lambda c: _sizes(c)[1] < _sizes(c)[0] < _sizes(c)[1] + _sizes(c)[2]),
+    Edge("as many rows as n_x + n_s or more, with a separator direction no row measures (a singular new factor)",
+         TARGET, lambda c: _sizes(c)[0] >= _sizes(c)[1] + _sizes(c)[2] and _unmeasured(c)),
 )
