@@ -379,7 +379,7 @@ if online_result is not None:
 # measurement between poses 4 and 5 arrives: which cliques does it change (the paths from the cliques
 # holding its variables as frontals to the root)? And one between poses 0 and 3? Which variables would an
 # incremental update re-eliminate in each case, and why does iSAM2 order the newest variables last?
-
+#
 # **Question 6.** In the online table of section 6, how many variables does each smoother relinearise and
 # re-eliminate per step, on average, and how does that compare with the number of poses? Where in the
 # figure are the slowest steps, and what happened at them (look at the dataset's loop closures)? Compare the
