@@ -54,13 +54,6 @@ class NumericBayesTree:
         self.parents = np.concatenate([parents, new_parents]).astype(int)
         return list(range(offset, offset + len(new)))
 
-    def clique_of(self, n: int) -> np.ndarray:
-        """The clique holding each of the n variables as a frontal."""
-        out = np.full(n, -1, dtype=int)
-        for c, F in enumerate(self.frontals):
-            out[F] = c
-        return out
-
     def elimination_order(self) -> list:
         """An elimination order of the tree's variables: every clique's frontals (in their order) after
         those of all its descendants (children before parents)."""

@@ -22,9 +22,9 @@ new_values)``:
 current linearised system from the tree's conditionals (the implementation's ``marginal_covariances``).
 Variables fixed in a graph and robust losses are not taken: anchor a graph with a prior.
 
-Cost (``python -m course online intel --no-batch``, one run on a shared 2-core machine): 11.6 s in all
-over intel's 729 steps against GTSAM's ISAM2's 0.64 s in the same run (18x; median 11.9 against 0.51 ms
-a step); on all of M3500 185 s against 9.2 s. What is left is Python per re-eliminated clique (the
+Cost (``python -m course online intel``, then ``m3500``, one run each on a shared 2-core machine, GTSAM's ISAM2
+in the same run): 13.9 s in all over intel's 729 steps against ISAM2's 0.64 s (22x; median 11.0 against 0.45
+ms a step); on all of M3500 237 s against 7.4 s (32x). What is left is Python per re-eliminated clique (the
 stacking of its rows, ``eliminate_variable``'s checks and factorisations) and per clique the wildfire visits.
 """
 
