@@ -50,3 +50,17 @@ def test_the_first_poses_only(capsys):
     assert main(["online", "manhattan:40", "--poses", "12", "--no-batch"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("manhattan:40[:12]: 12 poses")
+
+
+@pytest.mark.skipif(not peers.installed("gtsam"), reason="gtsam not installed here")
+def test_a_3d_graph_runs_against_gtsam_s_isam2(capsys):
+    """pose3example (5 poses, ships with gtsam): both rows end within the start's reach of the minimum,
+    and iterating ours reaches it."""
+    assert main(["online", "pose3example", "--no-batch"]) == 0
+    out = capsys.readouterr().out
+    rows = {line.split()[0]: line.split() for line in out.splitlines() if line.startswith(("ours (", "GTSAM"))}
+    assert rows["ours"][2] == rows["GTSAM"][2] == "5"
+    minimum = float(out.split("batch minimum (ours, LM on the whole dataset): chi2 ")[1].split()[0])
+    assert float(rows["GTSAM"][-2]) >= minimum * (1 - 1e-9)
+    iterated = float(out.split("the last update iterated to convergence: chi2 ")[1].split()[0])
+    assert abs(iterated - minimum) <= 1e-6 * minimum

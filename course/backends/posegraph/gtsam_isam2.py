@@ -1,16 +1,13 @@
 """GTSAM's ISAM2 fed a 2D pose graph one pose at a time (the online comparison, ``python -m course online``).
 
-Step k adds pose k (``BetweenFactorPose2`` per edge whose later pose is k, ``noiseModel.Gaussian.Information``
-of the edge's information; step 0 a ``PriorFactorPose2`` on pose 0 of isotropic ``prior_sigma``) with its
-initial value the odometry edge between k - 1 and k (either way round) composed onto ISAM2's current
-estimate of pose k - 1 (the file's value where there is no such edge). ``ISAM2Params``: ``relinearizeThreshold`` and
-``relinearizeSkip = 1``, the rest GTSAM's defaults. Only ``isam.update`` is timed.
+The loop is ``course.backends.gtsam_isam2_feed``'s: ``BetweenFactorPose2`` per edge with
+``noiseModel.Gaussian.Information`` of the edge's information, a ``PriorFactorPose2`` on pose 0 of isotropic
+``prior_sigma``.
 """
-
-import time
 
 import numpy as np
 
+from course.backends.gtsam_isam2_feed import PoseFamily, feed
 from course.problems.posegraph.graph import PoseGraph
 
 
@@ -18,35 +15,14 @@ def run_online(graph: PoseGraph, prior_sigma: float = 1e-3, relinearize_threshol
     """``{"seconds": (N,) per update, "relinearized": (N,), "reeliminated": (N,), "poses": (N, 3)}``."""
     import gtsam
 
-    params = gtsam.ISAM2Params()
-    params.setRelinearizeThreshold(relinearize_threshold)
-    params.relinearizeSkip = 1
-    isam = gtsam.ISAM2(params)
-    n = graph.num_poses
-    later = np.maximum(graph.edges_i, graph.edges_j)
-    arriving = np.argsort(later, kind="stable")
-    bounds = np.searchsorted(later[arriving], np.arange(n + 1))
-    seconds, relinearized, reeliminated = np.zeros(n), np.zeros(n, dtype=int), np.zeros(n, dtype=int)
-    for k in range(n):
-        factors = gtsam.NonlinearFactorGraph()
-        values = gtsam.Values()
-        initial = gtsam.Pose2(*graph.poses[k])
-        if k == 0:
-            factors.add(gtsam.PriorFactorPose2(0, initial, gtsam.noiseModel.Isotropic.Sigma(3, prior_sigma)))
-        for e in arriving[bounds[k]:bounds[k + 1]].tolist():
-            i, j = int(graph.edges_i[e]), int(graph.edges_j[e])
-            z = gtsam.Pose2(*graph.measurements[e])
-            factors.add(gtsam.BetweenFactorPose2(i, j, z, gtsam.noiseModel.Gaussian.Information(graph.information[e])))
-            if (i, j) == (k - 1, k) and k > 0:
-                initial = isam.calculateEstimatePose2(k - 1).compose(z)
-            elif (i, j) == (k, k - 1) and k > 0:  # the odometry from k to k - 1 (intel's order)
-                initial = isam.calculateEstimatePose2(k - 1).compose(z.inverse())
-        values.insert(k, initial)
-        start = time.perf_counter()
-        result = isam.update(factors, values)
-        seconds[k] = time.perf_counter() - start
-        relinearized[k] = result.getVariablesRelinearized()
-        reeliminated[k] = result.getVariablesReeliminated()
+    family = PoseFamily(
+        initial=lambda k: gtsam.Pose2(*graph.poses[k]),
+        prior=lambda pose: gtsam.PriorFactorPose2(0, pose, gtsam.noiseModel.Isotropic.Sigma(3, prior_sigma)),
+        measurement=lambda e: gtsam.Pose2(*graph.measurements[e]),
+        between=lambda e, z: gtsam.BetweenFactorPose2(int(graph.edges_i[e]), int(graph.edges_j[e]), z,
+                                                      gtsam.noiseModel.Gaussian.Information(graph.information[e])),
+        estimate=lambda isam, k: isam.calculateEstimatePose2(k))
+    isam, out = feed(graph.edges_i, graph.edges_j, graph.num_poses, family, relinearize_threshold)
     estimate = isam.calculateEstimate()
-    poses = np.array([[p.x(), p.y(), p.theta()] for p in (estimate.atPose2(k) for k in range(n))])
-    return {"seconds": seconds, "relinearized": relinearized, "reeliminated": reeliminated, "poses": poses}
+    out["poses"] = np.array([[p.x(), p.y(), p.theta()] for p in (estimate.atPose2(k) for k in range(graph.num_poses))])
+    return out

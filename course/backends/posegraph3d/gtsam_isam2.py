@@ -1,13 +1,13 @@
 """GTSAM's ISAM2 fed a 3D pose graph one pose at a time (the online comparison, ``python -m course online``).
 
-As the 2D driver (``course.backends.posegraph.gtsam_isam2``) with ``BetweenFactorPose3``, the information
-matrices in GTSAM's tangent order (rotation first), and a ``PriorFactorPose3`` on pose 0.
+The loop is ``course.backends.gtsam_isam2_feed``'s: ``BetweenFactorPose3`` per edge with the information
+matrices in GTSAM's tangent order (rotation first), a ``PriorFactorPose3`` on pose 0 of isotropic
+``prior_sigma``.
 """
-
-import time
 
 import numpy as np
 
+from course.backends.gtsam_isam2_feed import PoseFamily, feed
 from course.backends.posegraph3d.gtsam import information_for_gtsam
 from course.problems.posegraph3d.graph import PoseGraph3D
 
@@ -16,37 +16,16 @@ def run_online(graph: PoseGraph3D, prior_sigma: float = 1e-3, relinearize_thresh
     """``{"seconds": (N,) per update, "relinearized": (N,), "reeliminated": (N,), "t": (N, 3), "R": (N, 3, 3)}``."""
     import gtsam
 
-    params = gtsam.ISAM2Params()
-    params.setRelinearizeThreshold(relinearize_threshold)
-    params.relinearizeSkip = 1
-    isam = gtsam.ISAM2(params)
-    n = graph.num_poses
     info = information_for_gtsam(graph.information)
-    later = np.maximum(graph.edges_i, graph.edges_j)
-    arriving = np.argsort(later, kind="stable")
-    bounds = np.searchsorted(later[arriving], np.arange(n + 1))
-    seconds, relinearized, reeliminated = np.zeros(n), np.zeros(n, dtype=int), np.zeros(n, dtype=int)
-    for k in range(n):
-        factors = gtsam.NonlinearFactorGraph()
-        values = gtsam.Values()
-        initial = gtsam.Pose3(gtsam.Rot3(graph.R[k]), graph.t[k])
-        if k == 0:
-            factors.add(gtsam.PriorFactorPose3(0, initial, gtsam.noiseModel.Isotropic.Sigma(6, prior_sigma)))
-        for e in arriving[bounds[k]:bounds[k + 1]].tolist():
-            i, j = int(graph.edges_i[e]), int(graph.edges_j[e])
-            z = gtsam.Pose3(gtsam.Rot3(graph.R_z[e]), graph.t_z[e])
-            factors.add(gtsam.BetweenFactorPose3(i, j, z, gtsam.noiseModel.Gaussian.Information(info[e])))
-            if (i, j) == (k - 1, k) and k > 0:
-                initial = isam.calculateEstimatePose3(k - 1).compose(z)
-            elif (i, j) == (k, k - 1) and k > 0:  # the odometry from k to k - 1 (intel's order)
-                initial = isam.calculateEstimatePose3(k - 1).compose(z.inverse())
-        values.insert(k, initial)
-        start = time.perf_counter()
-        result = isam.update(factors, values)
-        seconds[k] = time.perf_counter() - start
-        relinearized[k] = result.getVariablesRelinearized()
-        reeliminated[k] = result.getVariablesReeliminated()
+    family = PoseFamily(
+        initial=lambda k: gtsam.Pose3(gtsam.Rot3(graph.R[k]), graph.t[k]),
+        prior=lambda pose: gtsam.PriorFactorPose3(0, pose, gtsam.noiseModel.Isotropic.Sigma(6, prior_sigma)),
+        measurement=lambda e: gtsam.Pose3(gtsam.Rot3(graph.R_z[e]), graph.t_z[e]),
+        between=lambda e, z: gtsam.BetweenFactorPose3(int(graph.edges_i[e]), int(graph.edges_j[e]), z,
+                                                      gtsam.noiseModel.Gaussian.Information(info[e])),
+        estimate=lambda isam, k: isam.calculateEstimatePose3(k))
+    isam, out = feed(graph.edges_i, graph.edges_j, graph.num_poses, family, relinearize_threshold)
     estimate = isam.calculateEstimate()
-    matrices = np.array([estimate.atPose3(k).matrix() for k in range(n)])
-    return {"seconds": seconds, "relinearized": relinearized, "reeliminated": reeliminated,
-            "t": matrices[:, :3, 3], "R": matrices[:, :3, :3]}
+    matrices = np.array([estimate.atPose3(k).matrix() for k in range(graph.num_poses)])
+    out["t"], out["R"] = matrices[:, :3, 3], matrices[:, :3, :3]
+    return out
