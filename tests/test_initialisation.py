@@ -1,7 +1,6 @@
 """Chapter 3b: spanning-tree and chordal initialisation of 2D pose graphs, and ``--init``."""
 
 import json
-import statistics
 
 import numpy as np
 import pytest
@@ -307,27 +306,14 @@ def test_full_information_graphs_initialise(data_folder, name):
 
 
 @pytest.mark.slow
-def test_w10000_chordal_gauss_newton_and_its_time():
+def test_w10000_chordal_gauss_newton():
+    """From the chordal start, Gauss-Newton reaches the minimum in a few iterations (its time against an
+    iteration's is a benchmark's: ``python -m course benchmark``, not a timed test)."""
     graph = _load("w10000")
     start, _ = initialise(graph, "chordal")
     result = _solve(start, "gauss-newton")
     assert result.iterations <= 6
     np.testing.assert_allclose(result.final_chi2, W10000_CHI2, rtol=RTOL)
-    # time: the chordal initialisation against one of our Gauss-Newton iterations, medians
-    # of 5 in the same run; an iteration as the table's ms/iter (the solve from the file's
-    # poses over its iterations) and as the median step of the trace (steady state)
-    init_seconds, per_iteration, steps = [], [], []
-    for _ in range(5):
-        init_seconds.append(initialise(graph, "chordal")[1])
-        run = _solve(graph, "gauss-newton")
-        per_iteration.append(run.seconds_per_iteration)
-        steps += [b.seconds - a.seconds for a, b in zip(run.trace[1:], run.trace[2:])]
-    init, iteration = statistics.median(init_seconds), statistics.median(per_iteration)
-    ratio = init / iteration
-    print(f"\nw10000: chordal initialisation {1e3 * init:.1f} ms; one Gauss-Newton iteration "
-          f"{1e3 * iteration:.1f} ms (ms/iter), {1e3 * statistics.median(steps):.1f} ms (median step); "
-          f"ratio {ratio:.2f}")
-    assert ratio < 3.0  # the target is <= 1; a loose bound on a shared machine
 
 
 # ---------------------------------------------------------------- the command line
