@@ -23,6 +23,10 @@ import numpy as np
 from course.core.errors import SingularSystemError
 from course.incremental.bayes_tree import NumericBayesTree
 
+#: the frontal unknowns one ``eliminate_variable`` call takes at most: a clique joins its parent's group (one
+#: dense call for the group) while the group stays within it
+GROUP_WIDTH = 48
+
 
 @dataclass
 class LinearFactor:
@@ -31,6 +35,22 @@ class LinearFactor:
     keys: tuple
     A: list
     b: np.ndarray
+
+
+@dataclass
+class PendingSummary:
+    """A cached factor not computed yet: the rows ``(A, b)`` a group of cliques was eliminated from (its columns
+    ``columns[v]`` the first of variable v's), ``owner`` the clique of each row, and the clique's ``subtree`` (its
+    cliques in the group, children before parents) and ``separator``. The clique's subtree rows, its frontals as
+    ``A_x`` and its separator as ``A_s``, eliminated, leave its cached factor."""
+
+    A: np.ndarray
+    b: np.ndarray
+    owner: np.ndarray
+    columns: dict
+    subtree: list
+    frontals: list
+    separator: list
 
 
 class Reeliminator:
@@ -63,6 +83,7 @@ class Reeliminator:
         n = len(variables)
         separators, _, _ = self.impl.module("orderings").symbolic_elimination(n, edges, order)
         frontals, clique_separators, parents = self.impl.module("bayes_tree").bayes_tree(order, separators)
+        parents = np.asarray(parents, dtype=int)
         position = np.empty(n, dtype=np.int64)
         position[order] = np.arange(n)
         home = np.empty(n, dtype=np.int64)
@@ -74,46 +95,108 @@ class Reeliminator:
             first = min((local[v] for v in f.keys), key=position.__getitem__)
             waiting[home[first]].append(f)
         glob = np.asarray(variables, dtype=np.int64)
-        eliminate_variable = self.impl.module("elimination").eliminate_variable
         C = len(frontals)
+        F_of = [glob[F].tolist() for F in frontals]
+        S_of = [glob[S].tolist() for S in clique_separators]
+        # the groups: parents first (a clique's number is above its parent's), each clique joins its parent's
+        # group while the group's frontal unknowns stay within GROUP_WIDTH
+        group_of = np.empty(C, dtype=np.int64)
+        members: list = []
+        width: list = []
+        for c in range(C):
+            f = sum(dims[v] for v in F_of[c])
+            p = int(parents[c])
+            if p >= 0 and width[group_of[p]] + f <= GROUP_WIDTH:
+                g = int(group_of[p])
+            else:
+                g = len(members)
+                members.append([])
+                width.append(0)
+            group_of[c] = g
+            members[g].append(c)
+            width[g] += f
         conditionals: list = [None] * C
         cached: list = [None] * C
-        for c in range(C - 1, -1, -1):  # created parents first: backwards, children before their parents
-            F = glob[frontals[c]].tolist()
-            Sep = glob[clique_separators[c]].tolist()
-            column = {}
-            width = 0
-            for v in F + Sep:
-                column[v] = width
-                width += dims[v]
-            f = sum(dims[v] for v in F)
-            rows = sum(len(fac.b) for fac in waiting[c])
-            A = np.zeros((rows, width))
-            b = np.empty(rows)
-            r = 0
+        for g in range(len(members) - 1, -1, -1):  # a group after every group hanging below it
+            self._eliminate_group(members[g], F_of, S_of, parents, waiting, dims, conditionals, cached)
+        tree = NumericBayesTree(F_of, S_of, parents, conditionals, cached)
+        return tree, glob[order].tolist()
+
+    def _eliminate_group(self, group, F_of, S_of, parents, waiting, dims, conditionals, cached) -> None:
+        """Eliminate the cliques ``group`` (its root first, each clique's parent before it) in one call of
+        ``eliminate_variable``: their frontals (children's before parents') are ``A_x``, the root's separator
+        ``A_s``. The call's ``R`` is upper triangular in that order, so each clique's conditional is its rows of
+        ``[R S]`` at its frontals' and its separator's columns (what eliminating it alone gives, up to rounding);
+        the call's new factor is the root's cached factor, and goes to the root's parent. A clique below the root
+        keeps its subtree's rows in the group (a ``PendingSummary``), eliminated when first read."""
+        root = group[0]
+        cliques = group[::-1]  # children before parents
+        column: dict = {}
+        width = 0
+        for v in [v for c in cliques for v in F_of[c]] + S_of[root]:
+            column[v] = width
+            width += dims[v]
+        f = width - sum(dims[v] for v in S_of[root])
+        rows = sum(len(fac.b) for c in cliques for fac in waiting[c])
+        A = np.zeros((rows, width))
+        b = np.empty(rows)
+        owner = np.empty(rows, dtype=np.int64)
+        r = 0
+        for c in cliques:
             for fac in waiting[c]:
                 m = len(fac.b)
                 for v, block in zip(fac.keys, fac.A):
                     A[r:r + m, column[v]:column[v] + dims[v]] += block
                 b[r:r + m] = fac.b
+                owner[r:r + m] = c
                 r += m
-            try:
-                R, S, d, A_new, b_new = eliminate_variable(A[:, :f], A[:, f:], b)
-            except SingularSystemError as exc:
-                names = ", ".join(repr(self.names[v]) for v in F)
-                raise SingularSystemError(f"the factors on {names} do not determine them ({exc}): a variable "
-                                          "needs a prior or enough measurements") from None
-            conditionals[c] = (np.asarray(R, dtype=float), np.asarray(S, dtype=float).reshape(f, width - f),
-                               np.asarray(d, dtype=float).reshape(f))
+        try:
+            R, S, d, A_new, b_new = self.impl.module("elimination").eliminate_variable(A[:, :f], A[:, f:], b)
+        except SingularSystemError as exc:
+            names = ", ".join(repr(self.names[v]) for c in cliques for v in F_of[c])
+            raise SingularSystemError(f"the factors on {names} do not determine them ({exc}): a variable "
+                                      "needs a prior or enough measurements") from None
+        T = np.hstack([np.asarray(R, dtype=float), np.asarray(S, dtype=float).reshape(f, width - f)])
+        d = np.asarray(d, dtype=float).reshape(f)
+        subtree: dict = {}  # clique -> the group's cliques in its subtree
+        for c in cliques:
+            subtree.setdefault(c, []).append(c)  # children before parents
+            if c != root:
+                subtree.setdefault(int(parents[c]), []).extend(subtree[c])
+            lo = column[F_of[c][0]]
+            hi = lo + sum(dims[v] for v in F_of[c])
+            seps = self._columns(S_of[c], column, dims)
+            conditionals[c] = (T[lo:hi, lo:hi].copy(), T[lo:hi, seps], d[lo:hi].copy())
+            if c != root:
+                cached[c] = PendingSummary(A, b, owner, column, subtree[c],
+                                           [v for u in subtree[c] for v in F_of[u]], S_of[c])
+        b_new = np.asarray(b_new, dtype=float).reshape(-1)
+        A_new = np.asarray(A_new, dtype=float).reshape(len(b_new), width - f)
+        cached[root] = (A_new, b_new)
+        if S_of[root] and len(b_new):
+            blocks, start = [], 0
+            for v in S_of[root]:
+                blocks.append(A_new[:, start:start + dims[v]])
+                start += dims[v]
+            waiting[parents[root]].append(LinearFactor(tuple(S_of[root]), blocks, b_new))
+
+    @staticmethod
+    def _columns(keys, column, dims) -> np.ndarray:
+        if not keys:
+            return np.zeros(0, dtype=np.int64)
+        return np.concatenate([np.arange(column[v], column[v] + dims[v]) for v in keys])
+
+    def summary(self, tree, c, dims) -> tuple:
+        """Clique ``c``'s cached factor ``(A, b)`` on its separator; one still pending is eliminated now (its
+        subtree's rows, the subtree's frontals ``A_x``, the separator ``A_s``) and kept."""
+        entry = tree.cached[c]
+        if isinstance(entry, PendingSummary):
+            inside = np.isin(entry.owner, entry.subtree)
+            rows = entry.A[inside]
+            A_x = rows[:, self._columns(entry.frontals, entry.columns, dims)]
+            A_s = rows[:, self._columns(entry.separator, entry.columns, dims)]
+            _, _, _, A_new, b_new = self.impl.module("elimination").eliminate_variable(A_x, A_s, entry.b[inside])
             b_new = np.asarray(b_new, dtype=float).reshape(-1)
-            A_new = np.asarray(A_new, dtype=float).reshape(len(b_new), width - f)
-            cached[c] = (A_new, b_new)
-            if Sep and len(b_new):
-                blocks, start = [], 0
-                for v in Sep:
-                    blocks.append(A_new[:, start:start + dims[v]])
-                    start += dims[v]
-                waiting[parents[c]].append(LinearFactor(tuple(Sep), blocks, b_new))
-        tree = NumericBayesTree([glob[F].tolist() for F in frontals], [glob[S].tolist() for S in clique_separators],
-                                np.asarray(parents, dtype=int), conditionals, cached)
-        return tree, glob[order].tolist()
+            entry = (np.asarray(A_new, dtype=float).reshape(len(b_new), A_s.shape[1]), b_new)
+            tree.cached[c] = entry
+        return entry

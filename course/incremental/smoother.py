@@ -118,7 +118,7 @@ class IncrementalSmoother:
                       if all(inside[u] for u in self.factors.keys[i])})
         linear = [LinearFactor(self.factors.keys[i], self.factors.A[i], self.factors.b[i]) for i in ids]
         for o in orphans:
-            A, b = self.tree.cached[o]
+            A, b = self._reeliminator.summary(self.tree, o, self.dims)
             if len(b):
                 blocks, start = [], 0
                 for v in self.tree.separators[o]:
