@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from course.core import impl as impl_loader
+from course.incremental.affected import affected_in_cut
 from course.incremental.bayes_tree import NumericBayesTree
 from course.incremental.factors import FactorStore
 from course.incremental.reelimination import LinearFactor, Reeliminator
@@ -99,8 +100,10 @@ class IncrementalSmoother:
             relin = self._with_neighbours(relin)
         new_keys = sorted({v for i in new_ids for v in self.factors.keys[i]})
         if len(self.tree):
-            top, orphans = incremental.affected_cliques(self.tree.frontals, self.tree.separators, self.tree.parents,
-                                                        new_keys, relin)
+            top, orphans = affected_in_cut(incremental.affected_cliques, self.tree, new_keys, relin)
+            # in the order the cliques were created (the re-elimination's ordering breaks its ties by it)
+            top = sorted(top, key=self.tree.created.__getitem__)
+            orphans = sorted(orphans, key=self.tree.created.__getitem__)
         else:
             top, orphans = [], []
         # the relinearisation: new linearisation points, their factors linearised again
@@ -140,11 +143,10 @@ class IncrementalSmoother:
 
     def _with_neighbours(self, relin: list) -> list:
         """``relin`` and the frontals of every clique whose separator holds one of them, sorted."""
-        marked = set(relin)
         out = set(relin)
-        for frontals, separator in zip(self.tree.frontals, self.tree.separators):
-            if not marked.isdisjoint(separator):
-                out.update(frontals)
+        for v in relin:
+            for c in self.tree.holding(v)[1:]:  # past its home
+                out.update(self.tree.frontals[c])
         return sorted(out)
 
     def _add(self, graph, values: dict) -> tuple:

@@ -29,13 +29,8 @@ DEPTH = 4
 def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) -> tuple:
     """``(new delta (list of n arrays), recomputed cliques (sorted))``, as ``wildfire_update(tree.frontals,
     tree.separators, tree.parents, tree.conditionals, delta, replaced, threshold)`` on the whole tree."""
-    C = len(tree)
-    children: list = [[] for _ in range(C)]
-    for c, p in enumerate(tree.parents.tolist()):
-        if p >= 0:
-            children[p].append(c)
-    is_replaced = np.zeros(C, dtype=bool)
-    is_replaced[list(replaced)] = True
+    children = tree.children
+    is_replaced = set(replaced)
     new = list(delta)
     recomputed = list(replaced)
     frontier = list(replaced)
@@ -45,7 +40,7 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) 
         # the candidates: DEPTH levels below the frontier; the next frontier is among the deepest
         candidates, level = [], list(frontier)
         for _ in range(DEPTH):
-            level = [ch for c in level for ch in children[c] if not is_replaced[ch]]
+            level = [ch for c in level for ch in children[c] if ch not in is_replaced]
             candidates += level
         deepest = set(level)
         if not candidates and not first:
