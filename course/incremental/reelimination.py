@@ -77,8 +77,10 @@ class Reeliminator:
         return order, local, edges
 
     def eliminate(self, variables, factors, constrained, dims) -> tuple:
-        """Re-eliminate the top: ``(tree, ordering)``, the new cliques (``NumericBayesTree`` over the
-        global variable indices, parents within it) and the ordering used (global indices)."""
+        """Re-eliminate the top: ``(tree, ordering, groups)``, the new cliques (``NumericBayesTree`` over the
+        global variable indices, parents within it), the ordering used (global indices) and the groups
+        eliminated together: ``(cliques (root first), frontals, the root's separator, (R, S, d))``, the
+        conditional of the group's frontals in that order."""
         order, local, edges = self.ordering(variables, factors, constrained)
         n = len(variables)
         separators, _, _ = self.impl.module("orderings").symbolic_elimination(n, edges, order)
@@ -117,18 +119,20 @@ class Reeliminator:
             width[g] += f
         conditionals: list = [None] * C
         cached: list = [None] * C
+        groups: list = [None] * len(members)
         for g in range(len(members) - 1, -1, -1):  # a group after every group hanging below it
-            self._eliminate_group(members[g], F_of, S_of, parents, waiting, dims, conditionals, cached)
+            groups[g] = self._eliminate_group(members[g], F_of, S_of, parents, waiting, dims, conditionals, cached)
         tree = NumericBayesTree(F_of, S_of, parents, conditionals, cached)
-        return tree, glob[order].tolist()
+        return tree, glob[order].tolist(), groups
 
-    def _eliminate_group(self, group, F_of, S_of, parents, waiting, dims, conditionals, cached) -> None:
+    def _eliminate_group(self, group, F_of, S_of, parents, waiting, dims, conditionals, cached) -> tuple:
         """Eliminate the cliques ``group`` (its root first, each clique's parent before it) in one call of
         ``eliminate_variable``: their frontals (children's before parents') are ``A_x``, the root's separator
         ``A_s``. The call's ``R`` is upper triangular in that order, so each clique's conditional is its rows of
         ``[R S]`` at its frontals' and its separator's columns (what eliminating it alone gives, up to rounding);
         the call's new factor is the root's cached factor, and goes to the root's parent. A clique below the root
-        keeps its subtree's rows in the group (a ``PendingSummary``), eliminated when first read."""
+        keeps its subtree's rows in the group (a ``PendingSummary``), eliminated when first read. Returns
+        ``(group, its frontals in that order, the root's separator, (R, S, d))``."""
         root = group[0]
         cliques = group[::-1]  # children before parents
         column: dict = {}
@@ -179,6 +183,7 @@ class Reeliminator:
                 blocks.append(A_new[:, start:start + dims[v]])
                 start += dims[v]
             waiting[parents[root]].append(LinearFactor(tuple(S_of[root]), blocks, b_new))
+        return group, [v for c in cliques for v in F_of[c]], S_of[root], (T[:, :f], T[:, f:], d)
 
     @staticmethod
     def _columns(keys, column, dims) -> np.ndarray:

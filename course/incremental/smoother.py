@@ -129,15 +129,17 @@ class IncrementalSmoother:
                     start += self.dims[v]
                 linear.append(LinearFactor(tuple(self.tree.separators[o]), blocks, b))
         replaced: list = []
+        groups: list = []
         if variables:
-            new_tree, ordering = self._reeliminator.eliminate(variables, linear, new_keys, self.dims)
+            new_tree, ordering, groups = self._reeliminator.eliminate(variables, linear, new_keys, self.dims)
             parents_of_orphans = incremental.orphan_parents([self.tree.separators[o] for o in orphans], ordering,
                                                             new_tree.frontals) if orphans else []
             replaced = self.tree.replace_top(top, orphans, parents_of_orphans, new_tree)
+            groups = [([replaced[k] for k in members], F, S, conditional) for members, F, S, conditional in groups]
         recomputed: list = []
         if len(self.tree):
             self.delta, recomputed = wildfire_in_fronts(incremental.wildfire_update, self.tree, self.delta, replaced,
-                                                        self.wildfire_threshold, self.dims)
+                                                        self.wildfire_threshold, self.dims, groups)
             self._changed = {v for c in recomputed for v in self.tree.frontals[c]}
         return UpdateResult(len(relin), len(variables), len(recomputed), len(self.tree))
 

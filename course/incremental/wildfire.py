@@ -26,9 +26,15 @@ import numpy as np
 DEPTH = 4
 
 
-def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) -> tuple:
+def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims, groups=()) -> tuple:
     """``(new delta (list of n arrays), recomputed cliques (sorted))``, as ``wildfire_update(tree.frontals,
-    tree.separators, tree.parents, tree.conditionals, delta, replaced, threshold)`` on the whole tree."""
+    tree.separators, tree.parents, tree.conditionals, delta, replaced, threshold)`` on the whole tree.
+
+    ``groups``: replaced cliques eliminated together, ``(cliques (the group's root first), frontals,
+    separator, (R, S, d))`` (the root's separator; the conditional over the frontals in that order, which
+    the cliques' own are blocks of): the first front takes each as one clique (the same steps up to rounding,
+    for fewer cliques)."""
+    unit = {c: g for g, group in enumerate(groups) for c in group[0]}
     children = tree.children
     is_replaced = set(replaced)
     new = list(delta)
@@ -46,9 +52,21 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) 
         if not candidates and not first:
             break
         cliques = frontier + candidates
-        variables = list(solved_root) + [v for c in cliques for v in tree.frontals[c]]
+        # one entry per clique, or per group of replaced cliques in the first front
+        entries = []  # (the cliques it stands for, frontals, separator, parent clique, conditional)
+        taken: set = set()
+        for c in cliques:
+            g = unit.get(c) if first else None
+            if g is None:
+                entries.append(([c], tree.frontals[c], tree.separators[c], int(tree.parents[c]), tree.conditionals[c]))
+            elif g not in taken:
+                taken.add(g)
+                members, F, S, conditional = groups[g]
+                entries.append((members, F, S, int(tree.parents[members[0]]), conditional))
+        offset = 1 if solved_root else 0
+        number = {c: k + offset for k, entry in enumerate(entries) for c in entry[0]}
+        variables = list(solved_root) + [v for entry in entries for v in entry[1]]
         local = {v: k for k, v in enumerate(variables)}
-        number = {c: k + (1 if solved_root else 0) for k, c in enumerate(cliques)}
         frontals: list = []
         separators: list = []
         parents: list = []
@@ -59,13 +77,12 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) 
             parents.append(-1)
             f = sum(dims[v] for v in solved_root)
             conditionals.append((np.eye(f), np.zeros((f, 0)), np.concatenate([new[v] for v in solved_root])))
-        for c in cliques:
-            frontals.append([local[v] for v in tree.frontals[c]])
-            separators.append([local[v] for v in tree.separators[c]])
-            p = int(tree.parents[c])
+        for _, F, S, p, conditional in entries:
+            frontals.append([local[v] for v in F])
+            separators.append([local[v] for v in S])
             parents.append(number.get(p, 0 if solved_root else -1) if p >= 0 else -1)
-            conditionals.append(tree.conditionals[c])
-        marked = ([0] if solved_root else []) + [number[c] for c in frontier]
+            conditionals.append(conditional)
+        marked = ([0] if solved_root else []) + sorted({number[c] for c in frontier})
         steps, done = wildfire_update(frontals, separators, np.array(parents, dtype=int), conditionals,
                                       [delta[v] for v in variables], marked, threshold)
         done = set(int(c) for c in done)
