@@ -170,7 +170,7 @@ class Reeliminator:
             lo = column[F_of[c][0]]
             hi = lo + sum(dims[v] for v in F_of[c])
             seps = self._columns(S_of[c], column, dims)
-            conditionals[c] = (T[lo:hi, lo:hi].copy(), T[lo:hi, seps], d[lo:hi].copy())
+            conditionals[c] = (T[lo:hi, lo:hi], T[lo:hi, seps], d[lo:hi])
             if c != root:
                 cached[c] = PendingSummary(A, b, owner, column, subtree[c],
                                            [v for u in subtree[c] for v in F_of[u]], S_of[c])
@@ -186,10 +186,9 @@ class Reeliminator:
         return group, [v for c in cliques for v in F_of[c]], S_of[root], (T[:, :f], T[:, f:], d)
 
     @staticmethod
-    def _columns(keys, column, dims) -> np.ndarray:
-        if not keys:
-            return np.zeros(0, dtype=np.int64)
-        return np.concatenate([np.arange(column[v], column[v] + dims[v]) for v in keys])
+    def _columns(keys, column, dims) -> list:
+        """The columns of the variables ``keys`` (``column[v]`` the first of v's), in their order."""
+        return [i for v in keys for i in range(column[v], column[v] + dims[v])]
 
     def summary(self, tree, c, dims) -> tuple:
         """Clique ``c``'s cached factor ``(A, b)`` on its separator; one still pending is eliminated now (its

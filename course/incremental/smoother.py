@@ -115,10 +115,9 @@ class IncrementalSmoother:
         self.factors.linearise(sorted(relinearise), self.theta, self.kinds)
         # the top's variables, its factors, the orphans' cached factors
         variables = [v for c in top for v in self.tree.frontals[c]] + new_vars
-        inside = np.zeros(len(self.keys), dtype=bool)
-        inside[variables] = True
+        inside = set(variables)
         ids = sorted({i for v in variables for i in self.factors.of_variable[v]
-                      if all(inside[u] for u in self.factors.keys[i])})
+                      if inside.issuperset(self.factors.keys[i])})
         linear = [LinearFactor(self.factors.keys[i], self.factors.A[i], self.factors.b[i]) for i in ids]
         for o in orphans:
             A, b = self._reeliminator.summary(self.tree, o, self.dims)
