@@ -108,10 +108,17 @@ class IncrementalSmoother:
             top, orphans = [], []
         # the relinearisation: new linearisation points, their factors linearised again
         relinearise = set(new_ids)
+        by_kind: dict = {}
         for v in relin:
-            self.theta[v] = self._retract(v, self.delta[v])
-            self.delta[v] = np.zeros(self.dims[v])
-            relinearise.update(self.factors.of_variable[v])
+            by_kind.setdefault(self.kinds[v].name, []).append(v)
+        for vs in by_kind.values():  # one retraction per kind
+            kind = self.kinds[vs[0]]
+            moved = np.asarray(kind.retract(np.stack([self.theta[v] for v in vs]),
+                                            np.stack([self.delta[v] for v in vs])), dtype=float)
+            for k, v in enumerate(vs):
+                self.theta[v] = moved[k]
+                self.delta[v] = np.zeros(self.dims[v])
+                relinearise.update(self.factors.of_variable[v])
         self.factors.linearise(sorted(relinearise), self.theta, self.kinds)
         # the top's variables, its factors, the orphans' cached factors
         variables = [v for c in top for v in self.tree.frontals[c]] + new_vars
