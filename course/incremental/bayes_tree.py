@@ -9,8 +9,14 @@ conditional ``(R, S, d)``::
 (``f``, ``s`` the summed tangent sizes of the frontals and of the separator, stacked in their orders),
 and its cached factor ``(A, b)`` on the separator, ``||A delta_S - b||^2`` (k, s): what eliminating the
 clique's subtree left on its separator, which an update that keeps the subtree whole (an orphan) reads
-instead of the subtree's factors. The lists are those the implementation's ``incremental_update`` and
-``bayes_tree`` functions take: cliques numbered ``0..C-1``, variables ``0..n-1``.
+instead of the subtree's factors (or a ``reelimination.PendingSummary`` that gives it when first read).
+The lists are those the implementation's ``incremental_update`` and ``bayes_tree`` functions take: cliques
+numbered ``0..C-1``, variables ``0..n-1``.
+
+Kept with them, so that an update costs nothing per clique it does not touch: each clique's ``children``,
+each variable's ``home`` (the clique holding it as a frontal) and each clique's ``created`` rank (the order
+cliques were made in, which the smoother lists a top in). ``replace_top`` gives the new cliques the removed
+ones' numbers and moves the last cliques into any numbers left free.
 """
 
 from dataclasses import dataclass, field

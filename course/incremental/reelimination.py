@@ -8,12 +8,24 @@ last (the new factors' keys, as GTSAM's constrained ordering puts them):
    joined when a factor holds both), then the constrained variables moved to the end, each group in the
    order it gave;
 2. the structure: its ``symbolic_elimination`` and ``bayes_tree`` of that ordering;
-3. the numbers, cliques from the leaves up: each clique's factors (those whose first-eliminated variable
-   is one of its frontals, and the factors its children left on their separators) stacked as dense rows
-   over its frontals then its separator, and eliminated at once by the implementation's
-   ``eliminate_variable`` (``A_x`` the frontals' columns, ``A_s`` the separator's): the conditional
-   ``(R, S, d)`` and the new factor on the separator, which goes to the clique holding the separator's
-   first-eliminated variable (the parent).
+3. the numbers, in groups of cliques from the leaves up: a clique joins its parent's group while the
+   group's frontal unknowns stay within ``GROUP_WIDTH`` (a clique of a pose graph holds one or two poses:
+   one call per clique would cost a Python call per pose). A group's factors (those whose first-eliminated
+   variable is a frontal of one of its cliques, and the factors the groups below left on their
+   separators) are stacked as dense rows over its frontals, children's before parents', then its root's
+   separator, and eliminated at once by the implementation's ``eliminate_variable`` (``A_x`` the
+   frontals' columns, ``A_s`` the separator's)::
+
+       [A_x A_s | b]  ->  R (f, f) upper triangular, S (f, s), d (f,); A_new (k, s), b_new (k,)
+
+   The Cholesky factor of an elimination order is the same whichever way the order is cut, so each
+   clique's conditional ``(R_c, S_c, d_c)`` is its rows of ``[R S | d]`` at its frontals' columns and at
+   its separator's (the other columns of its rows are zero: its separator is all a clique's conditional
+   reaches), what eliminating it alone gives up to rounding. The call's new factor is the root's cached
+   factor and goes to the clique holding the separator's first-eliminated variable (the root's parent).
+   A clique below a group's root keeps its subtree's rows (a ``PendingSummary``): its cached factor is
+   eliminated from them the first time an update reads it (when it becomes an orphan), by the same
+   ``eliminate_variable``.
 """
 
 from dataclasses import dataclass

@@ -11,7 +11,8 @@ new_values)``:
    move their linearisation point, ``theta_v <- theta_v (+) delta_v``, ``delta_v <- 0``, and every factor
    on them is linearised again (with GTSAM's rule, by default: also the frontals of every clique whose
    separator holds such a variable); the new factors are linearised;
-3. the affected top and its orphans (``affected_cliques``): the top's cliques are removed, its variables
+3. the affected top and its orphans (``affected_cliques``, handed the cut of the tree that can take part:
+   ``course.incremental.affected``): the top's cliques are removed, its variables
    and the new ones re-eliminated (``course.incremental.reelimination``) from the factors whose
    variables all lie in the top and the orphans' cached factors, the new factors' variables ordered
    last; each orphan hangs from its new parent (``orphan_parents``);

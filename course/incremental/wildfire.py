@@ -6,8 +6,10 @@ After an update it can only reach the re-eliminated top and what hangs below it,
 one level under the top: handing it the whole tree every time costs a pass over every clique. So the
 tree is handed over in fronts, each a small tree of the same contract, with the same answer:
 
-1. the first front: the replaced cliques (a top, closed under parents: its roots are roots) and the
-   cliques not replaced down to ``DEPTH`` levels below them (the candidates);
+1. the first front: the replaced cliques (a top, closed under parents: its roots are roots; each group of
+   them eliminated in one call handed as one clique with the group's conditional, which solves the same
+   steps, up to rounding, for fewer cliques) and the cliques not replaced down to ``DEPTH`` levels below
+   them (the candidates);
 2. a later front: the candidates of the deepest level the previous front recomputed (the frontier: solved
    again, marked replaced, which gives the same steps), the cliques down to ``DEPTH`` levels below them as
    the new candidates, and one root clique
