@@ -153,19 +153,20 @@ class Reeliminator:
             column[v] = width
             width += dims[v]
         f = width - sum(dims[v] for v in S_of[root])
-        rows = sum(len(fac.b) for c in cliques for fac in waiting[c])
-        A = np.zeros((rows, width))
-        b = np.empty(rows)
-        owner = np.empty(rows, dtype=np.int64)
+        stacked = [fac for c in cliques for fac in waiting[c]]
+        b = np.concatenate([fac.b for fac in stacked]) if stacked else np.zeros(0)
+        owner = np.repeat(cliques, [sum(len(fac.b) for fac in waiting[c]) for c in cliques])
+        A = np.zeros((len(b), width))
         r = 0
-        for c in cliques:
-            for fac in waiting[c]:
-                m = len(fac.b)
+        for fac in stacked:
+            m = len(fac.b)
+            if len(set(fac.keys)) == len(fac.keys):
+                for v, block in zip(fac.keys, fac.A):
+                    A[r:r + m, column[v]:column[v] + dims[v]] = block
+            else:  # a variable twice in one factor: its blocks add
                 for v, block in zip(fac.keys, fac.A):
                     A[r:r + m, column[v]:column[v] + dims[v]] += block
-                b[r:r + m] = fac.b
-                owner[r:r + m] = c
-                r += m
+            r += m
         try:
             R, S, d, A_new, b_new = self.impl.module("elimination").eliminate_variable(A[:, :f], A[:, f:], b)
         except SingularSystemError as exc:
