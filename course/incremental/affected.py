@@ -17,13 +17,15 @@ in the whole tree, so its top and orphans are the whole tree's.
 import numpy as np
 
 
-def affected_in_cut(affected_cliques, tree, new_keys, relinearised) -> tuple:
+def affected_in_cut(affected_cliques, tree, new_keys, relinearised, holding=None) -> tuple:
     """``(top, orphans)`` (sorted clique numbers of ``tree``), as ``affected_cliques(tree.frontals,
-    tree.separators, tree.parents, new_keys, relinearised)`` on the whole tree."""
+    tree.separators, tree.parents, new_keys, relinearised)`` on the whole tree. ``holding``: v -> the
+    cliques holding v (default ``tree.holding``; the smoother passes the walks it has already made)."""
+    holding = holding or tree.holding
     n = len(tree.home)
     seeds = [tree.home[v] for v in new_keys if v < n]
     for v in relinearised:
-        seeds += tree.holding(v)
+        seeds += holding(v)
     path: dict = {}  # the seeds and their ancestors, each once
     for c in seeds:
         while c >= 0 and c not in path:

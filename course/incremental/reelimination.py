@@ -8,13 +8,13 @@ last (the new factors' keys, as GTSAM's constrained ordering puts them):
    joined when a factor holds both), then the constrained variables moved to the end, each group in the
    order it gave;
 2. the structure: its ``symbolic_elimination`` and ``bayes_tree`` of that ordering;
-3. the numbers, in groups of cliques from the leaves up: a clique joins its parent's group while the
-   group's frontal unknowns stay within ``GROUP_WIDTH`` (a clique of a pose graph holds one or two poses:
-   one call per clique would cost a Python call per pose). A group's factors (those whose first-eliminated
-   variable is a frontal of one of its cliques, and the factors the groups below left on their
-   separators) are stacked as dense rows over its frontals, children's before parents', then its root's
-   separator, and eliminated at once by the implementation's ``eliminate_variable`` (``A_x`` the
-   frontals' columns, ``A_s`` the separator's)::
+3. the numbers, in groups of cliques from the leaves up: a clique takes in its children's groups, the
+   narrowest first, while its group's frontal unknowns stay within ``GROUP_WIDTH`` (a clique of a pose
+   graph holds one or two poses: one call per clique would cost a Python call per pose). A group's
+   factors (those whose first-eliminated variable is a frontal of one of its cliques, and the factors the
+   groups below left on their separators) are stacked as dense rows over its frontals, children's before
+   parents', then its root's separator, and eliminated at once by the implementation's
+   ``eliminate_variable`` (``A_x`` the frontals' columns, ``A_s`` the separator's)::
 
        [A_x A_s | b]  ->  R (f, f) upper triangular, S (f, s), d (f,); A_new (k, s), b_new (k,)
 
@@ -35,8 +35,8 @@ import numpy as np
 from course.core.errors import SingularSystemError
 from course.incremental.bayes_tree import NumericBayesTree
 
-#: the frontal unknowns one ``eliminate_variable`` call takes at most: a clique joins its parent's group (one
-#: dense call for the group) while the group stays within it
+#: the frontal unknowns one ``eliminate_variable`` call takes at most: a clique takes in its children's groups
+#: (one dense call for the group) while it stays within it
 GROUP_WIDTH = 48
 
 
@@ -112,23 +112,28 @@ class Reeliminator:
         C = len(frontals)
         F_of = [glob[F].tolist() for F in frontals]
         S_of = [glob[S].tolist() for S in clique_separators]
-        # the groups: parents first (a clique's number is above its parent's), each clique joins its parent's
-        # group while the group's frontal unknowns stay within GROUP_WIDTH
-        group_of = np.empty(C, dtype=np.int64)
-        members: list = []
-        width: list = []
+        # the groups, from the leaves up (a clique's number is above its parent's): each clique starts one, and
+        # takes in its children's groups, the narrowest first, while it stays within GROUP_WIDTH
+        width = [sum(dims[v] for v in F) for F in F_of]
+        member_of: list = [[c] for c in range(C)]
+        kids: list = [[] for _ in range(C)]
         for c in range(C):
-            f = sum(dims[v] for v in F_of[c])
-            p = int(parents[c])
-            if p >= 0 and width[group_of[p]] + f <= GROUP_WIDTH:
-                g = int(group_of[p])
-            else:
-                g = len(members)
-                members.append([])
-                width.append(0)
-            group_of[c] = g
-            members[g].append(c)
-            width[g] += f
+            if parents[c] >= 0:
+                kids[parents[c]].append(c)
+        roots = []
+        for c in range(C - 1, -1, -1):
+            for ch in sorted(kids[c], key=width.__getitem__):
+                if width[c] + width[ch] <= GROUP_WIDTH:
+                    width[c] += width[ch]
+                    member_of[c] += member_of[ch]
+                    member_of[ch] = []
+                else:
+                    roots.append(ch)
+            if parents[c] < 0:
+                roots.append(c)
+        # each group's cliques in order (its root first, a parent before its children); the groups by their
+        # roots' numbers, so that a group comes after every group hanging below it when taken backwards
+        members = [sorted(member_of[r]) for r in sorted(roots)]
         conditionals: list = [None] * C
         cached: list = [None] * C
         groups: list = [None] * len(members)

@@ -97,11 +97,18 @@ class IncrementalSmoother:
         candidates = sorted(v for v in self._changed if v < n_tree)
         relin = [candidates[k] for k in incremental.relinearised_keys([self.delta[v] for v in candidates],
                                                                       self.relinearize_threshold)]
+        held: dict = {}  # variable -> the cliques holding it (one walk down the tree per variable and update)
+
+        def holding(v):
+            if v not in held:
+                held[v] = self.tree.holding(v)
+            return held[v]
+
         if relin and self.relinearize_neighbours:
-            relin = self._with_neighbours(relin)
+            relin = self._with_neighbours(relin, holding)
         new_keys = sorted({v for i in new_ids for v in self.factors.keys[i]})
         if len(self.tree):
-            top, orphans = affected_in_cut(incremental.affected_cliques, self.tree, new_keys, relin)
+            top, orphans = affected_in_cut(incremental.affected_cliques, self.tree, new_keys, relin, holding)
             # in the order the cliques were created (the re-elimination's ordering breaks its ties by it)
             top = sorted(top, key=self.tree.created.__getitem__)
             orphans = sorted(orphans, key=self.tree.created.__getitem__)
@@ -150,11 +157,12 @@ class IncrementalSmoother:
             self._changed = {v for c in recomputed for v in self.tree.frontals[c]}
         return UpdateResult(len(relin), len(variables), len(recomputed), len(self.tree))
 
-    def _with_neighbours(self, relin: list) -> list:
-        """``relin`` and the frontals of every clique whose separator holds one of them, sorted."""
+    def _with_neighbours(self, relin: list, holding) -> list:
+        """``relin`` and the frontals of every clique whose separator holds one of them, sorted (``holding``:
+        v -> the cliques holding v, its home first)."""
         out = set(relin)
         for v in relin:
-            for c in self.tree.holding(v)[1:]:  # past its home
+            for c in holding(v)[1:]:  # past its home
                 out.update(self.tree.frontals[c])
         return sorted(out)
 
