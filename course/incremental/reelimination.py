@@ -78,6 +78,11 @@ class Reeliminator:
         local = {v: k for k, v in enumerate(variables)}
         pairs = []
         for f in factors:
+            if len(f.keys) == 2:  # most factors: one pair (either way round, as the graph's edges may be)
+                a, b = local[f.keys[0]], local[f.keys[1]]
+                if a != b:
+                    pairs.append((a, b))
+                continue
             ks = sorted({local[v] for v in f.keys})
             pairs += [(a, b) for i, a in enumerate(ks) for b in ks[i + 1:]]
         edges = np.array(pairs, dtype=np.int64).reshape(-1, 2)
