@@ -23,10 +23,11 @@ new_values)``:
 current linearised system from the tree's conditionals (the implementation's ``marginal_covariances``).
 Variables fixed in a graph and robust losses are not taken: anchor a graph with a prior.
 
-Cost (``python -m course online intel --no-batch``, then ``m3500 --no-batch``, one run each on a shared 2-core
-machine, GTSAM's ISAM2 in the same run): 9.7 s in all over intel's 729 steps against ISAM2's 0.87 s (11x; median
-9.7 against 0.66 ms a step, p90 29 against 2.8); on all of M3500 147 s against 7.3 s (20x; median 3.4 against
-0.31 ms, p90 137 against 3.5: the loop closures' large tops). No Python loop of an update visits every clique. What
+Cost (``python -m course online intel --no-batch``, then ``m3500 --no-batch``, on a shared 2-core machine,
+GTSAM's ISAM2 in the same run): over intel's 729 steps, in two runs, 9.7 and 11.4 s in all against ISAM2's 0.87
+and 0.63 s (11x and 18x; median 9.7 and 11.1 against 0.66 and 0.46 ms a step, p90 29 and 39 against 2.8 and
+2.3); on all of M3500, one run, 147 s against 7.3 s (20x; median 3.4 against 0.31 ms, p90 137 against 3.5: the
+loop closures' large tops). No Python loop of an update visits every clique. What
 is left is Python per call of the implementation on each group of cliques (the stacking of its rows,
 ``eliminate_variable``'s checks and factorisations, the cached factors of orphans read for the first time), the
 ordering, symbolic elimination and Bayes tree of each top, and per clique the wildfire visits.
