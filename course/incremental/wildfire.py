@@ -11,11 +11,12 @@ tree is handed over in fronts, each a small tree of the same contract, with the 
    steps, up to rounding, for fewer cliques) and the cliques not replaced down to ``DEPTH`` levels below
    them (the candidates);
 2. a later front: the candidates of the deepest level the previous front recomputed (the frontier: solved
-   again, marked replaced, which gives the same steps), the cliques down to ``DEPTH`` levels below them as
-   the new candidates, and one root clique
-   holding the variables of the frontier's separators as its frontals with the conditional
-   ``(R = I, S empty, d = their new steps)``, marked replaced: it reproduces those steps, and, given
-   their steps before the update as ``delta``, marks changed exactly the ones the whole pass marks;
+   again, marked replaced, which gives the same steps), the cliques down to twice the previous front's
+   levels below them as the new candidates (a change that reached this far tends to go further: fewer
+   calls, few candidates left unchanged), and one root clique holding the variables of the frontier's
+   separators as its frontals with the conditional ``(R = I, S empty, d = their new steps)``, marked
+   replaced: it reproduces those steps, and, given their steps before the update as ``delta``, marks
+   changed exactly the ones the whole pass marks;
 3. until a front recomputes no candidate.
 
 Each front's variables are numbered 0..n'-1 for the call; a clique is recomputed by the whole pass
@@ -24,7 +25,7 @@ exactly when it is recomputed in its front.
 
 import numpy as np
 
-#: the levels of candidates below the frontier in one front (fewer calls, each a little larger)
+#: the levels of candidates below the frontier in the first front (doubled in each later one)
 DEPTH = 4
 
 
@@ -44,10 +45,11 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims, 
     frontier = list(replaced)
     solved_root: list = []  # the variables of the fake root (none for the first front)
     first = True
+    depth = DEPTH
     while frontier:
-        # the candidates: DEPTH levels below the frontier; the next frontier is among the deepest
+        # the candidates: depth levels below the frontier; the next frontier is among the deepest
         candidates, level = [], list(frontier)
-        for _ in range(DEPTH):
+        for _ in range(depth):
             level = [ch for c in level for ch in children[c] if ch not in is_replaced]
             candidates += level
         deepest = set(level)
@@ -96,4 +98,5 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims, 
         frontier = [c for c in candidates if number[c] in done and c in deepest]
         solved_root = list(dict.fromkeys(v for c in frontier for v in tree.separators[c]))
         first = False
+        depth *= 2  # a change that reached this far tends to go further: fewer, larger fronts
     return new, sorted(recomputed)
