@@ -24,10 +24,11 @@ current linearised system from the tree's conditionals (the implementation's ``m
 Variables fixed in a graph and robust losses are not taken: anchor a graph with a prior.
 
 Cost (``python -m course online intel --no-batch``, then ``m3500 --no-batch``, on a shared 2-core machine,
-GTSAM's ISAM2 in the same run): over intel's 729 steps, in two runs, 9.7 and 11.4 s in all against ISAM2's 0.87
-and 0.63 s (11x and 18x; median 9.7 and 11.1 against 0.66 and 0.46 ms a step, p90 29 and 39 against 2.8 and
-2.3); on all of M3500, one run, 147 s against 7.3 s (20x; median 3.4 against 0.31 ms, p90 137 against 3.5: the
-loop closures' large tops). No Python loop of an update visits every clique. What
+GTSAM's ISAM2 in the same run, two runs each: the peer's own time moves by a third between runs): over intel's
+729 steps 8.4 and 10.0 s in all against ISAM2's 0.57 and 0.75 s (15x and 13x; median 7.5 and 9.7 against 0.42
+and 0.52 ms a step, p90 28 and 33 against 1.8 and 2.4); on all of M3500 147 and 157 s against 7.3 and 10.1 s
+(20x and 15x; median 3.4 and 4.1 against 0.31 and 0.44 ms, p90 137 and 155 against 3.5 and 4.7: the loop
+closures' large tops). No Python loop of an update visits every clique. What
 is left is Python per call of the implementation on each group of cliques (the stacking of its rows,
 ``eliminate_variable``'s checks and factorisations, the cached factors of orphans read for the first time), the
 ordering, symbolic elimination and Bayes tree of each top, and per clique the wildfire visits.
