@@ -105,9 +105,11 @@ def relinearised_keys(delta, threshold):
     if not threshold >= 0:
         raise ValueError(f"threshold must be >= 0, got {threshold!r}")
     steps = [np.asarray(step, dtype=float) for step in delta]
-    for v, step in enumerate(steps):
-        if not np.all(np.isfinite(step)):
-            raise ValueError(f"delta[{v}] has entries that are not finite")
+    # one test for all steps; the loop only to name the first bad one
+    if steps and not np.isfinite(np.concatenate([step.ravel() for step in steps])).all():
+        for v, step in enumerate(steps):
+            if not np.all(np.isfinite(step)):
+                raise ValueError(f"delta[{v}] has entries that are not finite")
     # BEGIN SOLUTION
     return [v for v, step in enumerate(steps) if step.size and float(np.max(np.abs(step))) > threshold]
     # END SOLUTION
@@ -210,9 +212,11 @@ def wildfire_update(frontals, clique_separators, parents, conditionals, delta, r
     if len(delta) != n:
         raise ValueError(f"delta must hold one step per variable ({n}), got {len(delta)}")
     old = [np.asarray(step, dtype=float) for step in delta]
-    for v, step in enumerate(old):
-        if step.ndim != 1 or not np.all(np.isfinite(step)):
-            raise ValueError(f"delta[{v}] must be a finite 1-D step (d_v,), got shape {step.shape}")
+    # one test for all steps; the loop only to name the first bad one
+    if any(step.ndim != 1 for step in old) or not np.isfinite(np.concatenate(old) if old else 0.0).all():
+        for v, step in enumerate(old):
+            if step.ndim != 1 or not np.all(np.isfinite(step)):
+                raise ValueError(f"delta[{v}] must be a finite 1-D step (d_v,), got shape {step.shape}")
     if len(conditionals) != len(frontals):
         raise ValueError(f"conditionals must hold one (R, S, d) per clique ({len(frontals)}), got {len(conditionals)}")
     sizes = [step.size for step in old]

@@ -8,12 +8,24 @@ last (the new factors' keys, as GTSAM's constrained ordering puts them):
    joined when a factor holds both), then the constrained variables moved to the end, each group in the
    order it gave;
 2. the structure: its ``symbolic_elimination`` and ``bayes_tree`` of that ordering;
-3. the numbers, cliques from the leaves up: each clique's factors (those whose first-eliminated variable
-   is one of its frontals, and the factors its children left on their separators) stacked as dense rows
-   over its frontals then its separator, and eliminated at once by the implementation's
-   ``eliminate_variable`` (``A_x`` the frontals' columns, ``A_s`` the separator's): the conditional
-   ``(R, S, d)`` and the new factor on the separator, which goes to the clique holding the separator's
-   first-eliminated variable (the parent).
+3. the numbers, in groups of cliques from the leaves up: a clique takes in its children's groups, the
+   narrowest first, while its group's frontal unknowns stay within ``GROUP_WIDTH`` (a clique of a pose
+   graph holds one or two poses: one call per clique would cost a Python call per pose). A group's
+   factors (those whose first-eliminated variable is a frontal of one of its cliques, and the factors the
+   groups below left on their separators) are stacked as dense rows over its frontals, children's before
+   parents', then its root's separator, and eliminated at once by the implementation's
+   ``eliminate_variable`` (``A_x`` the frontals' columns, ``A_s`` the separator's)::
+
+       [A_x A_s | b]  ->  R (f, f) upper triangular, S (f, s), d (f,); A_new (k, s), b_new (k,)
+
+   The Cholesky factor of an elimination order is the same whichever way the order is cut, so each
+   clique's conditional ``(R_c, S_c, d_c)`` is its rows of ``[R S | d]`` at its frontals' columns and at
+   its separator's (the other columns of its rows are zero: its separator is all a clique's conditional
+   reaches), what eliminating it alone gives up to rounding. The call's new factor is the root's cached
+   factor and goes to the clique holding the separator's first-eliminated variable (the root's parent).
+   A clique below a group's root keeps its subtree's rows (a ``PendingSummary``): its cached factor is
+   eliminated from them the first time an update reads it (when it becomes an orphan), by the same
+   ``eliminate_variable``.
 """
 
 from dataclasses import dataclass
@@ -23,6 +35,10 @@ import numpy as np
 from course.core.errors import SingularSystemError
 from course.incremental.bayes_tree import NumericBayesTree
 
+#: the frontal unknowns one ``eliminate_variable`` call takes at most: a clique takes in its children's groups
+#: (one dense call for the group) while it stays within it
+GROUP_WIDTH = 48
+
 
 @dataclass
 class LinearFactor:
@@ -31,6 +47,22 @@ class LinearFactor:
     keys: tuple
     A: list
     b: np.ndarray
+
+
+@dataclass
+class PendingSummary:
+    """A cached factor not computed yet: the rows ``(A, b)`` a group of cliques was eliminated from (its columns
+    ``columns[v]`` the first of variable v's), ``owner`` the clique of each row, and the clique's ``subtree`` (its
+    cliques in the group, children before parents) and ``separator``. The clique's subtree rows, its frontals as
+    ``A_x`` and its separator as ``A_s``, eliminated, leave its cached factor."""
+
+    A: np.ndarray
+    b: np.ndarray
+    owner: np.ndarray
+    columns: dict
+    subtree: list
+    frontals: list
+    separator: list
 
 
 class Reeliminator:
@@ -46,6 +78,11 @@ class Reeliminator:
         local = {v: k for k, v in enumerate(variables)}
         pairs = []
         for f in factors:
+            if len(f.keys) == 2:  # most factors: one pair (either way round, as the graph's edges may be)
+                a, b = local[f.keys[0]], local[f.keys[1]]
+                if a != b:
+                    pairs.append((a, b))
+                continue
             ks = sorted({local[v] for v in f.keys})
             pairs += [(a, b) for i, a in enumerate(ks) for b in ks[i + 1:]]
         edges = np.array(pairs, dtype=np.int64).reshape(-1, 2)
@@ -57,12 +94,15 @@ class Reeliminator:
         return order, local, edges
 
     def eliminate(self, variables, factors, constrained, dims) -> tuple:
-        """Re-eliminate the top: ``(tree, ordering)``, the new cliques (``NumericBayesTree`` over the
-        global variable indices, parents within it) and the ordering used (global indices)."""
+        """Re-eliminate the top: ``(tree, ordering, groups)``, the new cliques (``NumericBayesTree`` over the
+        global variable indices, parents within it), the ordering used (global indices) and the groups
+        eliminated together: ``(cliques (root first), frontals, the root's separator, (R, S, d))``, the
+        conditional of the group's frontals in that order."""
         order, local, edges = self.ordering(variables, factors, constrained)
         n = len(variables)
         separators, _, _ = self.impl.module("orderings").symbolic_elimination(n, edges, order)
         frontals, clique_separators, parents = self.impl.module("bayes_tree").bayes_tree(order, separators)
+        parents = np.asarray(parents, dtype=int)
         position = np.empty(n, dtype=np.int64)
         position[order] = np.arange(n)
         home = np.empty(n, dtype=np.int64)
@@ -74,46 +114,116 @@ class Reeliminator:
             first = min((local[v] for v in f.keys), key=position.__getitem__)
             waiting[home[first]].append(f)
         glob = np.asarray(variables, dtype=np.int64)
-        eliminate_variable = self.impl.module("elimination").eliminate_variable
         C = len(frontals)
+        F_of = [glob[F].tolist() for F in frontals]
+        S_of = [glob[S].tolist() for S in clique_separators]
+        # the groups, from the leaves up (a clique's number is above its parent's): each clique starts one, and
+        # takes in its children's groups, the narrowest first, while it stays within GROUP_WIDTH
+        width = [sum(dims[v] for v in F) for F in F_of]
+        member_of: list = [[c] for c in range(C)]
+        kids: list = [[] for _ in range(C)]
+        for c in range(C):
+            if parents[c] >= 0:
+                kids[parents[c]].append(c)
+        roots = []
+        for c in range(C - 1, -1, -1):
+            for ch in sorted(kids[c], key=width.__getitem__):
+                if width[c] + width[ch] <= GROUP_WIDTH:
+                    width[c] += width[ch]
+                    member_of[c] += member_of[ch]
+                    member_of[ch] = []
+                else:
+                    roots.append(ch)
+            if parents[c] < 0:
+                roots.append(c)
+        # each group's cliques in order (its root first, a parent before its children); the groups by their
+        # roots' numbers, so that a group comes after every group hanging below it when taken backwards
+        members = [sorted(member_of[r]) for r in sorted(roots)]
         conditionals: list = [None] * C
         cached: list = [None] * C
-        for c in range(C - 1, -1, -1):  # created parents first: backwards, children before their parents
-            F = glob[frontals[c]].tolist()
-            Sep = glob[clique_separators[c]].tolist()
-            column = {}
-            width = 0
-            for v in F + Sep:
-                column[v] = width
-                width += dims[v]
-            f = sum(dims[v] for v in F)
-            rows = sum(len(fac.b) for fac in waiting[c])
-            A = np.zeros((rows, width))
-            b = np.empty(rows)
-            r = 0
-            for fac in waiting[c]:
-                m = len(fac.b)
+        groups: list = [None] * len(members)
+        for g in range(len(members) - 1, -1, -1):  # a group after every group hanging below it
+            groups[g] = self._eliminate_group(members[g], F_of, S_of, parents, waiting, dims, conditionals, cached)
+        tree = NumericBayesTree(F_of, S_of, parents, conditionals, cached)
+        return tree, glob[order].tolist(), groups
+
+    def _eliminate_group(self, group, F_of, S_of, parents, waiting, dims, conditionals, cached) -> tuple:
+        """Eliminate the cliques ``group`` (its root first, each clique's parent before it) in one call of
+        ``eliminate_variable``: their frontals (children's before parents') are ``A_x``, the root's separator
+        ``A_s``. The call's ``R`` is upper triangular in that order, so each clique's conditional is its rows of
+        ``[R S]`` at its frontals' and its separator's columns (what eliminating it alone gives, up to rounding);
+        the call's new factor is the root's cached factor, and goes to the root's parent. A clique below the root
+        keeps its subtree's rows in the group (a ``PendingSummary``), eliminated when first read. Returns
+        ``(group, its frontals in that order, the root's separator, (R, S, d))``."""
+        root = group[0]
+        cliques = group[::-1]  # children before parents
+        column: dict = {}
+        width = 0
+        for v in [v for c in cliques for v in F_of[c]] + S_of[root]:
+            column[v] = width
+            width += dims[v]
+        f = width - sum(dims[v] for v in S_of[root])
+        stacked = [fac for c in cliques for fac in waiting[c]]
+        b = np.concatenate([fac.b for fac in stacked]) if stacked else np.zeros(0)
+        owner = np.repeat(cliques, [sum(len(fac.b) for fac in waiting[c]) for c in cliques])
+        A = np.zeros((len(b), width))
+        r = 0
+        for fac in stacked:
+            m = len(fac.b)
+            if len(set(fac.keys)) == len(fac.keys):
+                for v, block in zip(fac.keys, fac.A):
+                    A[r:r + m, column[v]:column[v] + dims[v]] = block
+            else:  # a variable twice in one factor: its blocks add
                 for v, block in zip(fac.keys, fac.A):
                     A[r:r + m, column[v]:column[v] + dims[v]] += block
-                b[r:r + m] = fac.b
-                r += m
-            try:
-                R, S, d, A_new, b_new = eliminate_variable(A[:, :f], A[:, f:], b)
-            except SingularSystemError as exc:
-                names = ", ".join(repr(self.names[v]) for v in F)
-                raise SingularSystemError(f"the factors on {names} do not determine them ({exc}): a variable "
-                                          "needs a prior or enough measurements") from None
-            conditionals[c] = (np.asarray(R, dtype=float), np.asarray(S, dtype=float).reshape(f, width - f),
-                               np.asarray(d, dtype=float).reshape(f))
+            r += m
+        try:
+            R, S, d, A_new, b_new = self.impl.module("elimination").eliminate_variable(A[:, :f], A[:, f:], b)
+        except SingularSystemError as exc:
+            names = ", ".join(repr(self.names[v]) for c in cliques for v in F_of[c])
+            raise SingularSystemError(f"the factors on {names} do not determine them ({exc}): a variable "
+                                      "needs a prior or enough measurements") from None
+        T = np.hstack([np.asarray(R, dtype=float), np.asarray(S, dtype=float).reshape(f, width - f)])
+        d = np.asarray(d, dtype=float).reshape(f)
+        subtree: dict = {}  # clique -> the group's cliques in its subtree
+        for c in cliques:
+            subtree.setdefault(c, []).append(c)  # children before parents
+            if c != root:
+                subtree.setdefault(int(parents[c]), []).extend(subtree[c])
+            lo = column[F_of[c][0]]
+            hi = lo + sum(dims[v] for v in F_of[c])
+            seps = self._columns(S_of[c], column, dims)
+            conditionals[c] = (T[lo:hi, lo:hi], T[lo:hi, seps], d[lo:hi])
+            if c != root:
+                cached[c] = PendingSummary(A, b, owner, column, subtree[c],
+                                           [v for u in subtree[c] for v in F_of[u]], S_of[c])
+        b_new = np.asarray(b_new, dtype=float).reshape(-1)
+        A_new = np.asarray(A_new, dtype=float).reshape(len(b_new), width - f)
+        cached[root] = (A_new, b_new)
+        if S_of[root] and len(b_new):
+            blocks, start = [], 0
+            for v in S_of[root]:
+                blocks.append(A_new[:, start:start + dims[v]])
+                start += dims[v]
+            waiting[parents[root]].append(LinearFactor(tuple(S_of[root]), blocks, b_new))
+        return group, [v for c in cliques for v in F_of[c]], S_of[root], (T[:, :f], T[:, f:], d)
+
+    @staticmethod
+    def _columns(keys, column, dims) -> list:
+        """The columns of the variables ``keys`` (``column[v]`` the first of v's), in their order."""
+        return [i for v in keys for i in range(column[v], column[v] + dims[v])]
+
+    def summary(self, tree, c, dims) -> tuple:
+        """Clique ``c``'s cached factor ``(A, b)`` on its separator; one still pending is eliminated now (its
+        subtree's rows, the subtree's frontals ``A_x``, the separator ``A_s``) and kept."""
+        entry = tree.cached[c]
+        if isinstance(entry, PendingSummary):
+            inside = np.isin(entry.owner, entry.subtree)
+            rows = entry.A[inside]
+            A_x = rows[:, self._columns(entry.frontals, entry.columns, dims)]
+            A_s = rows[:, self._columns(entry.separator, entry.columns, dims)]
+            _, _, _, A_new, b_new = self.impl.module("elimination").eliminate_variable(A_x, A_s, entry.b[inside])
             b_new = np.asarray(b_new, dtype=float).reshape(-1)
-            A_new = np.asarray(A_new, dtype=float).reshape(len(b_new), width - f)
-            cached[c] = (A_new, b_new)
-            if Sep and len(b_new):
-                blocks, start = [], 0
-                for v in Sep:
-                    blocks.append(A_new[:, start:start + dims[v]])
-                    start += dims[v]
-                waiting[parents[c]].append(LinearFactor(tuple(Sep), blocks, b_new))
-        tree = NumericBayesTree([glob[F].tolist() for F in frontals], [glob[S].tolist() for S in clique_separators],
-                                np.asarray(parents, dtype=int), conditionals, cached)
-        return tree, glob[order].tolist()
+            entry = (np.asarray(A_new, dtype=float).reshape(len(b_new), A_s.shape[1]), b_new)
+            tree.cached[c] = entry
+        return entry

@@ -11,7 +11,8 @@ new_values)``:
    move their linearisation point, ``theta_v <- theta_v (+) delta_v``, ``delta_v <- 0``, and every factor
    on them is linearised again (with GTSAM's rule, by default: also the frontals of every clique whose
    separator holds such a variable); the new factors are linearised;
-3. the affected top and its orphans (``affected_cliques``): the top's cliques are removed, its variables
+3. the affected top and its orphans (``affected_cliques``, handed the cut of the tree that can take part:
+   ``course.incremental.affected``): the top's cliques are removed, its variables
    and the new ones re-eliminated (``course.incremental.reelimination``) from the factors whose
    variables all lie in the top and the orphans' cached factors, the new factors' variables ordered
    last; each orphan hangs from its new parent (``orphan_parents``);
@@ -22,10 +23,15 @@ new_values)``:
 current linearised system from the tree's conditionals (the implementation's ``marginal_covariances``).
 Variables fixed in a graph and robust losses are not taken: anchor a graph with a prior.
 
-Cost (``python -m course online intel``, then ``m3500``, one run each on a shared 2-core machine, GTSAM's ISAM2
-in the same run): 13.9 s in all over intel's 729 steps against ISAM2's 0.64 s (22x; median 11.0 against 0.45
-ms a step); on all of M3500 237 s against 7.4 s (32x). What is left is Python per re-eliminated clique (the
-stacking of its rows, ``eliminate_variable``'s checks and factorisations) and per clique the wildfire visits.
+Cost (``python -m course online intel --no-batch``, then ``m3500 --no-batch``, on a shared 2-core machine,
+GTSAM's ISAM2 in the same run, two runs each: the peer's own time moves by a third between runs): over intel's
+729 steps 8.4 and 10.0 s in all against ISAM2's 0.57 and 0.75 s (15x and 13x; median 7.5 and 9.7 against 0.42
+and 0.52 ms a step, p90 28 and 33 against 1.8 and 2.4); on all of M3500 147 and 157 s against 7.3 and 10.1 s
+(20x and 15x; median 3.4 and 4.1 against 0.31 and 0.44 ms, p90 137 and 155 against 3.5 and 4.7: the loop
+closures' large tops). No Python loop of an update visits every clique. What
+is left is Python per call of the implementation on each group of cliques (the stacking of its rows,
+``eliminate_variable``'s checks and factorisations, the cached factors of orphans read for the first time), the
+ordering, symbolic elimination and Bayes tree of each top, and per clique the wildfire visits.
 """
 
 from dataclasses import dataclass
@@ -33,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from course.core import impl as impl_loader
+from course.incremental.affected import affected_in_cut
 from course.incremental.bayes_tree import NumericBayesTree
 from course.incremental.factors import FactorStore
 from course.incremental.reelimination import LinearFactor, Reeliminator
@@ -95,30 +102,45 @@ class IncrementalSmoother:
         candidates = sorted(v for v in self._changed if v < n_tree)
         relin = [candidates[k] for k in incremental.relinearised_keys([self.delta[v] for v in candidates],
                                                                       self.relinearize_threshold)]
+        held: dict = {}  # variable -> the cliques holding it (one walk down the tree per variable and update)
+
+        def holding(v):
+            if v not in held:
+                held[v] = self.tree.holding(v)
+            return held[v]
+
         if relin and self.relinearize_neighbours:
-            relin = self._with_neighbours(relin)
+            relin = self._with_neighbours(relin, holding)
         new_keys = sorted({v for i in new_ids for v in self.factors.keys[i]})
         if len(self.tree):
-            top, orphans = incremental.affected_cliques(self.tree.frontals, self.tree.separators, self.tree.parents,
-                                                        new_keys, relin)
+            top, orphans = affected_in_cut(incremental.affected_cliques, self.tree, new_keys, relin, holding)
+            # in the order the cliques were created (the re-elimination's ordering breaks its ties by it)
+            top = sorted(top, key=self.tree.created.__getitem__)
+            orphans = sorted(orphans, key=self.tree.created.__getitem__)
         else:
             top, orphans = [], []
         # the relinearisation: new linearisation points, their factors linearised again
         relinearise = set(new_ids)
+        by_kind: dict = {}
         for v in relin:
-            self.theta[v] = self._retract(v, self.delta[v])
-            self.delta[v] = np.zeros(self.dims[v])
-            relinearise.update(self.factors.of_variable[v])
+            by_kind.setdefault(self.kinds[v].name, []).append(v)
+        for vs in by_kind.values():  # one retraction per kind
+            kind = self.kinds[vs[0]]
+            moved = np.asarray(kind.retract(np.stack([self.theta[v] for v in vs]),
+                                            np.stack([self.delta[v] for v in vs])), dtype=float)
+            for k, v in enumerate(vs):
+                self.theta[v] = moved[k]
+                self.delta[v] = np.zeros(self.dims[v])
+                relinearise.update(self.factors.of_variable[v])
         self.factors.linearise(sorted(relinearise), self.theta, self.kinds)
         # the top's variables, its factors, the orphans' cached factors
         variables = [v for c in top for v in self.tree.frontals[c]] + new_vars
-        inside = np.zeros(len(self.keys), dtype=bool)
-        inside[variables] = True
+        inside = set(variables)
         ids = sorted({i for v in variables for i in self.factors.of_variable[v]
-                      if all(inside[u] for u in self.factors.keys[i])})
+                      if inside.issuperset(self.factors.keys[i])})
         linear = [LinearFactor(self.factors.keys[i], self.factors.A[i], self.factors.b[i]) for i in ids]
         for o in orphans:
-            A, b = self.tree.cached[o]
+            A, b = self._reeliminator.summary(self.tree, o, self.dims)
             if len(b):
                 blocks, start = [], 0
                 for v in self.tree.separators[o]:
@@ -126,25 +148,27 @@ class IncrementalSmoother:
                     start += self.dims[v]
                 linear.append(LinearFactor(tuple(self.tree.separators[o]), blocks, b))
         replaced: list = []
+        groups: list = []
         if variables:
-            new_tree, ordering = self._reeliminator.eliminate(variables, linear, new_keys, self.dims)
+            new_tree, ordering, groups = self._reeliminator.eliminate(variables, linear, new_keys, self.dims)
             parents_of_orphans = incremental.orphan_parents([self.tree.separators[o] for o in orphans], ordering,
                                                             new_tree.frontals) if orphans else []
             replaced = self.tree.replace_top(top, orphans, parents_of_orphans, new_tree)
+            groups = [([replaced[k] for k in members], F, S, conditional) for members, F, S, conditional in groups]
         recomputed: list = []
         if len(self.tree):
             self.delta, recomputed = wildfire_in_fronts(incremental.wildfire_update, self.tree, self.delta, replaced,
-                                                        self.wildfire_threshold, self.dims)
+                                                        self.wildfire_threshold, self.dims, groups)
             self._changed = {v for c in recomputed for v in self.tree.frontals[c]}
         return UpdateResult(len(relin), len(variables), len(recomputed), len(self.tree))
 
-    def _with_neighbours(self, relin: list) -> list:
-        """``relin`` and the frontals of every clique whose separator holds one of them, sorted."""
-        marked = set(relin)
+    def _with_neighbours(self, relin: list, holding) -> list:
+        """``relin`` and the frontals of every clique whose separator holds one of them, sorted (``holding``:
+        v -> the cliques holding v, its home first)."""
         out = set(relin)
-        for frontals, separator in zip(self.tree.frontals, self.tree.separators):
-            if not marked.isdisjoint(separator):
-                out.update(frontals)
+        for v in relin:
+            for c in holding(v)[1:]:  # past its home
+                out.update(self.tree.frontals[c])
         return sorted(out)
 
     def _add(self, graph, values: dict) -> tuple:

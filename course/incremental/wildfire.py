@@ -6,14 +6,17 @@ After an update it can only reach the re-eliminated top and what hangs below it,
 one level under the top: handing it the whole tree every time costs a pass over every clique. So the
 tree is handed over in fronts, each a small tree of the same contract, with the same answer:
 
-1. the first front: the replaced cliques (a top, closed under parents: its roots are roots) and the
-   cliques not replaced down to ``DEPTH`` levels below them (the candidates);
+1. the first front: the replaced cliques (a top, closed under parents: its roots are roots; each group of
+   them eliminated in one call handed as one clique with the group's conditional, which solves the same
+   steps, up to rounding, for fewer cliques) and the cliques not replaced down to ``DEPTH`` levels below
+   them (the candidates);
 2. a later front: the candidates of the deepest level the previous front recomputed (the frontier: solved
-   again, marked replaced, which gives the same steps), the cliques down to ``DEPTH`` levels below them as
-   the new candidates, and one root clique
-   holding the variables of the frontier's separators as its frontals with the conditional
-   ``(R = I, S empty, d = their new steps)``, marked replaced: it reproduces those steps, and, given
-   their steps before the update as ``delta``, marks changed exactly the ones the whole pass marks;
+   again, marked replaced, which gives the same steps), the cliques down to twice the previous front's
+   levels below them as the new candidates (a change that reached this far tends to go further: fewer
+   calls, few candidates left unchanged), and one root clique holding the variables of the frontier's
+   separators as its frontals with the conditional ``(R = I, S empty, d = their new steps)``, marked
+   replaced: it reproduces those steps, and, given their steps before the update as ``delta``, marks
+   changed exactly the ones the whole pass marks;
 3. until a front recomputes no candidate.
 
 Each front's variables are numbered 0..n'-1 for the call; a clique is recomputed by the whole pass
@@ -22,38 +25,52 @@ exactly when it is recomputed in its front.
 
 import numpy as np
 
-#: the levels of candidates below the frontier in one front (fewer calls, each a little larger)
+#: the levels of candidates below the frontier in the first front (doubled in each later one)
 DEPTH = 4
 
 
-def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) -> tuple:
+def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims, groups=()) -> tuple:
     """``(new delta (list of n arrays), recomputed cliques (sorted))``, as ``wildfire_update(tree.frontals,
-    tree.separators, tree.parents, tree.conditionals, delta, replaced, threshold)`` on the whole tree."""
-    C = len(tree)
-    children: list = [[] for _ in range(C)]
-    for c, p in enumerate(tree.parents.tolist()):
-        if p >= 0:
-            children[p].append(c)
-    is_replaced = np.zeros(C, dtype=bool)
-    is_replaced[list(replaced)] = True
+    tree.separators, tree.parents, tree.conditionals, delta, replaced, threshold)`` on the whole tree.
+
+    ``groups``: replaced cliques eliminated together, ``(cliques (the group's root first), frontals,
+    separator, (R, S, d))`` (the root's separator; the conditional over the frontals in that order, which
+    the cliques' own are blocks of): the first front takes each as one clique (the same steps up to rounding,
+    for fewer cliques)."""
+    unit = {c: g for g, group in enumerate(groups) for c in group[0]}
+    children = tree.children
+    is_replaced = set(replaced)
     new = list(delta)
     recomputed = list(replaced)
     frontier = list(replaced)
     solved_root: list = []  # the variables of the fake root (none for the first front)
     first = True
+    depth = DEPTH
     while frontier:
-        # the candidates: DEPTH levels below the frontier; the next frontier is among the deepest
+        # the candidates: depth levels below the frontier; the next frontier is among the deepest
         candidates, level = [], list(frontier)
-        for _ in range(DEPTH):
-            level = [ch for c in level for ch in children[c] if not is_replaced[ch]]
+        for _ in range(depth):
+            level = [ch for c in level for ch in children[c] if ch not in is_replaced]
             candidates += level
         deepest = set(level)
         if not candidates and not first:
             break
         cliques = frontier + candidates
-        variables = list(solved_root) + [v for c in cliques for v in tree.frontals[c]]
+        # one entry per clique, or per group of replaced cliques in the first front
+        entries = []  # (the cliques it stands for, frontals, separator, parent clique, conditional)
+        taken: set = set()
+        for c in cliques:
+            g = unit.get(c) if first else None
+            if g is None:
+                entries.append(([c], tree.frontals[c], tree.separators[c], int(tree.parents[c]), tree.conditionals[c]))
+            elif g not in taken:
+                taken.add(g)
+                members, F, S, conditional = groups[g]
+                entries.append((members, F, S, int(tree.parents[members[0]]), conditional))
+        offset = 1 if solved_root else 0
+        number = {c: k + offset for k, entry in enumerate(entries) for c in entry[0]}
+        variables = list(solved_root) + [v for entry in entries for v in entry[1]]
         local = {v: k for k, v in enumerate(variables)}
-        number = {c: k + (1 if solved_root else 0) for k, c in enumerate(cliques)}
         frontals: list = []
         separators: list = []
         parents: list = []
@@ -64,13 +81,12 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) 
             parents.append(-1)
             f = sum(dims[v] for v in solved_root)
             conditionals.append((np.eye(f), np.zeros((f, 0)), np.concatenate([new[v] for v in solved_root])))
-        for c in cliques:
-            frontals.append([local[v] for v in tree.frontals[c]])
-            separators.append([local[v] for v in tree.separators[c]])
-            p = int(tree.parents[c])
+        for _, F, S, p, conditional in entries:
+            frontals.append([local[v] for v in F])
+            separators.append([local[v] for v in S])
             parents.append(number.get(p, 0 if solved_root else -1) if p >= 0 else -1)
-            conditionals.append(tree.conditionals[c])
-        marked = ([0] if solved_root else []) + [number[c] for c in frontier]
+            conditionals.append(conditional)
+        marked = ([0] if solved_root else []) + sorted({number[c] for c in frontier})
         steps, done = wildfire_update(frontals, separators, np.array(parents, dtype=int), conditionals,
                                       [delta[v] for v in variables], marked, threshold)
         done = set(int(c) for c in done)
@@ -82,4 +98,5 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims) 
         frontier = [c for c in candidates if number[c] in done and c in deepest]
         solved_root = list(dict.fromkeys(v for c in frontier for v in tree.separators[c]))
         first = False
+        depth *= 2  # a change that reached this far tends to go further: fewer, larger fronts
     return new, sorted(recomputed)
