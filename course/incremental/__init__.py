@@ -2,7 +2,7 @@
 
 The pieces, one concept per file: the smoother's nonlinear factors and their cached linearisations
 (``factors``), the numeric Bayes tree (``bayes_tree``: cliques with their conditional ``(R, S, d)`` and
-cached factor on the separator), the affected top found on a cut of the tree (``affected``), the
+cached factor on the separator), the
 re-elimination of an affected top (``reelimination``), the wildfire update in fronts (``wildfire``), and the
 smoother itself (``smoother``: ``update(new_factors, new_values)``, ``estimate()``, ``marginal``). Every
 piece an exercise computes comes from the implementation (``course.core.impl.load(impl)``): the

@@ -11,9 +11,8 @@ new_values)``:
    move their linearisation point, ``theta_v <- theta_v (+) delta_v``, ``delta_v <- 0``, and every factor
    on them is linearised again (with GTSAM's rule, by default: also the frontals of every clique whose
    separator holds such a variable); the new factors are linearised;
-3. the affected top and its orphans (``affected_cliques``, handed the cut of the tree that can take part:
-   ``course.incremental.affected``): the top's cliques are removed, its variables
-   and the new ones re-eliminated (``course.incremental.reelimination``) from the factors whose
+3. the affected top and its orphans (``affected_cliques``, on the whole tree): the top's cliques are
+   removed, its variables and the new ones re-eliminated (``course.incremental.reelimination``) from the factors whose
    variables all lie in the top and the orphans' cached factors, the new factors' variables ordered
    last; each orphan hangs from its new parent (``orphan_parents``);
 4. the wildfire update of the steps (``wildfire_update``, ``wildfire_threshold``), handed the tree front
@@ -39,7 +38,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from course.core import impl as impl_loader
-from course.incremental.affected import affected_in_cut
 from course.incremental.bayes_tree import NumericBayesTree
 from course.incremental.factors import FactorStore
 from course.incremental.reelimination import LinearFactor, Reeliminator
@@ -102,18 +100,13 @@ class IncrementalSmoother:
         candidates = sorted(v for v in self._changed if v < n_tree)
         relin = [candidates[k] for k in incremental.relinearised_keys([self.delta[v] for v in candidates],
                                                                       self.relinearize_threshold)]
-        held: dict = {}  # variable -> the cliques holding it (one walk down the tree per variable and update)
-
-        def holding(v):
-            if v not in held:
-                held[v] = self.tree.holding(v)
-            return held[v]
-
         if relin and self.relinearize_neighbours:
-            relin = self._with_neighbours(relin, holding)
+            relin = self._with_neighbours(relin)
         new_keys = sorted({v for i in new_ids for v in self.factors.keys[i]})
         if len(self.tree):
-            top, orphans = affected_in_cut(incremental.affected_cliques, self.tree, new_keys, relin, holding)
+            # the whole tree: its lists are kept as they are, so handing them over costs nothing
+            top, orphans = incremental.affected_cliques(self.tree.frontals, self.tree.separators, self.tree.parents,
+                                                        new_keys, relin)
             # in the order the cliques were created (the re-elimination's ordering breaks its ties by it)
             top = sorted(top, key=self.tree.created.__getitem__)
             orphans = sorted(orphans, key=self.tree.created.__getitem__)
@@ -162,12 +155,11 @@ class IncrementalSmoother:
             self._changed = {v for c in recomputed for v in self.tree.frontals[c]}
         return UpdateResult(len(relin), len(variables), len(recomputed), len(self.tree))
 
-    def _with_neighbours(self, relin: list, holding) -> list:
-        """``relin`` and the frontals of every clique whose separator holds one of them, sorted (``holding``:
-        v -> the cliques holding v, its home first)."""
+    def _with_neighbours(self, relin: list) -> list:
+        """``relin`` and the frontals of every clique whose separator holds one of them, sorted."""
         out = set(relin)
         for v in relin:
-            for c in holding(v)[1:]:  # past its home
+            for c in self.tree.holding(v)[1:]:  # past its home
                 out.update(self.tree.frontals[c])
         return sorted(out)
 
