@@ -123,6 +123,17 @@ def test_each_update_solves_the_linearised_system_exactly():
     feed(path_with_loops_2d(), IncrementalSmoother(wildfire_threshold=0.0), assert_step_is_batch)
 
 
+@pytest.mark.parametrize("variant", ["elim_qr_route", "elim_cholesky_then_eigh"])
+def test_a_correct_but_different_elimination_keeps_the_updates_exact(variant, tmp_path):
+    """A group of cliques is eliminated in one call and each clique's conditional read from its rows: an
+    orthogonal factorisation (row signs free, rounding where the structure has zeros) gives the same steps."""
+    from student_variants import ALTERNATIVES_ELIMINATION, build
+
+    assert variant in ALTERNATIVES_ELIMINATION
+    impl = build(variant, tmp_path)
+    feed(path_with_loops_2d(), IncrementalSmoother(impl=str(impl), wildfire_threshold=0.0), assert_step_is_batch)
+
+
 def counting(smoother, counts: list):
     """``smoother`` with its ``update`` appending the number of variables it relinearised to ``counts``."""
     update = smoother.update
