@@ -14,6 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 
 
+class IsamFailed(RuntimeError):
+    """GTSAM's ``ISAM2.update`` threw at a step (the message names it)."""
+
+
 @dataclass
 class PoseFamily:
     """What differs between the families, as callables on GTSAM objects: ``initial(k)`` the file's pose k,
@@ -28,7 +32,8 @@ class PoseFamily:
 
 
 def feed(edges_i, edges_j, num_poses: int, family: PoseFamily, relinearize_threshold: float) -> tuple:
-    """``(isam, {"seconds": (N,) per update, "relinearized": (N,), "reeliminated": (N,)})``."""
+    """``(isam, {"seconds": (N,) per update, "relinearized": (N,), "reeliminated": (N,)})``. Raises
+    ``IsamFailed`` naming the step where ``isam.update`` threw (GTSAM's indeterminate-system error, say)."""
     import gtsam
 
     params = gtsam.ISAM2Params()
@@ -57,7 +62,12 @@ def feed(edges_i, edges_j, num_poses: int, family: PoseFamily, relinearize_thres
                 initial = family.estimate(isam, k - 1).compose(z.inverse())
         values.insert(k, initial)
         start = time.perf_counter()
-        result = isam.update(factors, values)
+        try:
+            result = isam.update(factors, values)
+        except RuntimeError as exc:
+            first = str(exc).strip().split("\n\n")[0]  # GTSAM's first paragraph, on one line
+            first = " ".join(first.split()) or type(exc).__name__
+            raise IsamFailed(f"ISAM2's update failed at step {k} of {n}: {first}") from None
         seconds[k] = time.perf_counter() - start
         relinearized[k] = result.getVariablesRelinearized()
         reeliminated[k] = result.getVariablesReeliminated()
