@@ -332,8 +332,9 @@ if run is not None:
 
 # %% [markdown] id="online-md"
 # **Online, one pose per step.** Intel (its first 300 poses in the quick setting) fed to the smoother built on
-# your five pieces (`course/incremental`: your `elimination` for each clique, your `orderings` and
-# `bayes_tree` for the top's new structure, your `incremental_update` for the rest), to GTSAM's `ISAM2` with
+# your five pieces (`course/incremental`: your `elimination` for each group of small cliques, each clique's
+# conditional its rows of the call's $R$, your `orderings` and `bayes_tree` for the top's new structure, your
+# `incremental_update` for the rest), to GTSAM's `ISAM2` with
 # the same relinearisation threshold (0.01, checked every step), and to batch re-solves of the graph so far
 # every K steps. Each method starts a new pose from the odometry composed onto its own estimate of the last
 # one. The table gives the time per step, the variables relinearised and re-eliminated per step, and the
