@@ -22,12 +22,11 @@ new_values)``:
 current linearised system from the tree's conditionals (the implementation's ``marginal_covariances``).
 Variables fixed in a graph and robust losses are not taken: anchor a graph with a prior.
 
-Cost (``python -m course online intel --no-batch``, then ``m3500 --no-batch``, on a shared 2-core machine,
-GTSAM's ISAM2 in the same run, two runs each: the peer's own time moves by a third between runs): over intel's
-729 steps 8.4 and 10.0 s in all against ISAM2's 0.57 and 0.75 s (15x and 13x; median 7.5 and 9.7 against 0.42
-and 0.52 ms a step, p90 28 and 33 against 1.8 and 2.4); on all of M3500 147 and 157 s against 7.3 and 10.1 s
-(20x and 15x; median 3.4 and 4.1 against 0.31 and 0.44 ms, p90 137 and 155 against 3.5 and 4.7: the loop
-closures' large tops). No loop of the framework visits every clique in an update (the implementation's
+Cost (``python -m course online intel --no-batch``, then ``m3500``, one run each on a shared 2-core machine,
+GTSAM's ISAM2 in the same run; its own time moves by a third between runs): over intel's 729 steps 10.6 s in
+all against ISAM2's 0.84 s (12.6x; median 9.8 against 0.59 ms a step, p90 34 against 2.6); on all of M3500
+143 s against 9.4 s (15.2x; median 5.7 against 0.41 ms, p90 130 against 4.9: the loop closures' large tops).
+No loop of the framework visits every clique in an update (the implementation's
 ``affected_cliques`` reads the whole tree: about 1 ms a call at 2000 poses). What
 is left is Python per call of the implementation on each group of cliques (the stacking of its rows,
 ``eliminate_variable``'s checks and factorisations, the cached factors of orphans read for the first time), the
