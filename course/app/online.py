@@ -144,20 +144,20 @@ def _prefix(graph, dim: int, k: int, estimate):
                        name=f"{graph.name}[:{k + 1}]")
 
 
-def _stored(graph, dim: int, k=None):
+def _stored(graph, dim: int):
     """The file's poses as stored values (N, 3) or (N, 12)."""
     if dim == 2:
         return graph.poses.copy()
     return np.concatenate([graph.t, graph.R.reshape(-1, 9)], axis=1)
 
 
-def _compose_tail(graph, dim: int, estimate, start: int, stop: int):
-    """Poses ``start..stop-1`` appended to ``estimate`` by the odometry from the last one (or the file's)."""
+def _odometry(graph, dim: int) -> dict:
+    """Pose k -> the between measurement from pose k - 1 to k (an edge from k to k - 1 reversed)."""
     from course.factorgraph import SE2, SE3
-    from course.incremental.online import compose, inverse
+    from course.incremental.online import inverse
 
     kind = SE2 if dim == 2 else SE3
-    odometry = {}
+    odometry: dict = {}
     for e in range(len(graph.edges_i)):
         i, j = int(graph.edges_i[e]), int(graph.edges_j[e])
         z = graph.measurements[e] if dim == 2 else np.concatenate([graph.t_z[e], graph.R_z[e].ravel()])
@@ -165,6 +165,15 @@ def _compose_tail(graph, dim: int, estimate, start: int, stop: int):
             odometry[j] = z
         elif i == j + 1 and i not in odometry:
             odometry[i] = inverse(kind, z)
+    return odometry
+
+
+def _compose_tail(graph, dim: int, odometry: dict, estimate, start: int, stop: int):
+    """Poses ``start..stop-1`` appended to ``estimate`` by the ``odometry`` from the last one (or the file's)."""
+    from course.factorgraph import SE2, SE3
+    from course.incremental.online import compose
+
+    kind = SE2 if dim == 2 else SE3
     file = _stored(graph, dim)
     out = list(estimate)
     for k in range(start, stop):
@@ -177,10 +186,11 @@ def run_batch(graph, dim: int, every: int, solve) -> OnlineRow:
     with the poses since composed by odometry; ``solve(subgraph) -> stored values`` times itself."""
     n = graph.num_poses
     stops = sorted(set(range(every - 1, n, every)) | {n - 1})
+    odometry = _odometry(graph, dim)
     estimate: list = []
     seconds = []
     for k in stops:
-        estimate = _compose_tail(graph, dim, estimate, len(estimate), k + 1)
+        estimate = _compose_tail(graph, dim, odometry, estimate, len(estimate), k + 1)
         sub = _prefix(graph, dim, k, estimate)
         values, elapsed = solve(sub)
         seconds.append(elapsed)
