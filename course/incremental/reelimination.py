@@ -167,7 +167,16 @@ class Reeliminator:
         b = np.concatenate([fac.b for fac in stacked]) if stacked else np.zeros(0)
         owner = np.repeat(cliques, [sum(len(fac.b) for fac in waiting[c]) for c in cliques])
         A = np.zeros((len(b), width))
-        self._scatter(A, stacked, column, dims)
+        r = 0
+        for fac in stacked:
+            m = len(fac.b)
+            if len(set(fac.keys)) == len(fac.keys):
+                for v, block in zip(fac.keys, fac.A):
+                    A[r:r + m, column[v]:column[v] + dims[v]] = block
+            else:  # a variable twice in one factor: its blocks add
+                for v, block in zip(fac.keys, fac.A):
+                    A[r:r + m, column[v]:column[v] + dims[v]] += block
+            r += m
         try:
             R, S, d, A_new, b_new = self.impl.module("elimination").eliminate_variable(A[:, :f], A[:, f:], b)
         except SingularSystemError as exc:
@@ -198,25 +207,6 @@ class Reeliminator:
                 start += dims[v]
             waiting[parents[root]].append(LinearFactor(tuple(S_of[root]), blocks, b_new))
         return group, [v for c in cliques for v in F_of[c]], S_of[root], (T[:, :f], T[:, f:], d)
-
-    @staticmethod
-    def _scatter(A, stacked, column, dims) -> None:
-        """Write the factors ``stacked`` into ``A``, one after another down its rows, each block at its variable's
-        columns; the factors of one shape (rows, block sizes) in one assignment per slot."""
-        first = np.cumsum([0] + [len(fac.b) for fac in stacked])
-        shapes: dict = {}
-        for k, fac in enumerate(stacked):
-            if len(set(fac.keys)) == len(fac.keys):
-                shapes.setdefault((len(fac.b), tuple(dims[v] for v in fac.keys)), []).append(k)
-            else:  # a variable twice in one factor: its blocks add
-                r = first[k]
-                for v, block in zip(fac.keys, fac.A):
-                    A[r:r + len(fac.b), column[v]:column[v] + dims[v]] += block
-        for (m, sizes), ks in shapes.items():
-            rows = (first[ks][:, None] + np.arange(m))[:, :, None]  # (k, m, 1)
-            for a, size in enumerate(sizes):
-                cols = np.array([column[stacked[k].keys[a]] for k in ks])[:, None, None] + np.arange(size)
-                A[rows, cols] = np.stack([stacked[k].A[a] for k in ks])
 
     @staticmethod
     def _columns(keys, column, dims) -> list:
