@@ -88,7 +88,7 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims, 
         local = {v: k for k, v in enumerate(variables)}
         root = [0] if solved_root else []  # the fake root's number
         outside = 0 if solved_root else -1  # the parent of a clique whose parent is not in the front
-        separators = [[] for _ in root] + [[local[v] for v in S] for S in their_separators]
+        separators: list = [[] for _ in root] + [[local[v] for v in S] for S in their_separators]
         parents = [-1 for _ in root] + [number.get(p, outside) if p >= 0 else -1 for p in their_parents]
         marked = root + sorted({number[c] for c in frontier})
         steps, done = wildfire_update(frontals, separators, np.array(parents, dtype=int), conditionals,
