@@ -56,9 +56,7 @@ class NumericBayesTree:
         while stack:
             c = stack.pop()
             out.append(c)
-            for ch in self.children[c]:
-                if v in self.separators[ch]:
-                    stack.append(ch)
+            stack.extend(ch for ch in self.children[c] if v in self.separators[ch])
         return out
 
     def replace_top(self, top, orphans, orphan_parents, new) -> list:
@@ -77,13 +75,14 @@ class NumericBayesTree:
         self.cached += [None] * grow
         self.children += [[] for _ in range(grow)]
         self.created += [0] * grow
-        parents = np.asarray(self.parents).tolist() + [-1] * grow  # a list while it is edited clique by clique
+        parents = np.concatenate([self.parents, np.full(grow, -1, dtype=int)]) if grow else self.parents
         removed = set(free)
         for c in free:  # detach the top from the parents it keeps
-            p = parents[c]
+            p = int(parents[c])
             if p >= 0 and p not in removed:
                 self.children[p].remove(c)
-        for k, (c, p) in enumerate(zip(slots, np.asarray(new.parents).tolist())):
+        for k, c in enumerate(slots):
+            p = int(new.parents[k])
             parents[c] = slots[p] if p >= 0 else -1
             self.frontals[c] = new.frontals[k]
             self.separators[c] = new.separators[k]
@@ -95,7 +94,7 @@ class NumericBayesTree:
         for c in slots:
             if parents[c] >= 0:
                 self.children[parents[c]].append(c)
-        need = max((max(F) for F in new.frontals if len(F)), default=-1) + 1
+        need = max((v for F in new.frontals for v in F), default=-1) + 1
         if need > len(self.home):
             self.home += [-1] * (need - len(self.home))
         for k, c in enumerate(slots):
@@ -104,7 +103,7 @@ class NumericBayesTree:
         for orphan, p in zip(orphans, orphan_parents):
             parents[orphan] = slots[int(p)]
             self.children[slots[int(p)]].append(int(orphan))
-        self.parents = np.array(parents, dtype=int)
+        self.parents = parents
         # the numbers left free: the live cliques past the new size move into those below it
         holes = set(free[len(new):])
         size = len(self) - len(holes)
