@@ -57,46 +57,47 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims, 
         if not candidates and not first:
             break
         cliques = frontier + candidates
-        # the front: the fake root, then one clique per clique of the tree, or per group of replaced cliques in
-        # the first front; each one's frontals are the next variables, numbered in this order
-        variables = list(solved_root)
-        number: dict = {}  # clique of the tree -> its clique in the front
-        frontals: list = []
-        conditionals: list = []
-        their_separators: list = []  # each one's separator in the tree's variables, its parent in the tree's cliques
-        their_parents: list = []
-        if solved_root:
-            frontals.append(list(range(len(solved_root))))
-            f = sum(dims[v] for v in solved_root)
-            conditionals.append((np.eye(f), np.zeros((f, 0)), np.concatenate([new[v] for v in solved_root])))
+        # one entry per clique, or per group of replaced cliques in the first front
+        entries = []  # (the cliques it stands for, frontals, separator, parent clique, conditional)
         taken: set = set()
         for c in cliques:
             g = unit.get(c) if first else None
             if g is None:
-                members, F, S, conditional = (c,), tree.frontals[c], tree.separators[c], tree.conditionals[c]
-            elif g in taken:
-                continue
-            else:
+                entries.append(((c,), tree.frontals[c], tree.separators[c], up[c], tree.conditionals[c]))
+            elif g not in taken:
                 taken.add(g)
                 members, F, S, conditional = groups[g]
-            number.update(dict.fromkeys(members, len(frontals)))
-            frontals.append(list(range(len(variables), len(variables) + len(F))))
-            variables += F
-            conditionals.append(conditional)
-            their_separators.append(S)
-            their_parents.append(up[members[0]])
+                entries.append((members, F, S, up[members[0]], conditional))
+        offset = 1 if solved_root else 0
+        number = {c: k + offset for k, entry in enumerate(entries) for c in entry[0]}
+        orphaned = 0 if solved_root else -1  # the parent of a clique whose parent is outside the front
+        variables = solved_root + [v for entry in entries for v in entry[1]]
         local = {v: k for k, v in enumerate(variables)}
-        root = [0] if solved_root else []  # the fake root's number
-        outside = 0 if solved_root else -1  # the parent of a clique whose parent is not in the front
-        separators: list = [[] for _ in root] + [[local[v] for v in S] for S in their_separators]
-        parents = [-1 for _ in root] + [number.get(p, outside) if p >= 0 else -1 for p in their_parents]
-        marked = root + sorted({number[c] for c in frontier})
+        frontals: list = []
+        separators: list = []
+        parents: list = []
+        conditionals: list = []
+        if solved_root:
+            frontals.append(list(range(len(solved_root))))
+            separators.append([])
+            parents.append(-1)
+            f = sum(dims[v] for v in solved_root)
+            conditionals.append((np.eye(f), np.zeros((f, 0)), np.concatenate([new[v] for v in solved_root])))
+        start = offset and len(solved_root)  # each entry's frontals are the next variables
+        for _, F, S, p, conditional in entries:
+            frontals.append(list(range(start, start + len(F))))
+            start += len(F)
+            separators.append([local[v] for v in S])
+            parents.append(number.get(p, orphaned) if p >= 0 else -1)
+            conditionals.append(conditional)
+        marked = ([0] if solved_root else []) + sorted({number[c] for c in frontier})
         steps, done = wildfire_update(frontals, separators, np.array(parents, dtype=int), conditionals,
                                       [delta[v] for v in variables], marked, threshold)
         done = set(int(c) for c in done)
-        for k in done.difference(root):  # the fake root's steps are those given
-            for at in frontals[k]:
-                new[variables[at]] = np.asarray(steps[at], dtype=float)
+        for k, (_, F, _, _, _) in enumerate(entries):
+            if k + offset in done:
+                for v in F:
+                    new[v] = np.asarray(steps[local[v]], dtype=float)
         recomputed += [c for c in candidates if number[c] in done]
         frontier = [c for c in candidates if number[c] in done and c in deepest]
         solved_root = list(dict.fromkeys(v for c in frontier for v in tree.separators[c]))
