@@ -83,7 +83,7 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims, 
             parents.append(-1)
             f = sum(dims[v] for v in solved_root)
             conditionals.append((np.eye(f), np.zeros((f, 0)), np.concatenate([new[v] for v in solved_root])))
-        start = offset and len(solved_root)  # each entry's frontals are the next variables
+        start = len(solved_root)  # each entry's frontals are the next variables
         for _, F, S, p, conditional in entries:
             frontals.append(list(range(start, start + len(F))))
             start += len(F)

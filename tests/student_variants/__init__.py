@@ -2057,8 +2057,8 @@ BUGS_INCREMENTAL_UPDATE = {
         "incremental_update.py", IU_IN_A, "while c != -1 and c not in top:", "if c != -1:", {IU_NEW, IU_RELIN},
         "AND all their ancestors"),
     "iu_orphans_every_clique_below": V(
-        "incremental_update.py", IU_IN_A, "if c not in top and p in top]", "if c not in top]", {IU_ORPHANS},
-        "the orphans are"),
+        "incremental_update.py", IU_IN_A, "np.flatnonzero(~in_top[:C] & in_top[parents])",
+        "np.flatnonzero(~in_top[:C])", {IU_ORPHANS}, "the orphans are"),
     "iu_smallest_index": V(
         "incremental_update.py", IU_IN_O, "min((int(v) for v in S), key=position.__getitem__)",
         "min(int(v) for v in S)", {IU_ATTACH}, "not its smallest index"),
