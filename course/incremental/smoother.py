@@ -130,7 +130,7 @@ class IncrementalSmoother:
         variables = [v for c in top for v in self.tree.frontals[c]] + new_vars
         inside = set(variables)
         touching = set().union(*[self.factors.of_variable[v] for v in variables])
-        ids = sorted(i for i in touching if inside.issuperset(self.factors.keys[i]))
+        ids = sorted([i for i in touching if inside.issuperset(self.factors.keys[i])])
         linear = [LinearFactor(self.factors.keys[i], self.factors.A[i], self.factors.b[i]) for i in ids]
         for o in orphans:
             A, b = self._reeliminator.summary(self.tree, o, self.dims)
