@@ -77,6 +77,8 @@ def _tree(frontals, clique_separators, parents):
                 if not 0 <= int(v) < n:
                     raise ValueError(f"clique_separators[{c}][{j}] = {v} is not a variable of the tree (0..{n - 1})")
     parents = parents.astype(int)
+    if (parents < np.arange(C)).all():
+        return parents, n  # every parent numbered below its child: no cycle
     # a forest: every clique's 2^k-th ancestor is -1 once 2^k >= C (pointer doubling); else walk to name a cycle
     ancestor = parents.copy()
     for _ in range(int(C).bit_length()):
@@ -96,6 +98,11 @@ def _tree(frontals, clique_separators, parents):
     return parents, n
 
 
+def _shape(block) -> tuple:
+    """``np.shape(block)``, read directly from an array (without np.shape's dispatch: a check per clique)."""
+    return block.shape if isinstance(block, np.ndarray) else np.shape(block)
+
+
 def relinearised_keys(delta, threshold):
     """Fluid relinearisation: the variables v with ``max(abs(delta[v])) > threshold``, sorted.
 
@@ -105,8 +112,9 @@ def relinearised_keys(delta, threshold):
     if not threshold >= 0:
         raise ValueError(f"threshold must be >= 0, got {threshold!r}")
     steps = [np.asarray(step, dtype=float) for step in delta]
+    flat = np.concatenate([step.ravel() for step in steps]) if steps else np.zeros(0)  # every entry, in order
     # one test for all steps; the loop only to name the first bad one
-    if steps and not np.isfinite(np.concatenate([step.ravel() for step in steps])).all():
+    if not np.isfinite(flat).all():
         for v, step in enumerate(steps):
             if not np.all(np.isfinite(step)):
                 raise ValueError(f"delta[{v}] has entries that are not finite")
@@ -193,17 +201,24 @@ def wildfire_update(frontals, clique_separators, parents, conditionals, delta, r
     if len(conditionals) != len(frontals):
         raise ValueError(f"conditionals must hold one (R, S, d) per clique ({len(frontals)}), got {len(conditionals)}")
     sizes = [step.size for step in old]
-    for c, (R, S, d) in enumerate(conditionals):
-        f = sum(sizes[v] for v in frontals[c])
-        s = sum(sizes[v] for v in clique_separators[c])
-        for name, block, shape in (("R", R, (f, f)), ("S", S, (f, s)), ("d", d, (f,))):
-            if np.shape(block) != shape:
-                raise ShapeError(f"conditionals[{c}]: {name} has shape {np.shape(block)}, expected {shape} (clique "
-                                 f"{c}'s frontals {list(frontals[c])}, separator {list(clique_separators[c])})")
-        diagonal = np.asarray(R, dtype=float).diagonal()
-        if not diagonal.all():
-            zero = np.flatnonzero(diagonal == 0.0)
-            raise SingularSystemError(f"conditionals[{c}]: R[{zero[0]}, {zero[0]}] is 0, R is singular")
+    # one test for all cliques (every block's shape, R's diagonals concatenated); the loop only to name the first
+    # bad one
+    f_of = [sum(map(sizes.__getitem__, F)) for F in frontals]
+    s_of = [sum(map(sizes.__getitem__, S)) for S in clique_separators]
+    shapes = [(_shape(R), _shape(S), _shape(d)) for R, S, d in conditionals]
+    if shapes != [((f, f), (f, s), (f,)) for f, s in zip(f_of, s_of)] or (
+            conditionals and not np.concatenate([np.asarray(R).diagonal() for R, _, _ in conditionals]).all()):
+        for c, (R, S, d) in enumerate(conditionals):
+            f, s = f_of[c], s_of[c]
+            for name, block, shape in (("R", R, (f, f)), ("S", S, (f, s)), ("d", d, (f,))):
+                if np.shape(block) != shape:
+                    raise ShapeError(f"conditionals[{c}]: {name} has shape {np.shape(block)}, expected {shape} "
+                                     f"(clique {c}'s frontals {list(frontals[c])}, separator "
+                                     f"{list(clique_separators[c])})")
+            diagonal = np.asarray(R, dtype=float).diagonal()
+            if not diagonal.all():
+                zero = np.flatnonzero(diagonal == 0.0)
+                raise SingularSystemError(f"conditionals[{c}]: R[{zero[0]}, {zero[0]}] is 0, R is singular")
     if not threshold >= 0:
         raise ValueError(f"threshold must be >= 0, got {threshold!r}")
     for i, c in enumerate(replaced):

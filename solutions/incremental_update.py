@@ -77,6 +77,8 @@ def _tree(frontals, clique_separators, parents):
                 if not 0 <= int(v) < n:
                     raise ValueError(f"clique_separators[{c}][{j}] = {v} is not a variable of the tree (0..{n - 1})")
     parents = parents.astype(int)
+    if (parents < np.arange(C)).all():
+        return parents, n  # every parent numbered below its child: no cycle
     # a forest: every clique's 2^k-th ancestor is -1 once 2^k >= C (pointer doubling); else walk to name a cycle
     ancestor = parents.copy()
     for _ in range(int(C).bit_length()):
@@ -96,6 +98,11 @@ def _tree(frontals, clique_separators, parents):
     return parents, n
 
 
+def _shape(block) -> tuple:
+    """``np.shape(block)``, read directly from an array (without np.shape's dispatch: a check per clique)."""
+    return block.shape if isinstance(block, np.ndarray) else np.shape(block)
+
+
 def relinearised_keys(delta, threshold):
     """Fluid relinearisation: the variables v with ``max(abs(delta[v])) > threshold``, sorted.
 
@@ -105,13 +112,16 @@ def relinearised_keys(delta, threshold):
     if not threshold >= 0:
         raise ValueError(f"threshold must be >= 0, got {threshold!r}")
     steps = [np.asarray(step, dtype=float) for step in delta]
+    flat = np.concatenate([step.ravel() for step in steps]) if steps else np.zeros(0)  # every entry, in order
     # one test for all steps; the loop only to name the first bad one
-    if steps and not np.isfinite(np.concatenate([step.ravel() for step in steps])).all():
+    if not np.isfinite(flat).all():
         for v, step in enumerate(steps):
             if not np.all(np.isfinite(step)):
                 raise ValueError(f"delta[{v}] has entries that are not finite")
     # BEGIN SOLUTION
-    return [v for v, step in enumerate(steps) if step.size and float(np.max(np.abs(step))) > threshold]
+    # every entry compared at once (not one reduction per variable): a variable is marked by any entry past it
+    owner = np.repeat(np.arange(len(steps)), [step.size for step in steps])  # the variable of each entry
+    return np.unique(owner[np.abs(flat) > threshold]).tolist()
     # END SOLUTION
 
 
@@ -136,24 +146,23 @@ def affected_cliques(frontals, clique_separators, parents, new_keys, relinearise
     C = len(frontals)
     home = np.empty(n, dtype=int)  # the clique holding each variable as a frontal
     home[np.fromiter(itertools.chain.from_iterable(frontals), dtype=int, count=n)] = np.repeat(
-        np.arange(C), [len(F) for F in frontals])
-    marked = {int(home[k]) for k in new_keys if k < n}
-    relin = set(relinearised)
-    # the cliques that may hold a relinearised variable (its home, a clique listing it in its separator): only
-    # those are tested, not every clique
-    hit = np.zeros(n, dtype=bool)
-    hit[relinearised] = True
-    in_separator = np.repeat(np.arange(C), [len(S) for S in clique_separators])[
-        hit[np.fromiter(itertools.chain.from_iterable(clique_separators), dtype=int)]]
-    near = set(home[relinearised].tolist()) | set(in_separator.tolist())
-    marked |= {c for c, F, S in ((c, frontals[c], clique_separators[c]) for c in near) if relin & (set(F) | set(S))}
+        np.arange(C), list(map(len, frontals)))
+    marked = set(home[[k for k in new_keys if k < n]].tolist())
+    if relinearised:
+        # a clique holding a relinearised variable: as a frontal (its home) or in its separator
+        relin = set(relinearised)
+        marked |= set(home[relinearised].tolist())
+        marked |= {c for c, S in enumerate(clique_separators) if not relin.isdisjoint(S)}
+    up = parents.tolist()
     top: set = set()
     for c in marked:
         while c != -1 and c not in top:
             top.add(c)
-            c = int(parents[c])
-    orphans = [c for c in range(len(frontals)) if c not in top and parents[c] in top]
-    return sorted(top), orphans
+            c = up[c]
+    in_top = np.zeros(C + 1, dtype=bool)  # the last entry, False, stands for a root's parent -1
+    in_top[list(top)] = True
+    orphans = np.flatnonzero(~in_top[:C] & in_top[parents])
+    return sorted(top), orphans.tolist()
     # END SOLUTION
 
 
@@ -220,17 +229,24 @@ def wildfire_update(frontals, clique_separators, parents, conditionals, delta, r
     if len(conditionals) != len(frontals):
         raise ValueError(f"conditionals must hold one (R, S, d) per clique ({len(frontals)}), got {len(conditionals)}")
     sizes = [step.size for step in old]
-    for c, (R, S, d) in enumerate(conditionals):
-        f = sum(sizes[v] for v in frontals[c])
-        s = sum(sizes[v] for v in clique_separators[c])
-        for name, block, shape in (("R", R, (f, f)), ("S", S, (f, s)), ("d", d, (f,))):
-            if np.shape(block) != shape:
-                raise ShapeError(f"conditionals[{c}]: {name} has shape {np.shape(block)}, expected {shape} (clique "
-                                 f"{c}'s frontals {list(frontals[c])}, separator {list(clique_separators[c])})")
-        diagonal = np.asarray(R, dtype=float).diagonal()
-        if not diagonal.all():
-            zero = np.flatnonzero(diagonal == 0.0)
-            raise SingularSystemError(f"conditionals[{c}]: R[{zero[0]}, {zero[0]}] is 0, R is singular")
+    # one test for all cliques (every block's shape, R's diagonals concatenated); the loop only to name the first
+    # bad one
+    f_of = [sum(map(sizes.__getitem__, F)) for F in frontals]
+    s_of = [sum(map(sizes.__getitem__, S)) for S in clique_separators]
+    shapes = [(_shape(R), _shape(S), _shape(d)) for R, S, d in conditionals]
+    if shapes != [((f, f), (f, s), (f,)) for f, s in zip(f_of, s_of)] or (
+            conditionals and not np.concatenate([np.asarray(R).diagonal() for R, _, _ in conditionals]).all()):
+        for c, (R, S, d) in enumerate(conditionals):
+            f, s = f_of[c], s_of[c]
+            for name, block, shape in (("R", R, (f, f)), ("S", S, (f, s)), ("d", d, (f,))):
+                if np.shape(block) != shape:
+                    raise ShapeError(f"conditionals[{c}]: {name} has shape {np.shape(block)}, expected {shape} "
+                                     f"(clique {c}'s frontals {list(frontals[c])}, separator "
+                                     f"{list(clique_separators[c])})")
+            diagonal = np.asarray(R, dtype=float).diagonal()
+            if not diagonal.all():
+                zero = np.flatnonzero(diagonal == 0.0)
+                raise SingularSystemError(f"conditionals[{c}]: R[{zero[0]}, {zero[0]}] is 0, R is singular")
     if not threshold >= 0:
         raise ValueError(f"threshold must be >= 0, got {threshold!r}")
     for i, c in enumerate(replaced):
@@ -242,30 +258,32 @@ def wildfire_update(frontals, clique_separators, parents, conditionals, delta, r
             raise ValueError(f"replaced must be closed upwards (the top of the tree): clique {c} is replaced, its "
                              f"parent {parents[c]} is not")
     # BEGIN SOLUTION
-    new = [step.copy() for step in old]
+    new = list(old)  # a new list: the steps recomputed are new arrays, no array of delta is written into
     replaced = set(int(c) for c in replaced)
     children: list[list[int]] = [[] for _ in frontals]
-    for c, p in enumerate(parents):
-        if p != -1:
-            children[p].append(c)
+    stack = []  # the roots first
+    for c, p in enumerate(parents.tolist()):
+        (stack if p == -1 else children[p]).append(c)
     changed: set = set()
     recomputed = []
-    stack = [c for c in range(len(frontals)) if parents[c] == -1]
     while stack:
         c = stack.pop()
-        if c not in replaced and not changed & set(clique_separators[c]):
+        if c not in replaced and changed.isdisjoint(clique_separators[c]):
             continue  # nothing below can change: a child's separator lies within this clique's variables
         R, S, d = conditionals[c]
         s = np.concatenate([new[v] for v in clique_separators[c]]) if clique_separators[c] else np.zeros(0)
         # x = R^-1 (d - S s), by LAPACK's triangular solve (a tenth of solve_triangular's cost on small blocks)
         x = scipy.linalg.lapack.dtrtrs(np.asarray(R, dtype=float), d - np.asarray(S) @ s)[0] if len(d) else np.zeros(0)
+        # the entries that moved past the threshold, the clique's all at once (not one reduction per variable)
+        before = np.concatenate([old[v] for v in frontals[c]]) if frontals[c] else x
+        moved = (np.abs(x - before) > threshold).tolist()
         start = 0
         for v in frontals[c]:
-            step = x[start:start + old[v].size]
-            start += old[v].size
-            if step.size and float(np.max(np.abs(step - old[v]))) > threshold:
+            stop = start + old[v].size
+            if any(moved[start:stop]):  # the step's largest absolute change is past the threshold
                 changed.add(v)
-            new[v] = step
+            new[v] = x[start:stop]
+            start = stop
         recomputed.append(c)
         stack.extend(children[c])
     return new, sorted(recomputed)

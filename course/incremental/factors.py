@@ -69,9 +69,11 @@ class FactorStore:
         out: dict = {}
         for i in ids:
             name, row = self.type_of[i]
-            out.setdefault(name, ([], []))
-            out[name][0].append(i)
-            out[name][1].append(row)
+            if name not in out:
+                out[name] = ([], [])
+            group, rows = out[name]
+            group.append(i)
+            rows.append(row)
         return out
 
     def linearise(self, ids, theta, kinds) -> None:
@@ -100,9 +102,9 @@ class FactorStore:
                 W = np.stack([np.eye(ftype.dim) if W is None else W for W in Ws])
                 r = np.einsum("mab,mb->ma", W, r)
                 J = [np.matmul(W, block) for block in J]
-            for k, i in enumerate(group):
-                self.A[i] = [block[k] for block in J]
-                self.b[i] = -r[k]
+            for i, rhs, *blocks in zip(group, -r, *J):  # each factor's rows of the stacked arrays
+                self.A[i] = blocks
+                self.b[i] = rhs
 
     def chi2(self, theta) -> float:
         """``sum |W r|^2`` over every factor at the values ``theta`` (a list of stored values by variable)."""

@@ -129,8 +129,8 @@ class IncrementalSmoother:
         # the top's variables, its factors, the orphans' cached factors
         variables = [v for c in top for v in self.tree.frontals[c]] + new_vars
         inside = set(variables)
-        ids = sorted({i for v in variables for i in self.factors.of_variable[v]
-                      if inside.issuperset(self.factors.keys[i])})
+        touching = set().union(*[self.factors.of_variable[v] for v in variables])
+        ids = sorted([i for i in touching if inside.issuperset(self.factors.keys[i])])
         linear = [LinearFactor(self.factors.keys[i], self.factors.A[i], self.factors.b[i]) for i in ids]
         for o in orphans:
             A, b = self._reeliminator.summary(self.tree, o, self.dims)

@@ -39,6 +39,7 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims, 
     for fewer cliques)."""
     unit = {c: g for g, group in enumerate(groups) for c in group[0]}
     children = tree.children
+    up = np.asarray(tree.parents).tolist()
     is_replaced = set(replaced)
     new = list(delta)
     recomputed = list(replaced)
@@ -48,7 +49,7 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims, 
     depth = DEPTH
     while frontier:
         # the candidates: depth levels below the frontier; the next frontier is among the deepest
-        candidates, level = [], list(frontier)
+        candidates, level = [], frontier
         for _ in range(depth):
             level = [ch for c in level for ch in children[c] if ch not in is_replaced]
             candidates += level
@@ -62,37 +63,40 @@ def wildfire_in_fronts(wildfire_update, tree, delta, replaced, threshold, dims, 
         for c in cliques:
             g = unit.get(c) if first else None
             if g is None:
-                entries.append(([c], tree.frontals[c], tree.separators[c], int(tree.parents[c]), tree.conditionals[c]))
+                entries.append(((c,), tree.frontals[c], tree.separators[c], up[c], tree.conditionals[c]))
             elif g not in taken:
                 taken.add(g)
                 members, F, S, conditional = groups[g]
-                entries.append((members, F, S, int(tree.parents[members[0]]), conditional))
+                entries.append((members, F, S, up[members[0]], conditional))
         offset = 1 if solved_root else 0
         number = {c: k + offset for k, entry in enumerate(entries) for c in entry[0]}
-        variables = list(solved_root) + [v for entry in entries for v in entry[1]]
+        orphaned = 0 if solved_root else -1  # the parent of a clique whose parent is outside the front
+        variables = solved_root + [v for entry in entries for v in entry[1]]
         local = {v: k for k, v in enumerate(variables)}
         frontals: list = []
         separators: list = []
         parents: list = []
         conditionals: list = []
         if solved_root:
-            frontals.append([local[v] for v in solved_root])
+            frontals.append(list(range(len(solved_root))))
             separators.append([])
             parents.append(-1)
             f = sum(dims[v] for v in solved_root)
             conditionals.append((np.eye(f), np.zeros((f, 0)), np.concatenate([new[v] for v in solved_root])))
+        start = len(solved_root)  # each entry's frontals are the next variables
         for _, F, S, p, conditional in entries:
-            frontals.append([local[v] for v in F])
+            frontals.append(list(range(start, start + len(F))))
+            start += len(F)
             separators.append([local[v] for v in S])
-            parents.append(number.get(p, 0 if solved_root else -1) if p >= 0 else -1)
+            parents.append(number.get(p, orphaned) if p >= 0 else -1)
             conditionals.append(conditional)
         marked = ([0] if solved_root else []) + sorted({number[c] for c in frontier})
         steps, done = wildfire_update(frontals, separators, np.array(parents, dtype=int), conditionals,
                                       [delta[v] for v in variables], marked, threshold)
         done = set(int(c) for c in done)
-        for c in cliques:
-            if number[c] in done:
-                for v in tree.frontals[c]:
+        for k, (_, F, _, _, _) in enumerate(entries):
+            if k + offset in done:
+                for v in F:
                     new[v] = np.asarray(steps[local[v]], dtype=float)
         recomputed += [c for c in candidates if number[c] in done]
         frontier = [c for c in candidates if number[c] in done and c in deepest]

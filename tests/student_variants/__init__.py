@@ -2041,22 +2041,24 @@ IU_IN_W = ("def wildfire_update", "# BEGIN SOLUTION")
 
 BUGS_INCREMENTAL_UPDATE = {
     "iu_euclidean_norm": V(
-        "incremental_update.py", IU_IN_R, "float(np.max(np.abs(step))) > threshold",
-        "float(np.linalg.norm(step)) > threshold", {IU_LARGEST}, "not the Euclidean norm"),
+        "incremental_update.py", IU_IN_R, "np.unique(owner[np.abs(flat) > threshold]).tolist()",
+        "np.flatnonzero(np.sqrt(np.bincount(owner, weights=flat**2, minlength=len(steps))) > threshold).tolist()",
+        {IU_LARGEST}, "not the Euclidean norm"),
     "iu_signed_maximum": V(
-        "incremental_update.py", IU_IN_R, "float(np.max(np.abs(step))) > threshold", "float(np.max(step)) > threshold",
+        "incremental_update.py", IU_IN_R, "owner[np.abs(flat) > threshold]", "owner[flat > threshold]",
         {IU_LARGEST, IU_STRICT}, "ABSOLUTE entry"),
     "iu_at_the_threshold": V(
         "incremental_update.py", IU_IN_R, "> threshold]", ">= threshold]", {IU_STRICT}, "compare strictly"),
     "iu_frontals_only": V(
-        "incremental_update.py", IU_IN_A, "relin & (set(F) | set(S))", "relin & set(F)", {IU_RELIN},
+        "incremental_update.py", IU_IN_A,
+        "        marked |= {c for c, S in enumerate(clique_separators) if not relin.isdisjoint(S)}\n", "", {IU_RELIN},
         "in their SEPARATOR too"),
     "iu_no_ancestors": V(
         "incremental_update.py", IU_IN_A, "while c != -1 and c not in top:", "if c != -1:", {IU_NEW, IU_RELIN},
         "AND all their ancestors"),
     "iu_orphans_every_clique_below": V(
-        "incremental_update.py", IU_IN_A, "if c not in top and parents[c] in top]", "if c not in top]", {IU_ORPHANS},
-        "the orphans are"),
+        "incremental_update.py", IU_IN_A, "np.flatnonzero(~in_top[:C] & in_top[parents])",
+        "np.flatnonzero(~in_top[:C])", {IU_ORPHANS}, "the orphans are"),
     "iu_smallest_index": V(
         "incremental_update.py", IU_IN_O, "min((int(v) for v in S), key=position.__getitem__)",
         "min(int(v) for v in S)", {IU_ATTACH}, "not its smallest index"),
@@ -2064,17 +2066,17 @@ BUGS_INCREMENTAL_UPDATE = {
         "incremental_update.py", IU_IN_O, "min((int(v) for v in S), key=position.__getitem__)", "int(S[0])",
         {IU_ATTACH}, "not the one listed first"),
     "iu_every_clique_recomputed": V(
-        "incremental_update.py", IU_IN_W, "if c not in replaced and not changed & set(clique_separators[c]):",
+        "incremental_update.py", IU_IN_W, "if c not in replaced and changed.isdisjoint(clique_separators[c]):",
         "if False:", {IU_PARTIAL, IU_RECOMPUTED}, "that is what makes the update partial"),
     "iu_change_from_zero": V(
-        "incremental_update.py", IU_IN_W, "np.max(np.abs(step - old[v]))", "np.max(np.abs(step))",
+        "incremental_update.py", IU_IN_W, "np.abs(x - before)", "np.abs(x)",
         {IU_PARTIAL, IU_RECOMPUTED}, "not when the new step itself"),
     "iu_replaced_skipped": V(
-        "incremental_update.py", IU_IN_W, "if c not in replaced and not changed & set(clique_separators[c]):",
-        "if not changed & set(clique_separators[c]):", {IU_FULL, IU_PARTIAL, IU_RECOMPUTED},
+        "incremental_update.py", IU_IN_W, "if c not in replaced and changed.isdisjoint(clique_separators[c]):",
+        "if changed.isdisjoint(clique_separators[c]):", {IU_FULL, IU_PARTIAL, IU_RECOMPUTED},
         "a replaced clique has a new conditional"),
     "iu_delta_written_into": V(
-        "incremental_update.py", IU_IN_W, "new = [step.copy() for step in old]", "new = delta", {IU_KEPT},
+        "incremental_update.py", IU_IN_W, "new = list(old)", "new = delta", {IU_KEPT},
         "changed the delta it was given"),
 }
 
