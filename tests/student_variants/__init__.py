@@ -903,11 +903,11 @@ BT_F, BT_S, BT_P = ("bayes_tree.bayes_tree: " + t for t in ("the cliques' fronta
 BT_TREE = {BT_F, BT_S, BT_P}
 BUGS_BAYES_TREE = {
     "bayes_tree_merge_on_a_subset": V(
-        "bayes_tree.py", ["def bayes_tree("], "set(clique_separators[c]) == set(S)",
-        "set(clique_separators[c]) >= set(S)", BT_TREE, "EQUALS that clique's variables"),
+        "bayes_tree.py", ["def bayes_tree("], "if sized and set(frontals[c]) | set(clique_separators[c]) == set(S):",
+        "if S and set(frontals[c]) | set(clique_separators[c]) >= set(S):", BT_TREE, "EQUALS that clique's variables"),
     "bayes_tree_compare_with_the_frontals_only": V(
-        "bayes_tree.py", ["def bayes_tree("], "set(frontals[c]) | set(clique_separators[c]) == set(S)",
-        "set(frontals[c]) == set(S)", BT_TREE, "AND its separator"),
+        "bayes_tree.py", ["def bayes_tree("], "if sized and set(frontals[c]) | set(clique_separators[c]) == set(S):",
+        "if S and set(frontals[c]) == set(S):", BT_TREE, "AND its separator"),
     "bayes_tree_parent_of_the_last_member": V(
         "bayes_tree.py", ["def bayes_tree("], "c = home[S[0]] if S else -1", "c = home[S[-1]] if S else -1",
         BT_TREE, "FIRST-eliminated member"),
@@ -917,8 +917,14 @@ BUGS_BAYES_TREE = {
     "bayes_tree_roots_under_the_first": V(
         "bayes_tree.py", ["def bayes_tree("], "c = home[S[0]] if S else -1",
         "c = home[S[0]] if S else (0 if frontals else -1)", {BT_P}, "new ROOT"),
+    # (without the reference's test of the sizes first, which a separator holding frontals would fail)
     "bayes_tree_separator_the_union": V(
-        "bayes_tree.py", ["def bayes_tree("], "            home[v] = c\n",
+        "bayes_tree.py", ["def bayes_tree("],
+        "        if sized and set(frontals[c]) | set(clique_separators[c]) == set(S):\n"
+        "            frontals[c].insert(0, v)  # v is eliminated before every frontal already there\n"
+        "            home[v] = c\n",
+        "        if S and set(frontals[c]) | set(clique_separators[c]) == set(S):\n"
+        "            frontals[c].insert(0, v)\n"
         "            home[v] = c\n"
         "            clique_separators[c] = sorted(set(clique_separators[c]) | set(S), key=order.index)\n",
         {BT_S}, "not the union of its frontals' separators"),
@@ -1695,21 +1701,24 @@ BUGS_ORDERINGS = {
         "orderings.py", OR_IN_SE, "fill.add((min(i, j), max(i, j)))", "fill.add((i, j))",
         {OR_FILL}, "with i < j"),
     "orderings_fill_rows_not_sorted": V(
-        "orderings.py", OR_IN_SE, "np.array(sorted(fill), dtype=np.int64)", "np.array(list(fill), dtype=np.int64)",
+        "orderings.py", OR_IN_SE, "fill[np.lexsort((fill[:, 1], fill[:, 0]))]", "fill",
         {OR_FILL, OR_SE_LARGE}, "not sorted"),
     "orderings_md_original_degrees": V(
-        "orderings.py", OR_IN_MD, "            degree[i] = len(neighbours[i])\n", "",
+        "orderings.py", OR_IN_MD, "            degree[i] = len(current)\n", "",
         {OR_MD, OR_MD_LARGE}, "not the original degrees"),
     "orderings_md_ties_to_largest": V(
-        "orderings.py", OR_IN_MD, "v = int(np.argmin(degree))", "v = n - 1 - int(np.argmin(degree[::-1]))",
+        "orderings.py", OR_IN_MD, "v = int(degree.argmin())", "v = n - 1 - int(degree[::-1].argmin())",
         {OR_MD, OR_MD_LARGE}, "ties go to the smallest index"),
     "orderings_md_counts_eliminated_neighbours": V(
         "orderings.py", OR_IN_MD, "        separator = neighbours[v]\n        for i in separator:\n"
-                                  "            neighbours[i].discard(v)\n",
-        "        separator = {u for u in neighbours[v] if degree[u] < n}\n        for i in separator:\n",
+                                  "            current = neighbours[i]  # joined to the rest of the separator, "
+                                  "in place: no new set\n            current |= separator\n"
+                                  "            current.discard(i)\n            current.discard(v)\n",
+        "        separator = {u for u in neighbours[v] if degree[u] < n}\n        for i in separator:\n"
+        "            current = neighbours[i]\n            current |= separator\n            current.discard(i)\n",
         {OR_MD, OR_MD_LARGE}, "only the neighbours not eliminated yet"),
     "orderings_md_no_fill": V(
-        "orderings.py", OR_IN_MD, "            neighbours[i].update(separator - {i})\n", "",
+        "orderings.py", OR_IN_MD, "            current |= separator\n", "",
         {OR_MD, OR_MD_LARGE}, "their degrees grow"),
 }
 
