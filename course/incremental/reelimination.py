@@ -75,7 +75,8 @@ class Reeliminator:
         self.names = names
 
     def ordering(self, variables, factors, constrained) -> tuple:
-        """``(ordering of the top's variables (global indices), local index by variable, edges (E, 2) local)``."""
+        """``(ordering (n,) of the top's variables by local index, local index by variable, edges (E, 2) local)``:
+        each pair of variables some factor holds is one edge, ``a < b``."""
         local = {v: k for k, v in enumerate(variables)}
         pairs = set()  # (a, b), a < b: each pair once, however many factors join it
         for f in factors:
@@ -99,7 +100,7 @@ class Reeliminator:
         global variable indices, parents within it), the ordering used (global indices) and the groups
         eliminated together: ``(cliques (root first), frontals, the root's separator, (R, S, d))``, the
         conditional of the group's frontals in that order."""
-        order, local, edges = self.ordering(variables, factors, constrained)
+        order, _, edges = self.ordering(variables, factors, constrained)
         n = len(variables)
         separators, _, _ = self.impl.module("orderings").symbolic_elimination(n, edges, order)
         frontals, clique_separators, parents = self.impl.module("bayes_tree").bayes_tree(order, separators)
