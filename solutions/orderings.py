@@ -105,29 +105,31 @@ def symbolic_elimination(n, edges, ordering):
     position = [0] * n
     for k, v in enumerate(ordering.tolist()):
         position[v] = k
-    neighbours = [set() for _ in range(n)]  # among the variables not eliminated yet
+    later = [set() for _ in range(n)]  # each variable's neighbours in the graph that are eliminated after it
     for i, j in edges.tolist():
-        if i != j:
-            neighbours[i].add(j)
-            neighbours[j].add(i)
+        if position[i] < position[j]:
+            later[i].add(j)
+        elif position[j] < position[i]:
+            later[j].add(i)
+    # Eliminating v joins every pair of S(v). Its first member p is the next of them eliminated, and every
+    # other member is in S(p) then: handing S(v) to p alone is enough, p hands it on in turn. So S(v) is v's
+    # later neighbours together with what was handed to v: S(c) without v for every c whose parent is v.
+    joined = [set() for _ in range(n)]
     separators = [[] for _ in range(n)]
     parents = np.full(n, -1, dtype=np.int64)
     fill = set()
     for v in ordering.tolist():
-        separator = sorted(neighbours[v], key=position.__getitem__)
+        S = later[v] | joined[v]
+        separator = sorted(S, key=position.__getitem__)
         separators[v] = separator
         if separator:
-            parents[v] = separator[0]
-        for a, i in enumerate(separator):
-            neighbours[i].discard(v)
-            for j in separator[a + 1:]:
-                # an original edge between two variables still there is in the current graph: a pair
-                # missing from it is new
-                if j not in neighbours[i]:
-                    neighbours[i].add(j)
-                    neighbours[j].add(i)
-                    fill.add((min(i, j), max(i, j)))
-        neighbours[v] = set()
+            p = separator[0]
+            parents[v] = p
+            joined[p] |= S
+            joined[p].discard(p)
+        # v's fill edges: those joined to v that are not edges of the graph (each seen once, from its end
+        # eliminated first)
+        fill.update((v, u) if v < u else (u, v) for u in joined[v] - later[v])
     fill = np.array(list(fill), dtype=np.int64).reshape(-1, 2)
     return separators, parents, fill[np.lexsort((fill[:, 1], fill[:, 0]))]  # the rows sorted
     # END SOLUTION

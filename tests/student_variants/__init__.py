@@ -1669,36 +1669,73 @@ OR_MD_LARGE = "orderings.minimum_degree_ordering: a pose graph of 2000 poses in 
 OR_IN_SE = ("def symbolic_elimination", "# BEGIN SOLUTION")
 OR_IN_MD = ("def minimum_degree_ordering", "# BEGIN SOLUTION")
 
+# the elimination game played pair by pair (the plain way of the hints), for the mistakes made in it
+_GAME_ELIMINATION = """    position = [0] * n
+    for k, v in enumerate(ordering.tolist()):
+        position[v] = k
+    neighbours = [set() for _ in range(n)]  # among the variables not eliminated yet
+    for i, j in edges.tolist():
+        if i != j:
+            neighbours[i].add(j)
+            neighbours[j].add(i)
+    separators = [[] for _ in range(n)]
+    parents = np.full(n, -1, dtype=np.int64)
+    fill = set()
+    for v in ordering.tolist():
+        separator = sorted(neighbours[v], key=position.__getitem__)
+        separators[v] = separator
+        if separator:
+            parents[v] = separator[0]
+        for a, i in enumerate(separator):
+            neighbours[i].discard(v)
+            for j in separator[a + 1:]:
+                # an original edge between two variables still there is in the current graph: a pair
+                # missing from it is new
+                if j not in neighbours[i]:
+                    neighbours[i].add(j)
+                    neighbours[j].add(i)
+                    fill.add((min(i, j), max(i, j)))
+        neighbours[v] = set()
+    fill = np.array(list(fill), dtype=np.int64).reshape(-1, 2)
+    return separators, parents, fill[np.lexsort((fill[:, 1], fill[:, 0]))]  # the rows sorted
+"""
+
 BUGS_ORDERINGS = {
     # v stays in its neighbours' sets: later separators hold eliminated variables (and the large graph's
     # separators grow to every variable before: it runs out of time)
     "orderings_separator_keeps_eliminated": V(
-        "orderings.py", OR_IN_SE, "            neighbours[i].discard(v)\n", "",
+        "orderings.py", OR_IN_SE, _solution_lines("orderings.py", "symbolic_elimination"),
+        _GAME_ELIMINATION.replace("            neighbours[i].discard(v)\n", ""),
         {OR_SEP, OR_PAR, OR_FILL, OR_SE_LARGE}, "remove v from its neighbours"),
     "orderings_no_fill": V(
-        "orderings.py", OR_IN_SE, "for j in separator[a + 1:]:", "for j in []:",
+        "orderings.py", OR_IN_SE, "            joined[p] |= S\n", "",
         {OR_SEP, OR_PAR, OR_FILL, OR_SE_LARGE}, "joins every pair of its separator"),
     # the parent is the first entry: sorted by index, it is the smallest index (the large graph is in
     # natural order, where the two agree)
     "orderings_separator_sorted_by_index": V(
-        "orderings.py", OR_IN_SE, "separator = sorted(neighbours[v], key=position.__getitem__)",
-        "separator = sorted(neighbours[v])", {OR_SEP, OR_PAR}, "not by index"),
+        "orderings.py", OR_IN_SE, "        separator = sorted(S, key=position.__getitem__)\n"
+                                  "        separators[v] = separator\n        if separator:\n"
+                                  "            p = separator[0]\n            parents[v] = p\n",
+        "        separator = sorted(S)\n        separators[v] = separator\n        if separator:\n"
+        "            p = min(S, key=position.__getitem__)\n            parents[v] = separator[0]\n",
+        {OR_SEP, OR_PAR}, "not by index"),
     "orderings_parent_last_eliminated": V(
-        "orderings.py", OR_IN_SE, "parents[v] = separator[0]", "parents[v] = separator[-1]",
+        "orderings.py", OR_IN_SE, "parents[v] = p", "parents[v] = separator[-1]",
         {OR_PAR, OR_SE_LARGE}, "eliminated FIRST"),
     "orderings_parent_smallest_index": V(
-        "orderings.py", OR_IN_SE, "parents[v] = separator[0]", "parents[v] = min(separator)",
+        "orderings.py", OR_IN_SE, "parents[v] = p", "parents[v] = min(separator)",
         {OR_PAR}, "not the smallest index"),
     "orderings_roots_zero": V(
         "orderings.py", OR_IN_SE, "parents = np.full(n, -1, dtype=np.int64)", "parents = np.zeros(n, dtype=np.int64)",
         {OR_PAR, OR_SE_LARGE}, "has parent -1, not 0"),
     "orderings_fill_with_original_edges": V(
-        "orderings.py", OR_IN_SE, "                if j not in neighbours[i]:",
-        "                fill.add((min(i, j), max(i, j)))\n                if j not in neighbours[i]:",
+        "orderings.py", OR_IN_SE, _solution_lines("orderings.py", "symbolic_elimination"),
+        _GAME_ELIMINATION.replace("                if j not in neighbours[i]:", "                fill.add((min(i, j), "
+                                  "max(i, j)))\n                if j not in neighbours[i]:"),
         {OR_FILL, OR_SE_LARGE}, "not edges of the original graph"),
     # in natural order (the large graph) every separator pair is already (smaller, larger)
     "orderings_fill_pairs_in_separator_order": V(
-        "orderings.py", OR_IN_SE, "fill.add((min(i, j), max(i, j)))", "fill.add((i, j))",
+        "orderings.py", OR_IN_SE, "(v, u) if v < u else (u, v)", "(v, u)",
         {OR_FILL}, "with i < j"),
     "orderings_fill_rows_not_sorted": V(
         "orderings.py", OR_IN_SE, "fill[np.lexsort((fill[:, 1], fill[:, 0]))]", "fill",
