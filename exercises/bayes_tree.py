@@ -70,10 +70,11 @@ def _check_separators(separators, position):
     if len(separators) != n:
         raise ValueError(f"separators must hold one list per variable ({n}), got {len(separators)}")
     position = position.tolist()  # a list: indexing it by a Python int is what the loop does most
+    ints = (int, np.integer)
     for v, S in enumerate(separators):
         last = position[v]
         for k, u in enumerate(S):
-            if not (isinstance(u, (int, np.integer)) and 0 <= u < n):
+            if not (isinstance(u, ints) and 0 <= u < n):
                 raise ValueError(f"separators[{v}][{k}] = {u!r} is not a variable (an int in 0..{n - 1})")
             if position[u] <= last:  # last is v's position at k = 0, the previous entry's after
                 if position[u] <= position[v]:
