@@ -109,7 +109,7 @@ def symbolic_elimination(n, edges, ordering):
     for i, j in edges.tolist():
         if position[i] < position[j]:
             later[i].add(j)
-        elif position[j] < position[i]:
+        elif position[j] < position[i]:  # (a pair (i, i) is neither)
             later[j].add(i)
     # Eliminating v joins every pair of S(v). Its first member p is the next of them eliminated, and every
     # other member is in S(p) then: handing S(v) to p alone is enough, p hands it on in turn. So S(v) is v's
@@ -127,8 +127,7 @@ def symbolic_elimination(n, edges, ordering):
             parents[v] = p
             joined[p] |= S
             joined[p].discard(p)
-        # v's fill edges: those joined to v that are not edges of the graph (each seen once, from its end
-        # eliminated first)
+        # v's fill edges: the variables joined to v that are not its neighbours in the graph
         fill.update((v, u) if v < u else (u, v) for u in joined[v] - later[v])
     fill = np.array(list(fill), dtype=np.int64).reshape(-1, 2)
     return separators, parents, fill[np.lexsort((fill[:, 1], fill[:, 0]))]  # the rows sorted
