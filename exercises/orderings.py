@@ -51,13 +51,12 @@ def check_graph(n, edges):
         return n, np.zeros((0, 2), dtype=np.int64)
     if raw.ndim != 2 or raw.shape[1] != 2:
         raise ValueError(f"edges must be an (E, 2) array of variable pairs, got shape {raw.shape}")
-    if not np.issubdtype(raw.dtype, np.integer):
+    if raw.dtype.kind not in "iu":  # not a (signed or unsigned) integer dtype
         if raw.dtype.kind != "f" or not np.all(np.isfinite(raw)) or np.any(raw != np.round(raw)):
             raise ValueError(f"edges must hold integer variable indices, got dtype {raw.dtype}")
     pairs = raw.astype(np.int64)
-    bad = np.flatnonzero(np.any((pairs < 0) | (pairs >= n), axis=1))
-    if bad.size:
-        row = int(bad[0])
+    if pairs.min() < 0 or pairs.max() >= n:
+        row = int(np.flatnonzero(np.any((pairs < 0) | (pairs >= n), axis=1))[0])
         raise ValueError(f"edges[{row}] = ({pairs[row, 0]}, {pairs[row, 1]}) names a variable outside 0..{n - 1}")
     return n, pairs
 
@@ -68,13 +67,12 @@ def check_ordering(n, ordering):
     raw = np.asarray(ordering)
     if raw.ndim != 1 or len(raw) != n:
         raise ValueError(f"ordering must be a permutation of 0..{n - 1} (shape ({n},)), got shape {raw.shape}")
-    if not np.issubdtype(raw.dtype, np.integer):
+    if raw.dtype.kind not in "iu":  # not a (signed or unsigned) integer dtype
         if raw.dtype.kind != "f" or not np.all(np.isfinite(raw)) or np.any(raw != np.round(raw)):
             raise ValueError(f"ordering must hold integer variable indices, got dtype {raw.dtype}")
     order = raw.astype(np.int64)
-    outside = np.flatnonzero((order < 0) | (order >= n))
-    if outside.size:
-        k = int(outside[0])
+    if order.min() < 0 or order.max() >= n:
+        k = int(np.flatnonzero((order < 0) | (order >= n))[0])
         raise ValueError(f"ordering[{k}] = {order[k]} is not a variable of 0..{n - 1}")
     counts = np.bincount(order, minlength=n)
     if np.any(counts != 1):

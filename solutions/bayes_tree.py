@@ -69,19 +69,21 @@ def _check_separators(separators, position):
     n = len(position)
     if len(separators) != n:
         raise ValueError(f"separators must hold one list per variable ({n}), got {len(separators)}")
+    position = position.tolist()  # a list: indexing it by a Python int is what the loop does most
+    ints = (int, np.integer)
     for v, S in enumerate(separators):
         last = position[v]
         for k, u in enumerate(S):
-            if not (isinstance(u, (int, np.integer)) and 0 <= u < n):
+            if not (isinstance(u, ints) and 0 <= u < n):
                 raise ValueError(f"separators[{v}][{k}] = {u!r} is not a variable (an int in 0..{n - 1})")
-            if position[u] <= position[v]:
-                raise ValueError(f"separators[{v}][{k}] = {u} is eliminated at position {position[u]}, not after "
-                                 f"{v} (position {position[v]})")
-            if position[u] <= last and k > 0:
+            if position[u] <= last:  # last is v's position at k = 0, the previous entry's after
+                if position[u] <= position[v]:
+                    raise ValueError(f"separators[{v}][{k}] = {u} is eliminated at position {position[u]}, not "
+                                     f"after {v} (position {position[v]})")
                 raise ValueError(f"separators[{v}] is not sorted by elimination position: separators[{v}][{k}] = "
                                  f"{u} (position {position[u]}) comes after a variable at position {last}")
             last = position[u]
-        if len(S) > 1 and not set(S[1:]) <= set(separators[S[0]]):
+        if len(S) > 1 and not set(separators[S[0]]).issuperset(S[1:]):
             extra = sorted(set(S[1:]) - set(separators[S[0]]))
             raise ValueError(f"separators[{v}] = {list(S)} is not the separator of an elimination: {extra} not in "
                              f"separators[{S[0]}] = {list(separators[S[0]])}")
@@ -99,13 +101,15 @@ def bayes_tree(ordering, separators):
     """
     _check_separators(separators, _positions(ordering))
     # BEGIN SOLUTION
-    order = [int(v) for v in np.asarray(ordering)]
+    order = np.asarray(ordering).tolist()
     home = {}  # variable -> the clique holding it as a frontal
     frontals, clique_separators, parents = [], [], []
     for v in reversed(order):
-        S = [int(u) for u in separators[v]]
+        S = list(map(int, separators[v]))
         c = home[S[0]] if S else -1
-        if S and set(frontals[c]) | set(clique_separators[c]) == set(S):
+        # S lies within p's clique (p and S_p): the sets can only be equal if the sizes are, a cheaper test
+        sized = S and len(S) == len(frontals[c]) + len(clique_separators[c])
+        if sized and set(frontals[c]) | set(clique_separators[c]) == set(S):
             frontals[c].insert(0, v)  # v is eliminated before every frontal already there
             home[v] = c
             continue

@@ -51,13 +51,12 @@ def check_graph(n, edges):
         return n, np.zeros((0, 2), dtype=np.int64)
     if raw.ndim != 2 or raw.shape[1] != 2:
         raise ValueError(f"edges must be an (E, 2) array of variable pairs, got shape {raw.shape}")
-    if not np.issubdtype(raw.dtype, np.integer):
+    if raw.dtype.kind not in "iu":  # not a (signed or unsigned) integer dtype
         if raw.dtype.kind != "f" or not np.all(np.isfinite(raw)) or np.any(raw != np.round(raw)):
             raise ValueError(f"edges must hold integer variable indices, got dtype {raw.dtype}")
     pairs = raw.astype(np.int64)
-    bad = np.flatnonzero(np.any((pairs < 0) | (pairs >= n), axis=1))
-    if bad.size:
-        row = int(bad[0])
+    if pairs.min() < 0 or pairs.max() >= n:
+        row = int(np.flatnonzero(np.any((pairs < 0) | (pairs >= n), axis=1))[0])
         raise ValueError(f"edges[{row}] = ({pairs[row, 0]}, {pairs[row, 1]}) names a variable outside 0..{n - 1}")
     return n, pairs
 
@@ -68,13 +67,12 @@ def check_ordering(n, ordering):
     raw = np.asarray(ordering)
     if raw.ndim != 1 or len(raw) != n:
         raise ValueError(f"ordering must be a permutation of 0..{n - 1} (shape ({n},)), got shape {raw.shape}")
-    if not np.issubdtype(raw.dtype, np.integer):
+    if raw.dtype.kind not in "iu":  # not a (signed or unsigned) integer dtype
         if raw.dtype.kind != "f" or not np.all(np.isfinite(raw)) or np.any(raw != np.round(raw)):
             raise ValueError(f"ordering must hold integer variable indices, got dtype {raw.dtype}")
     order = raw.astype(np.int64)
-    outside = np.flatnonzero((order < 0) | (order >= n))
-    if outside.size:
-        k = int(outside[0])
+    if order.min() < 0 or order.max() >= n:
+        k = int(np.flatnonzero((order < 0) | (order >= n))[0])
         raise ValueError(f"ordering[{k}] = {order[k]} is not a variable of 0..{n - 1}")
     counts = np.bincount(order, minlength=n)
     if np.any(counts != 1):
@@ -107,31 +105,32 @@ def symbolic_elimination(n, edges, ordering):
     position = [0] * n
     for k, v in enumerate(ordering.tolist()):
         position[v] = k
-    neighbours = [set() for _ in range(n)]  # among the variables not eliminated yet
+    later = [set() for _ in range(n)]  # each variable's neighbours in the graph that are eliminated after it
     for i, j in edges.tolist():
-        if i != j:
-            neighbours[i].add(j)
-            neighbours[j].add(i)
+        if position[i] < position[j]:
+            later[i].add(j)
+        elif position[j] < position[i]:  # (a pair (i, i) is neither)
+            later[j].add(i)
+    # Eliminating v joins every pair of S(v). Its first member p is the next of them eliminated, and every
+    # other member is in S(p) then: handing S(v) to p alone is enough, p hands it on in turn. So S(v) is v's
+    # later neighbours together with what was handed to v: S(c) without v for every c whose parent is v.
+    joined = [set() for _ in range(n)]
     separators = [[] for _ in range(n)]
     parents = np.full(n, -1, dtype=np.int64)
     fill = set()
     for v in ordering.tolist():
-        separator = sorted(neighbours[v], key=position.__getitem__)
+        S = later[v] | joined[v]
+        separator = sorted(S, key=position.__getitem__)
         separators[v] = separator
         if separator:
-            parents[v] = separator[0]
-        for a, i in enumerate(separator):
-            neighbours[i].discard(v)
-            for j in separator[a + 1:]:
-                # an original edge between two variables still there is in the current graph: a pair
-                # missing from it is new
-                if j not in neighbours[i]:
-                    neighbours[i].add(j)
-                    neighbours[j].add(i)
-                    fill.add((min(i, j), max(i, j)))
-        neighbours[v] = set()
-    fill = np.array(sorted(fill), dtype=np.int64).reshape(-1, 2)
-    return separators, parents, fill
+            p = separator[0]
+            parents[v] = p
+            joined[p] |= S
+            joined[p].discard(p)
+        # v's fill edges: the variables joined to v that are not its neighbours in the graph
+        fill.update((v, u) if v < u else (u, v) for u in joined[v] - later[v])
+    fill = np.array(list(fill), dtype=np.int64).reshape(-1, 2)
+    return separators, parents, fill[np.lexsort((fill[:, 1], fill[:, 0]))]  # the rows sorted
     # END SOLUTION
 
 
@@ -152,14 +151,16 @@ def minimum_degree_ordering(n, edges):
     degree = np.array([len(s) for s in neighbours], dtype=np.int64)
     ordering = np.empty(n, dtype=np.int64)
     for k in range(n):
-        v = int(np.argmin(degree))  # the first of the smallest: ties go to the smallest index
+        v = int(degree.argmin())  # the first of the smallest: ties go to the smallest index
         ordering[k] = v
         degree[v] = n  # above any degree: never the minimum again
         separator = neighbours[v]
         for i in separator:
-            neighbours[i].discard(v)
-            neighbours[i].update(separator - {i})
-            degree[i] = len(neighbours[i])
+            current = neighbours[i]  # joined to the rest of the separator, in place: no new set
+            current |= separator
+            current.discard(i)
+            current.discard(v)
+            degree[i] = len(current)
         neighbours[v] = set()
     return ordering
     # END SOLUTION

@@ -28,6 +28,7 @@ last (the new factors' keys, as GTSAM's constrained ordering puts them):
    ``eliminate_variable``.
 """
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,22 +75,23 @@ class Reeliminator:
         self.names = names
 
     def ordering(self, variables, factors, constrained) -> tuple:
-        """``(ordering of the top's variables (global indices), local index by variable, edges (E, 2) local)``."""
+        """``(ordering (n,) of the top's variables by local index, local index by variable, edges (E, 2) local)``:
+        each pair of variables some factor holds is one edge, ``a < b``."""
         local = {v: k for k, v in enumerate(variables)}
-        pairs = []
+        pairs = set()  # (a, b), a < b: each pair once, however many factors join it
         for f in factors:
-            if len(f.keys) == 2:  # most factors: one pair (either way round, as the graph's edges may be)
+            if len(f.keys) == 2:  # most factors: one pair
                 a, b = local[f.keys[0]], local[f.keys[1]]
                 if a != b:
-                    pairs.append((a, b))
+                    pairs.add((a, b) if a < b else (b, a))
                 continue
             ks = sorted({local[v] for v in f.keys})
-            pairs += [(a, b) for i, a in enumerate(ks) for b in ks[i + 1:]]
-        edges = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+            pairs.update((a, b) for i, a in enumerate(ks) for b in ks[i + 1:])
+        edges = np.fromiter(itertools.chain.from_iterable(pairs), dtype=np.int64, count=2 * len(pairs)).reshape(-1, 2)
         order = self.impl.module("orderings").minimum_degree_ordering(len(variables), edges)
+        order = np.asarray(order, dtype=np.int64)
         last = np.zeros(len(variables), dtype=bool)
         last[[local[v] for v in constrained if v in local]] = True
-        order = np.asarray(order, dtype=np.int64)
         order = np.concatenate([order[~last[order]], order[last[order]]])
         return order, local, edges
 
@@ -98,25 +100,23 @@ class Reeliminator:
         global variable indices, parents within it), the ordering used (global indices) and the groups
         eliminated together: ``(cliques (root first), frontals, the root's separator, (R, S, d))``, the
         conditional of the group's frontals in that order."""
-        order, local, edges = self.ordering(variables, factors, constrained)
+        order, _, edges = self.ordering(variables, factors, constrained)
         n = len(variables)
         separators, _, _ = self.impl.module("orderings").symbolic_elimination(n, edges, order)
         frontals, clique_separators, parents = self.impl.module("bayes_tree").bayes_tree(order, separators)
         parents = np.asarray(parents, dtype=int)
-        position = np.empty(n, dtype=np.int64)
-        position[order] = np.arange(n)
-        home = np.empty(n, dtype=np.int64)
-        for c, F in enumerate(frontals):
-            home[F] = c
-        # each factor to the clique holding its first-eliminated variable
+        glob = np.asarray(variables, dtype=np.int64)
+        names = glob.tolist()
+        # each factor to the clique holding its first-eliminated variable (dicts by global index: they are read
+        # one entry at a time)
+        position = dict(zip(glob[order].tolist(), range(n)))
+        home = {names[v]: c for c, F in enumerate(frontals) for v in F}
         waiting: list = [[] for _ in frontals]
         for f in factors:
-            first = min((local[v] for v in f.keys), key=position.__getitem__)
-            waiting[home[first]].append(f)
-        glob = np.asarray(variables, dtype=np.int64)
+            waiting[home[min(f.keys, key=position.__getitem__)]].append(f)
         C = len(frontals)
-        F_of = [glob[F].tolist() for F in frontals]
-        S_of = [glob[S].tolist() for S in clique_separators]
+        F_of = [[names[v] for v in F] for F in frontals]
+        S_of = [[names[v] for v in S] for S in clique_separators]
         # the groups, from the leaves up (a clique's number is above its parent's): each clique starts one, and
         # takes in its children's groups, the narrowest first, while it stays within GROUP_WIDTH
         width = [sum(dims[v] for v in F) for F in F_of]

@@ -903,11 +903,11 @@ BT_F, BT_S, BT_P = ("bayes_tree.bayes_tree: " + t for t in ("the cliques' fronta
 BT_TREE = {BT_F, BT_S, BT_P}
 BUGS_BAYES_TREE = {
     "bayes_tree_merge_on_a_subset": V(
-        "bayes_tree.py", ["def bayes_tree("], "set(clique_separators[c]) == set(S)",
-        "set(clique_separators[c]) >= set(S)", BT_TREE, "EQUALS that clique's variables"),
+        "bayes_tree.py", ["def bayes_tree("], "if sized and set(frontals[c]) | set(clique_separators[c]) == set(S):",
+        "if S and set(frontals[c]) | set(clique_separators[c]) >= set(S):", BT_TREE, "EQUALS that clique's variables"),
     "bayes_tree_compare_with_the_frontals_only": V(
-        "bayes_tree.py", ["def bayes_tree("], "set(frontals[c]) | set(clique_separators[c]) == set(S)",
-        "set(frontals[c]) == set(S)", BT_TREE, "AND its separator"),
+        "bayes_tree.py", ["def bayes_tree("], "if sized and set(frontals[c]) | set(clique_separators[c]) == set(S):",
+        "if S and set(frontals[c]) == set(S):", BT_TREE, "AND its separator"),
     "bayes_tree_parent_of_the_last_member": V(
         "bayes_tree.py", ["def bayes_tree("], "c = home[S[0]] if S else -1", "c = home[S[-1]] if S else -1",
         BT_TREE, "FIRST-eliminated member"),
@@ -917,8 +917,14 @@ BUGS_BAYES_TREE = {
     "bayes_tree_roots_under_the_first": V(
         "bayes_tree.py", ["def bayes_tree("], "c = home[S[0]] if S else -1",
         "c = home[S[0]] if S else (0 if frontals else -1)", {BT_P}, "new ROOT"),
+    # (without the reference's test of the sizes first, which a separator holding frontals would fail)
     "bayes_tree_separator_the_union": V(
-        "bayes_tree.py", ["def bayes_tree("], "            home[v] = c\n",
+        "bayes_tree.py", ["def bayes_tree("],
+        "        if sized and set(frontals[c]) | set(clique_separators[c]) == set(S):\n"
+        "            frontals[c].insert(0, v)  # v is eliminated before every frontal already there\n"
+        "            home[v] = c\n",
+        "        if S and set(frontals[c]) | set(clique_separators[c]) == set(S):\n"
+        "            frontals[c].insert(0, v)\n"
         "            home[v] = c\n"
         "            clique_separators[c] = sorted(set(clique_separators[c]) | set(S), key=order.index)\n",
         {BT_S}, "not the union of its frontals' separators"),
@@ -1663,53 +1669,93 @@ OR_MD_LARGE = "orderings.minimum_degree_ordering: a pose graph of 2000 poses in 
 OR_IN_SE = ("def symbolic_elimination", "# BEGIN SOLUTION")
 OR_IN_MD = ("def minimum_degree_ordering", "# BEGIN SOLUTION")
 
+# the elimination game played pair by pair (the plain way of the hints), for the mistakes made in it
+_GAME_ELIMINATION = """    position = [0] * n
+    for k, v in enumerate(ordering.tolist()):
+        position[v] = k
+    neighbours = [set() for _ in range(n)]  # among the variables not eliminated yet
+    for i, j in edges.tolist():
+        if i != j:
+            neighbours[i].add(j)
+            neighbours[j].add(i)
+    separators = [[] for _ in range(n)]
+    parents = np.full(n, -1, dtype=np.int64)
+    fill = set()
+    for v in ordering.tolist():
+        separator = sorted(neighbours[v], key=position.__getitem__)
+        separators[v] = separator
+        if separator:
+            parents[v] = separator[0]
+        for a, i in enumerate(separator):
+            neighbours[i].discard(v)
+            for j in separator[a + 1:]:
+                # an original edge between two variables still there is in the current graph: a pair
+                # missing from it is new
+                if j not in neighbours[i]:
+                    neighbours[i].add(j)
+                    neighbours[j].add(i)
+                    fill.add((min(i, j), max(i, j)))
+        neighbours[v] = set()
+    fill = np.array(list(fill), dtype=np.int64).reshape(-1, 2)
+    return separators, parents, fill[np.lexsort((fill[:, 1], fill[:, 0]))]  # the rows sorted
+"""
+
 BUGS_ORDERINGS = {
     # v stays in its neighbours' sets: later separators hold eliminated variables (and the large graph's
     # separators grow to every variable before: it runs out of time)
     "orderings_separator_keeps_eliminated": V(
-        "orderings.py", OR_IN_SE, "            neighbours[i].discard(v)\n", "",
+        "orderings.py", OR_IN_SE, _solution_lines("orderings.py", "symbolic_elimination"),
+        _GAME_ELIMINATION.replace("            neighbours[i].discard(v)\n", ""),
         {OR_SEP, OR_PAR, OR_FILL, OR_SE_LARGE}, "remove v from its neighbours"),
     "orderings_no_fill": V(
-        "orderings.py", OR_IN_SE, "for j in separator[a + 1:]:", "for j in []:",
+        "orderings.py", OR_IN_SE, "            joined[p] |= S\n", "",
         {OR_SEP, OR_PAR, OR_FILL, OR_SE_LARGE}, "joins every pair of its separator"),
     # the parent is the first entry: sorted by index, it is the smallest index (the large graph is in
     # natural order, where the two agree)
     "orderings_separator_sorted_by_index": V(
-        "orderings.py", OR_IN_SE, "separator = sorted(neighbours[v], key=position.__getitem__)",
-        "separator = sorted(neighbours[v])", {OR_SEP, OR_PAR}, "not by index"),
+        "orderings.py", OR_IN_SE, "        separator = sorted(S, key=position.__getitem__)\n"
+                                  "        separators[v] = separator\n        if separator:\n"
+                                  "            p = separator[0]\n            parents[v] = p\n",
+        "        separator = sorted(S)\n        separators[v] = separator\n        if separator:\n"
+        "            p = min(S, key=position.__getitem__)\n            parents[v] = separator[0]\n",
+        {OR_SEP, OR_PAR}, "not by index"),
     "orderings_parent_last_eliminated": V(
-        "orderings.py", OR_IN_SE, "parents[v] = separator[0]", "parents[v] = separator[-1]",
+        "orderings.py", OR_IN_SE, "parents[v] = p", "parents[v] = separator[-1]",
         {OR_PAR, OR_SE_LARGE}, "eliminated FIRST"),
     "orderings_parent_smallest_index": V(
-        "orderings.py", OR_IN_SE, "parents[v] = separator[0]", "parents[v] = min(separator)",
+        "orderings.py", OR_IN_SE, "parents[v] = p", "parents[v] = min(separator)",
         {OR_PAR}, "not the smallest index"),
     "orderings_roots_zero": V(
         "orderings.py", OR_IN_SE, "parents = np.full(n, -1, dtype=np.int64)", "parents = np.zeros(n, dtype=np.int64)",
         {OR_PAR, OR_SE_LARGE}, "has parent -1, not 0"),
     "orderings_fill_with_original_edges": V(
-        "orderings.py", OR_IN_SE, "                if j not in neighbours[i]:",
-        "                fill.add((min(i, j), max(i, j)))\n                if j not in neighbours[i]:",
+        "orderings.py", OR_IN_SE, _solution_lines("orderings.py", "symbolic_elimination"),
+        _GAME_ELIMINATION.replace("                if j not in neighbours[i]:", "                fill.add((min(i, j), "
+                                  "max(i, j)))\n                if j not in neighbours[i]:"),
         {OR_FILL, OR_SE_LARGE}, "not edges of the original graph"),
     # in natural order (the large graph) every separator pair is already (smaller, larger)
     "orderings_fill_pairs_in_separator_order": V(
-        "orderings.py", OR_IN_SE, "fill.add((min(i, j), max(i, j)))", "fill.add((i, j))",
+        "orderings.py", OR_IN_SE, "(v, u) if v < u else (u, v)", "(v, u)",
         {OR_FILL}, "with i < j"),
     "orderings_fill_rows_not_sorted": V(
-        "orderings.py", OR_IN_SE, "np.array(sorted(fill), dtype=np.int64)", "np.array(list(fill), dtype=np.int64)",
+        "orderings.py", OR_IN_SE, "fill[np.lexsort((fill[:, 1], fill[:, 0]))]", "fill",
         {OR_FILL, OR_SE_LARGE}, "not sorted"),
     "orderings_md_original_degrees": V(
-        "orderings.py", OR_IN_MD, "            degree[i] = len(neighbours[i])\n", "",
+        "orderings.py", OR_IN_MD, "            degree[i] = len(current)\n", "",
         {OR_MD, OR_MD_LARGE}, "not the original degrees"),
     "orderings_md_ties_to_largest": V(
-        "orderings.py", OR_IN_MD, "v = int(np.argmin(degree))", "v = n - 1 - int(np.argmin(degree[::-1]))",
+        "orderings.py", OR_IN_MD, "v = int(degree.argmin())", "v = n - 1 - int(degree[::-1].argmin())",
         {OR_MD, OR_MD_LARGE}, "ties go to the smallest index"),
     "orderings_md_counts_eliminated_neighbours": V(
         "orderings.py", OR_IN_MD, "        separator = neighbours[v]\n        for i in separator:\n"
-                                  "            neighbours[i].discard(v)\n",
-        "        separator = {u for u in neighbours[v] if degree[u] < n}\n        for i in separator:\n",
+                                  "            current = neighbours[i]  # joined to the rest of the separator, "
+                                  "in place: no new set\n            current |= separator\n"
+                                  "            current.discard(i)\n            current.discard(v)\n",
+        "        separator = {u for u in neighbours[v] if degree[u] < n}\n        for i in separator:\n"
+        "            current = neighbours[i]\n            current |= separator\n            current.discard(i)\n",
         {OR_MD, OR_MD_LARGE}, "only the neighbours not eliminated yet"),
     "orderings_md_no_fill": V(
-        "orderings.py", OR_IN_MD, "            neighbours[i].update(separator - {i})\n", "",
+        "orderings.py", OR_IN_MD, "            current |= separator\n", "",
         {OR_MD, OR_MD_LARGE}, "their degrees grow"),
 }
 
