@@ -53,13 +53,13 @@ class LinearFactor:
 @dataclass
 class PendingSummary:
     """A cached factor not computed yet: the rows ``(A, b)`` a group of cliques was eliminated from (its columns
-    ``columns[v]`` the first of variable v's), ``owner`` the clique of each row, and the clique's ``subtree`` (its
-    cliques in the group, children before parents) and ``separator``. The clique's subtree rows, its frontals as
-    ``A_x`` and its separator as ``A_s``, eliminated, leave its cached factor."""
+    ``columns[v]`` the first of variable v's), ``rows[u]`` the slice of clique u's rows, and the clique's
+    ``subtree`` (its cliques in the group, children before parents) and ``separator``. The clique's subtree rows,
+    its frontals as ``A_x`` and its separator as ``A_s``, eliminated, leave its cached factor."""
 
     A: np.ndarray
     b: np.ndarray
-    owner: np.ndarray
+    rows: dict
     columns: dict
     subtree: list
     frontals: list
@@ -159,23 +159,31 @@ class Reeliminator:
         cliques = group[::-1]  # children before parents
         column: dict = {}
         width = 0
+        span: dict = {}  # each variable's columns, as a range and as a slice
+        at: dict = {}
         for v in [v for c in cliques for v in F_of[c]] + S_of[root]:
             column[v] = width
+            span[v] = range(width, width + dims[v])
+            at[v] = slice(width, width + dims[v])
             width += dims[v]
         f = width - sum(dims[v] for v in S_of[root])
         stacked = [fac for c in cliques for fac in waiting[c]]
         b = np.concatenate([fac.b for fac in stacked]) if stacked else np.zeros(0)
-        owner = np.repeat(cliques, [sum(len(fac.b) for fac in waiting[c]) for c in cliques])
+        rows, start = {}, 0  # each clique's rows (its factors are stacked one after another)
+        for c in cliques:
+            count = sum(len(fac.b) for fac in waiting[c])
+            rows[c] = slice(start, start + count)
+            start += count
         A = np.zeros((len(b), width))
         r = 0
         for fac in stacked:
             m = len(fac.b)
             if len(set(fac.keys)) == len(fac.keys):
                 for v, block in zip(fac.keys, fac.A):
-                    A[r:r + m, column[v]:column[v] + dims[v]] = block
+                    A[r:r + m, at[v]] = block
             else:  # a variable twice in one factor: its blocks add
                 for v, block in zip(fac.keys, fac.A):
-                    A[r:r + m, column[v]:column[v] + dims[v]] += block
+                    A[r:r + m, at[v]] += block
             r += m
         try:
             R, S, d, A_new, b_new = self.impl.module("elimination").eliminate_variable(A[:, :f], A[:, f:], b)
@@ -192,10 +200,10 @@ class Reeliminator:
                 subtree.setdefault(int(parents[c]), []).extend(subtree[c])
             lo = column[F_of[c][0]]
             hi = lo + sum(dims[v] for v in F_of[c])
-            seps = self._columns(S_of[c], column, dims)
+            seps = [i for v in S_of[c] for i in span[v]]
             conditionals[c] = (T[lo:hi, lo:hi], T[lo:hi, seps], d[lo:hi])
             if c != root:
-                cached[c] = PendingSummary(A, b, owner, column, subtree[c],
+                cached[c] = PendingSummary(A, b, rows, column, subtree[c],
                                            [v for u in subtree[c] for v in F_of[u]], S_of[c])
         b_new = np.asarray(b_new, dtype=float).reshape(-1)
         A_new = np.asarray(A_new, dtype=float).reshape(len(b_new), width - f)
@@ -218,7 +226,9 @@ class Reeliminator:
         subtree's rows, the subtree's frontals ``A_x``, the separator ``A_s``) and kept."""
         entry = tree.cached[c]
         if isinstance(entry, PendingSummary):
-            inside = np.isin(entry.owner, entry.subtree)
+            inside = np.zeros(len(entry.b), dtype=bool)
+            for u in entry.subtree:
+                inside[entry.rows[u]] = True
             rows = entry.A[inside]
             A_x = rows[:, self._columns(entry.frontals, entry.columns, dims)]
             A_s = rows[:, self._columns(entry.separator, entry.columns, dims)]
