@@ -22,15 +22,18 @@ new_values)``:
 current linearised system from the tree's conditionals (the implementation's ``marginal_covariances``).
 Variables fixed in a graph and robust losses are not taken: anchor a graph with a prior.
 
-Cost (``python -m course online intel --no-batch``, then ``m3500``, one run each on a shared 2-core machine,
-GTSAM's ISAM2 in the same run; its own time moves by a third between runs): over intel's 729 steps 10.6 s in
-all against ISAM2's 0.84 s (12.6x; median 9.8 against 0.59 ms a step, p90 34 against 2.6); on all of M3500
-143 s against 9.4 s (15.2x; median 5.7 against 0.41 ms, p90 130 against 4.9: the loop closures' large tops).
-No loop of the framework visits every clique in an update (the implementation's
-``affected_cliques`` reads the whole tree: about 1 ms a call at 2000 poses). What
-is left is Python per call of the implementation on each group of cliques (the stacking of its rows,
-``eliminate_variable``'s checks and factorisations, the cached factors of orphans read for the first time), the
-ordering, symbolic elimination and Bayes tree of each top, and per clique the wildfire visits.
+Cost (``python -m course online intel --no-batch``, three runs, then ``m3500`` and ``sphere2500 --poses 1000``,
+one run each, on a shared 2-core machine, GTSAM's ISAM2 in the same run; its own time moves by a third between
+runs): over intel's 729 steps 6.8 s in all against ISAM2's 0.73 s (medians; 8.1x to 12x by run; median step 6.0
+against 0.5 ms); on all of M3500 100 s against 7.2 s (13.8x; median 3.7 against 0.28 ms, p90 104 against 3.3);
+sphere2500's first 1000 poses 79 s against 6.8 s (11.7x). No loop of the framework visits every clique in an
+update (the implementation's ``affected_cliques`` reads the whole tree: about 1 ms a call at 2000 poses). What is
+left is Python per call of the implementation: an intel update makes about nine ``eliminate_variable`` calls
+(about 0.1 ms each, a third of it the given input checks), two ``wildfire_update`` calls, the ordering, symbolic
+elimination and Bayes tree of its top, and the framework stacks each group's rows factor by factor. A loop
+closure on M3500 that re-eliminates 1500 of 1900 poses takes about 0.2 s (GTSAM's ISAM2 about 20 ms): 0.09 s
+the top's re-elimination (100 groups), the rest the relinearisation of its factors, the wildfire and the
+tree's bookkeeping.
 """
 
 from dataclasses import dataclass
