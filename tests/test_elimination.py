@@ -84,6 +84,23 @@ def test_ill_scaled_blocks_keep_their_small_entries():
     np.testing.assert_allclose((A_new.T @ A_new)[3:, 3:], want[3:, 3:], rtol=1e-6)
 
 
+def test_many_rows_a_direction_no_row_measures_and_ill_scaled_separator():
+    """20 rows for n_x + n_s = 9, but the separator's last two unknowns only move together with x (their
+    columns are x's first column, scaled by 1e3 and 1e-3): the new factor is singular, and its small scale
+    is kept, not taken for rounding."""
+    A_x, A_s, b = random_rows(20, 3, 6)
+    A_s[:, 4] = 1e3 * A_x[:, 0]
+    A_s[:, 5] = 1e-3 * A_x[:, 0]
+    A_s[:, 2] *= 1e-3
+    *_, A_new, b_new = split_holds(A_x, A_s, b)
+    P = np.eye(20) - A_x @ np.linalg.solve(A_x.T @ A_x, A_x.T)
+    want = A_s.T @ P @ A_s
+    assert len(A_new) == 4 and np.linalg.matrix_rank(A_new.T @ A_new, tol=1e-9 * np.abs(want).max()) == 4
+    np.testing.assert_allclose(A_new.T @ A_new, want, atol=1e-9 * np.abs(want).max())
+    np.testing.assert_allclose((A_new.T @ A_new)[2, 2], want[2, 2], rtol=1e-6)
+    np.testing.assert_allclose(A_new.T @ b_new, A_s.T @ P @ b, atol=1e-9 * np.abs(A_s.T @ P @ b).max())
+
+
 def test_a_variable_its_factors_do_not_determine_is_a_clear_error():
     A_x, A_s, b = random_rows(4, 3, 2)
     A_x[:, 2] = A_x[:, 0] + A_x[:, 1]
