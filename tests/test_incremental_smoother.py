@@ -157,6 +157,19 @@ def test_gtsams_rule_relinearises_the_separators_cliques_and_stays_exact():
     assert totals[True] > totals[False] > 0  # the rule adds variables on this graph's loop closures
 
 
+def test_the_separators_cliques_are_found_alike_for_few_and_many_variables():
+    """GTSAM's rule adds the frontals of every clique whose separator holds a relinearised variable: found by
+    walking down from each variable's home when they are few, by one pass over the separators when many."""
+    smoother = feed(path_with_loops_2d(), IncrementalSmoother())
+    tree = smoother.tree
+    for relin in ([0], [3, 7], list(range(len(smoother.keys)))):
+        want = set(relin)
+        for F, S in zip(tree.frontals, tree.separators):
+            if set(S) & set(relin):
+                want.update(F)
+        assert smoother._with_neighbours(relin) == sorted(want)
+
+
 def test_the_default_thresholds_stay_near_the_batch_step():
     def close(smoother, k):
         ours = np.concatenate(smoother.delta)

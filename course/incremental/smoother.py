@@ -161,6 +161,12 @@ class IncrementalSmoother:
     def _with_neighbours(self, relin: list) -> list:
         """``relin`` and the frontals of every clique whose separator holds one of them, sorted."""
         out = set(relin)
+        if 8 * len(relin) > len(self.tree):  # many (a large loop closure): one pass over the separators is cheaper
+            hit = set(relin)
+            for F, S in zip(self.tree.frontals, self.tree.separators):
+                if not hit.isdisjoint(S):
+                    out.update(F)
+            return sorted(out)
         for v in relin:
             for c in self.tree.holding(v)[1:]:  # past its home
                 out.update(self.tree.frontals[c])
