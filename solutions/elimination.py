@@ -106,19 +106,35 @@ def eliminate_variable(A_x, A_s, b):
     d = scipy.linalg.lapack.dtrtrs(L, eta[:n_x], lower=1)[0]  # R^-T eta_x
     Lam_new = Lam[n_x:, n_x:] - S.T @ S
     eta_new = eta[n_x:] - S.T @ d
-    # the new factor: rows with A_new^T A_new = Lam_new and A_new^T b_new = eta_new. Lam_new may be singular (fewer
-    # rows than unknowns, a direction no row measures): a pivoted Cholesky (LAPACK's dpstrf) of Lam_new scaled to
-    # Lambda_ss's unit diagonal, P^T (D Lam_new D) P = U^T U, stopped at the first pivot at or below 1e-10: zero
-    # up to rounding (D = diag(Lambda_ss)^-1/2; 0 for an unknown no row touches)
-    root_w = np.sqrt(np.diagonal(Lam)[n_x:])
-    scale = np.divide(1.0, root_w, out=np.zeros(n_s), where=root_w > 0)
-    U, piv, rank, _ = scipy.linalg.lapack.dpstrf(scale[:, None] * Lam_new * scale, tol=1e-10) if n_s else (0, 0, 0, 0)
-    if rank == 0:  # no separator, or nothing measured on it
-        return R, S, d, np.zeros((0, n_s)), np.zeros(0)
-    A_new = np.zeros((rank, n_s))
-    A_new[:, piv - 1] = np.triu(U[:rank])  # the rows of D A_new, columns back in their order
-    b_new = scipy.linalg.lapack.dtrtrs(U[:rank, :rank], (scale * eta_new)[piv[:rank] - 1], trans=1)[0]
-    return R, S, d, A_new * root_w, b_new
+    # the new factor: an upper Cholesky factor of [Lam_new | eta_new] that skips the pivots rounding
+    # leaves of a direction no row measures (Lam_new is singular when m - n_x < n_s)
+    # (a pivot at or below 1e-10 of its diagonal in Lambda_ss is zero up to rounding: no row measures it)
+    floor = 1e-10 * np.diagonal(Lam)[n_x:]
+    factor = None
+    if n_s and len(b) >= n_x + n_s:  # most often definite: one factorisation, when no pivot is at the floor
+        try:
+            L_new = np.linalg.cholesky(Lam_new)
+            if np.all(np.diagonal(L_new) ** 2 > floor):
+                eta_rows = scipy.linalg.lapack.dtrtrs(L_new, eta_new, lower=1)[0]
+                factor = np.column_stack([L_new.T, eta_rows])
+        except np.linalg.LinAlgError:
+            pass
+    if factor is None and 0 < len(b) - n_x < n_s:  # fewer rows than unknowns: the rows of a QR, rank-deficient
+        T = np.linalg.qr(np.column_stack([A_x, A_s, b]), mode="r")
+        factor = T[n_x:, n_x:]
+    if factor is None:  # pivot by pivot, skipping those at the floor
+        W = np.column_stack([Lam_new, eta_new])
+        rows = []
+        for j in range(n_s):
+            pivot = W[j, j]
+            if pivot <= floor[j]:
+                continue
+            row = W[j] / np.sqrt(pivot)
+            row[:j] = 0.0
+            W[j + 1:] -= row[j + 1:n_s, None] * row  # the rows after j (the only ones read again)
+            rows.append(row)
+        factor = np.array(rows).reshape(len(rows), n_s + 1)
+    return R, S, d, factor[:, :n_s], factor[:, n_s]
     # END SOLUTION
 
 

@@ -1884,7 +1884,7 @@ BUGS_ELIMINATION = {
         "elimination.py", EL_IN, "eta_new = eta[n_x:] - S.T @ d", "eta_new = eta[n_x:]", {EL_NEW},
         "not eta_s = A_s^T b"),
     "elim_new_factor_rows_as_given": V(
-        "elimination.py", EL_IN, "return R, S, d, A_new * root_w, b_new", "return R, S, d, A_s, b",
+        "elimination.py", EL_IN, "return R, S, d, factor[:, :n_s], factor[:, n_s]", "return R, S, d, A_s, b",
         {EL_NEW}, "not the rows of A_s"),
 }
 
