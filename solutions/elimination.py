@@ -122,17 +122,27 @@ def eliminate_variable(A_x, A_s, b):
     if factor is None and 0 < len(b) - n_x < n_s:  # fewer rows than unknowns: the rows of a QR, rank-deficient
         T = np.linalg.qr(np.column_stack([A_x, A_s, b]), mode="r")
         factor = T[n_x:, n_x:]
-    if factor is None:  # pivot by pivot, skipping those at the floor
+    if factor is None:  # pivot by pivot, skipping those at the floor; the pivots above it a run at a time
         W = np.column_stack([Lam_new, eta_new])
         rows = []
-        for j in range(n_s):
-            pivot = W[j, j]
-            if pivot <= floor[j]:
+        j = 0
+        while j < n_s:
+            if W[j, j] <= floor[j]:  # skipped: nothing after it changes
+                j += 1
                 continue
-            row = W[j] / np.sqrt(pivot)
-            row[:j] = 0.0
-            W[j + 1:] -= row[j + 1:n_s, None] * row  # the rows after j (the only ones read again)
-            rows.append(row)
+            # the pivots from j on that LAPACK's Cholesky takes before the first at the floor: one run, its rows
+            # at once (the same as one by one), the rows after it updated by one product
+            U, info = scipy.linalg.lapack.dpotrf(W[j:n_s, j:n_s])
+            q = info - 1 if info else n_s - j
+            low = np.flatnonzero(np.diagonal(U)[:q] ** 2 <= floor[j:j + q])
+            q = int(low[0]) if len(low) else q
+            U = scipy.linalg.lapack.dpotrf(W[j:j + q, j:j + q])[0]  # the run's own factor (a failed call's is not)
+            run = np.zeros((q, n_s + 1))
+            run[:, j:j + q] = U
+            run[:, j + q:] = scipy.linalg.lapack.dtrtrs(U, W[j:j + q, j + q:], trans=1)[0]
+            W[j + q:, j + q:] -= run[:, j + q:n_s].T @ run[:, j + q:]
+            rows += list(run)
+            j += max(q, 1)
         factor = np.array(rows).reshape(len(rows), n_s + 1)
     return R, S, d, factor[:, :n_s], factor[:, n_s]
     # END SOLUTION
