@@ -24,17 +24,16 @@ Variables fixed in a graph and robust losses are not taken: anchor a graph with 
 
 Cost (``python -m course online intel --no-batch``, three runs, then ``m3500 --no-batch`` and ``sphere2500
 --poses 1000 --no-batch``, one run each, on a shared 2-core machine, GTSAM's ISAM2 in the same run; its own time
-moves by a third between runs): over intel's 729 steps 6.4 s in all against ISAM2's 0.57 s (medians; 10.7x to
-11.2x by run; median step 6.0 against 0.45 ms); on all of M3500 93 s against 7.8 s (12.0x; median 3.9 against
-0.35 ms, p90 81 against 3.5); sphere2500's first 1000 poses 149 s against 7.9 s (19x). No loop of the framework
+moves by a third between runs): over intel's 729 steps 6.0 s in all against ISAM2's 0.59 s (medians; 10.0x to
+10.5x by run; median step 5.8 against 0.41 ms); on all of M3500 80 s against 7.6 s (10.6x; median 3.2 against
+0.36 ms, p90 71 against 4.0); sphere2500's first 1000 poses 84 s against 8.1 s (10.3x). No loop of the framework
 visits every clique in an update (the implementation's ``affected_cliques`` reads the whole tree: 0.6 ms a call
 at 1779 cliques). What is left is Python per call of the implementation: an intel update makes about nine
-``eliminate_variable`` calls (0.13 to 0.4 ms each from M3500's calls to sphere2500's, about 40 us of it the given
-input checks; a singular new factor is written back pivot by pivot, the 3D runs' largest cost), two
-``wildfire_update`` calls, the ordering, symbolic elimination and Bayes tree of its top, and the framework stacks
-each group's rows factor by factor. A loop closure on M3500 that re-eliminates 1500 of 1900 poses takes about
-0.2 s (GTSAM's ISAM2 about 20 ms): 0.09 s the top's re-elimination (100 groups), the rest the relinearisation of
-its factors, the wildfire and the tree's bookkeeping.
+``eliminate_variable`` calls (0.13 to 0.25 ms each from M3500's calls to sphere2500's, about 40 us of it the
+given input checks), two ``wildfire_update`` calls, the ordering, symbolic elimination and Bayes tree of its
+top, and the framework stacks each group's rows factor by factor. A loop closure on M3500 that re-eliminates
+1500 of 1900 poses takes about 0.2 s (GTSAM's ISAM2 about 20 ms): 0.09 s the top's re-elimination (100 groups),
+the rest the relinearisation of its factors, the wildfire and the tree's bookkeeping.
 """
 
 from dataclasses import dataclass
