@@ -134,15 +134,16 @@ def eliminate_variable(A_x, A_s, b):
             # at once (the same as one by one), the rows after it updated by one product
             U, info = scipy.linalg.lapack.dpotrf(W[j:n_s, j:n_s])
             q = info - 1 if info else n_s - j
-            low = np.flatnonzero(np.diagonal(U)[:q] ** 2 <= floor[j:j + q])
-            q = int(low[0]) if len(low) else q
+            # (the first pivot, W[j, j], is above the floor by the test above: the run holds it at least)
+            low = np.flatnonzero(np.diagonal(U)[1:q] ** 2 <= floor[j + 1:j + q])
+            q = int(low[0]) + 1 if len(low) else q
             U = scipy.linalg.lapack.dpotrf(W[j:j + q, j:j + q])[0]  # the run's own factor (a failed call's is not)
             run = np.zeros((q, n_s + 1))
             run[:, j:j + q] = U
             run[:, j + q:] = scipy.linalg.lapack.dtrtrs(U, W[j:j + q, j + q:], trans=1)[0]
             W[j + q:, j + q:] -= run[:, j + q:n_s].T @ run[:, j + q:]
             rows += list(run)
-            j += max(q, 1)
+            j += q
         factor = np.array(rows).reshape(len(rows), n_s + 1)
     return R, S, d, factor[:, :n_s], factor[:, n_s]
     # END SOLUTION
