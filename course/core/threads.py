@@ -14,10 +14,16 @@ _VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 def limit_blas_threads() -> None:
+    """Every BLAS of this process on ``COURSE_BLAS_THREADS`` threads (1 by default), and its children's.
+
+    numpy and scipy each load an OpenBLAS of their own, numpy's at its import and scipy's at the import of
+    ``scipy.linalg``; an OpenBLAS reads its thread count from the environment when it loads. So the variables
+    are set first (a library loaded later reads them: scipy's, when numpy was imported before this package),
+    then the libraries loaded already are limited in place."""
     count = os.environ.get("COURSE_BLAS_THREADS", "1")
+    for name in _VARIABLES:
+        os.environ.setdefault(name, count)
     if "numpy" not in sys.modules:
-        for name in _VARIABLES:
-            os.environ.setdefault(name, count)
         return
     from threadpoolctl import threadpool_limits
 
