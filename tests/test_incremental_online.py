@@ -105,3 +105,14 @@ def test_the_minimum_is_the_lower_of_lm_from_the_file_and_ours_iterated():
     assert "stops at 526.000000, a local minimum above it" in low
     same = online.format_table({"rows": [row], "minimum": 41.0, "from_file": 41.0, "iterated": 41.0})
     assert "batch minimum (ours, LM on the whole dataset): chi2 41.000000" in same
+    assert "ours / GTSAM ISAM2" not in same
+
+
+def test_the_ratio_to_isam2_is_of_the_same_run():
+    ours = online.OnlineRow("ours (incremental)", np.array([1e-3, 2e-3, 9e-3]), 1.0, 2.0, 41.5)
+    isam = online.OnlineRow("GTSAM ISAM2", np.array([1e-3, 1e-3, 2e-3]), 1.0, 2.0, 41.5)
+    table = online.format_table({"rows": [ours, isam], "minimum": 41.0, "from_file": 41.0, "iterated": 41.0})
+    assert "ours / GTSAM ISAM2, this run: total time 3.00x, median step 2.00x" in table
+    failed = online.OnlineRow("GTSAM ISAM2", note="fails at step 224")
+    assert "ours / GTSAM ISAM2" not in online.format_table({"rows": [ours, failed], "minimum": 41.0,
+                                                            "from_file": 41.0, "iterated": 41.0})

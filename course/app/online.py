@@ -301,6 +301,11 @@ def format_table(result: dict) -> str:
         lines.append(f"{row.label:<28}{len(ms):>6}{np.median(ms):>11.3f}{np.percentile(ms, 90):>9.3f}{ms.max():>10.1f}"
                      f"{ms.sum() / 1e3:>9.2f}{_number(row.relinearized):>11}{_number(row.reeliminated):>12}"
                      f"{row.chi2:>14.6f}{ratio:>12}")
+    timed = {row.label: row.seconds for row in result["rows"] if len(row.seconds)}
+    if "ours (incremental)" in timed and "GTSAM ISAM2" in timed:
+        ours, isam = timed["ours (incremental)"], timed["GTSAM ISAM2"]
+        lines.append(f"ours / GTSAM ISAM2, this run: total time {ours.sum() / isam.sum():.2f}x, median step "
+                     f"{np.median(ours) / np.median(isam):.2f}x")
     from_file = result.get("from_file", minimum)
     if np.isfinite(from_file) and from_file > minimum * (1 + 1e-9):
         lines.append(f"minimum: chi2 {minimum:.6f}, ours iterated to convergence from the online estimate; LM on the "
