@@ -116,3 +116,35 @@ def test_the_ratio_to_isam2_is_of_the_same_run():
     failed = online.OnlineRow("GTSAM ISAM2", note="fails at step 224")
     assert "ours / GTSAM ISAM2" not in online.format_table({"rows": [ours, failed], "minimum": 41.0,
                                                             "from_file": 41.0, "iterated": 41.0})
+
+
+def test_the_breakdown_times_every_function_the_updates_call(capsys):
+    assert main(["online", "manhattan:30", "--no-batch", "--breakdown"]) == 0
+    out = capsys.readouterr().out
+    part = out[out.index("our updates' "):]
+    names = [f"{module}.{name}" for module, names in online.SMOOTHER_CALLS.items() for name in names]
+    rows = {line.split()[0]: line.split() for line in part.splitlines() if line.split()[0] in names}
+    assert set(rows) == set(names)  # each is called on this path
+    assert int(rows["orderings.minimum_degree_ordering"][1]) == 30  # one ordering per update
+    shares = [int(row[3].rstrip("%")) for row in rows.values()]
+    inside = next(line for line in part.splitlines() if line.startswith("all of them"))
+    framework = next(line for line in part.splitlines() if line.startswith("the framework"))
+    assert abs(int(inside.split()[-1].rstrip("%")) + int(framework.split()[-1].rstrip("%")) - 100) <= 1
+    assert abs(sum(shares) - int(inside.split()[-1].rstrip("%"))) <= len(shares)
+
+
+def test_call_times_counts_calls_and_puts_the_originals_back():
+    from course.core.call_times import CallTimes
+    from course.core.impl import load
+
+    impl = load("solutions")
+    module = impl.module("incremental_update")
+    original = module.relinearised_keys
+    with CallTimes(impl, {"incremental_update": ("relinearised_keys", "orphan_parents"),
+                          "no_such_module": ("f",)}) as times:
+        assert module.relinearised_keys is not original
+        assert list(module.relinearised_keys([np.zeros(3), np.ones(3)], 0.5)) == [1]
+        module.relinearised_keys([np.zeros(2)], 0.5)
+    assert module.relinearised_keys is original
+    assert [(label, calls) for label, calls, _ in times.rows()] == [("incremental_update.relinearised_keys", 2)]
+    assert times.total() > 0

@@ -191,6 +191,9 @@ def build_parser(plugins=None) -> argparse.ArgumentParser:
     online.add_argument("--poses", type=int, default=None, metavar="N", help="the first N poses only (default all)")
     online.add_argument("--no-batch", action="store_true", help="the two smoothers only (no batch re-solves)")
     online.add_argument("--plot", metavar="FILE", help="write the time per step over the sequence (PNG)")
+    online.add_argument("--breakdown", action="store_true",
+                        help="time each function of the implementation our updates call, and print where the time "
+                             "went (a timer per call)")
     online.add_argument("--impl", default=None, help="solutions, exercises or a path (default: this tree's)")
     online.set_defaults(func=cmd_online)
 
@@ -607,12 +610,12 @@ def _benchmark_suite(args) -> int:
 
 
 def cmd_online(args) -> int:
-    """``online DATASET``: :func:`course.app.online.compare`'s table (and ``--plot``)."""
+    """``online DATASET``: :func:`course.app.online.compare`'s table (and ``--plot``, ``--breakdown``)."""
     chapters.require("ch8", "online")
     from course.app import online
 
     result = online.compare(args.dataset, impl=args.impl or default_impl(), every=args.every,
-                            batches=not args.no_batch, poses=args.poses)
+                            batches=not args.no_batch, poses=args.poses, breakdown=args.breakdown)
     print(f"{result['name']}: {result['poses']} poses, {result['edges']} edges, fed one pose per step; batch re-solves "
           f"every {result['every']} steps (from the previous solution); chi2 = sum e^T Omega e over the edges "
           "(GTSAM's error is half of it)")

@@ -22,6 +22,15 @@ from course.core import peers
 from course.core.impl import not_implemented_reason
 
 PRIOR_SIGMA = 1e-3
+#: the implementation's functions an update calls (``--breakdown`` times each): chapter 8's five exercises and
+#: chapter 7's linearisation
+SMOOTHER_CALLS = {
+    "elimination": ("eliminate_variable",),
+    "orderings": ("minimum_degree_ordering", "symbolic_elimination"),
+    "bayes_tree": ("bayes_tree",),
+    "incremental_update": ("relinearised_keys", "affected_cliques", "orphan_parents", "wildfire_update"),
+    "autodiff_factor": ("tangent_jacobians",),
+}
 #: the batch re-solves run about this many times over the sequence (every K = N // BATCHES steps)
 BATCHES = 20
 
@@ -37,6 +46,7 @@ class OnlineRow:
     reeliminated: float = float("nan")
     chi2: float = float("nan")
     note: str = ""
+    calls: list = field(default_factory=list)  # [(module.function, calls, seconds)] with ``breakdown``
 
 
 def load(name: str):
@@ -71,9 +81,13 @@ def chi2_of(graph, dim: int, values) -> float:
     return float(graph.chi2(x[:, :3], x[:, 3:].reshape(-1, 3, 3)))
 
 
-def run_ours(graph, dim: int, impl, relinearize_threshold=0.01, wildfire_threshold=0.001, iterate: bool = True):
+def run_ours(graph, dim: int, impl, relinearize_threshold=0.01, wildfire_threshold=0.001, iterate: bool = True,
+             breakdown: bool = False):
     """``(row, iterated chi2, smoother)``: our smoother over the sequence; then the last update iterated to
-    convergence (relinearisation and wildfire thresholds 0, no new factor, until chi2 stops falling)."""
+    convergence (relinearisation and wildfire thresholds 0, no new factor, until chi2 stops falling). With
+    ``breakdown``, ``row.calls`` holds the calls and seconds of each function of the implementation the updates
+    called (``SMOOTHER_CALLS``)."""
+    from course.core.call_times import CallTimes
     from course.incremental import IncrementalSmoother
     from course.incremental.online import OnlineSequence
 
@@ -82,16 +96,18 @@ def run_ours(graph, dim: int, impl, relinearize_threshold=0.01, wildfire_thresho
     n = len(sequence)
     seconds, relin, reelim = np.zeros(n), np.zeros(n), np.zeros(n)
     previous = None
-    for k in range(n):
-        factors, values = sequence.step(k, previous)
-        start = time.perf_counter()
-        result = smoother.update(factors, values)
-        seconds[k] = time.perf_counter() - start
-        relin[k], reelim[k] = result.relinearized, result.reeliminated
-        previous = smoother.estimate_of(k)
+    times = CallTimes(smoother.impl, SMOOTHER_CALLS if breakdown else {})
+    with times:
+        for k in range(n):
+            factors, values = sequence.step(k, previous)
+            start = time.perf_counter()
+            result = smoother.update(factors, values)
+            seconds[k] = time.perf_counter() - start
+            relin[k], reelim[k] = result.relinearized, result.reeliminated
+            previous = smoother.estimate_of(k)
     estimate = smoother.estimate_list()
     row = OnlineRow("ours (incremental)", seconds, float(relin.mean()), float(reelim.mean()),
-                    chi2_of(graph, dim, estimate))
+                    chi2_of(graph, dim, estimate), calls=times.rows())
     iterated = float("nan")
     if iterate:
         smoother.relinearize_threshold = smoother.wildfire_threshold = 0.0
@@ -242,9 +258,9 @@ def batch_minimum(graph, dim: int, impl) -> float:
     return float(result.final_chi2)
 
 
-def compare(name: str, impl, every=None, batches: bool = True, poses=None) -> dict:
+def compare(name: str, impl, every=None, batches: bool = True, poses=None, breakdown: bool = False) -> dict:
     """Every method's row on dataset ``name`` (its first ``poses`` poses where given): ``{"rows", "every",
-    "minimum", "iterated", "poses", "name", "edges"}``."""
+    "minimum", "iterated", "poses", "name", "edges"}``; ``breakdown``: our row's ``calls`` (:func:`run_ours`)."""
     graph, dim = load(name)
     if poses is not None and poses < graph.num_poses:
         if poses < 2:
@@ -256,7 +272,7 @@ def compare(name: str, impl, every=None, batches: bool = True, poses=None) -> di
     rows = []
     iterated = float("nan")
     try:
-        ours, iterated, _ = run_ours(graph, dim, impl)
+        ours, iterated, _ = run_ours(graph, dim, impl, breakdown=breakdown)
         rows.append(ours)
     except NotImplementedError as exc:
         rows.append(OnlineRow("ours (incremental)", note=not_implemented_reason(exc)))
@@ -315,6 +331,28 @@ def format_table(result: dict) -> str:
     if np.isfinite(result["iterated"]) and np.isfinite(minimum):
         lines.append(f"ours, the last update iterated to convergence: chi2 {result['iterated']:.6f} "
                      f"({result['iterated'] / minimum - 1:+.2e} vs the minimum)")
+    ours = next((row for row in result["rows"] if row.label == "ours (incremental)" and row.calls), None)
+    if ours is not None:
+        lines += ["", format_breakdown(ours)]
+    return "\n".join(lines)
+
+
+def format_breakdown(row: OnlineRow) -> str:
+    """Where our updates' time went: each function of the implementation they called (its calls, seconds, share
+    of the updates' total, microseconds a call), then the framework's part (the rest)."""
+    total = float(row.seconds.sum())
+    lines = [f"our updates' {total:.2f} s by the implementation's function (each call timed; the rest is the "
+             "framework's)",
+             f"{'function':<42}{'calls':>8}{'total s':>9}{'share':>7}{'us/call':>9}"]
+    inside = 0.0
+    for label, calls, seconds in row.calls:
+        inside += seconds
+        lines.append(f"{label:<42}{calls:>8}{seconds:>9.3f}{seconds / total:>7.0%}{1e6 * seconds / calls:>9.0f}")
+    steps = len(row.seconds)
+    count = sum(calls for _, calls, _ in row.calls)
+    lines.append(f"{'all of them (' + f'{count / steps:.1f} calls per update)':<42}{count:>8}{inside:>9.3f}"
+                 f"{inside / total:>7.0%}")
+    lines.append(f"{'the framework':<42}{'':>8}{total - inside:>9.3f}{(total - inside) / total:>7.0%}")
     return "\n".join(lines)
 
 
