@@ -215,20 +215,21 @@ def sweep(temp: str) -> list:
     """Remove this user's staged folders in ``temp`` whose owner has ended without removing them
     (and those older than :data:`UNOWNED_AGE` without a readable owner file); return their paths."""
     here, removed = _owner(), []
-    for entry in os.scandir(temp):
-        try:
-            if not entry.name.startswith(PREFIX) or not entry.is_dir(follow_symlinks=False):
-                continue
-            st = entry.stat(follow_symlinks=False)
-            if st.st_uid != os.geteuid():
-                continue
+    with os.scandir(temp) as entries:
+        for entry in entries:
             try:
-                ended = _ended(json.loads((Path(entry.path) / OWNER).read_text()), here)
-            except (FileNotFoundError, ValueError, KeyError, TypeError):
-                ended = time.time() - st.st_mtime > UNOWNED_AGE
-        except OSError:
-            continue  # removed meanwhile
-        if ended:
-            isolation.remove_tree(entry.path)
-            removed.append(entry.path)
+                if not entry.name.startswith(PREFIX) or not entry.is_dir(follow_symlinks=False):
+                    continue
+                st = entry.stat(follow_symlinks=False)
+                if st.st_uid != os.geteuid():
+                    continue
+                try:
+                    ended = _ended(json.loads((Path(entry.path) / OWNER).read_text()), here)
+                except (FileNotFoundError, ValueError, KeyError, TypeError):
+                    ended = time.time() - st.st_mtime > UNOWNED_AGE
+            except OSError:
+                continue  # removed meanwhile
+            if ended:
+                isolation.remove_tree(entry.path)
+                removed.append(entry.path)
     return removed
