@@ -8,16 +8,22 @@ once: :func:`acquire` hands each :class:`autograder.sandbox.Session` the current
 :class:`Runtime` and builds a new one when a framework file has changed since (the old one is
 removed when its last session ends); everything is removed when the process exits.
 
+A process that ends without running its exit handlers (killed, or ended by ``os._exit``) leaves
+its staged folder behind: each folder names its owner (:data:`OWNER`), and staging a new one
+first removes those in the same temporary directory whose owner has ended (:func:`sweep`).
+
 Sharing gives a student's code nothing it did not have: the copies are root-owned and
 read-only to the children, the fork server runs as the grader and never imports student code,
 and each session still has its own implementations, uids, working directories and memory watch.
 """
 
 import atexit
+import json
 import os
 import sys
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 from autograder import forkserver, isolation
@@ -27,6 +33,11 @@ SERVER_BOOTSTRAP = (
     "import os, sys; sys.path.insert(0, {root!r}); import site; "
     "[site.addsitedir(p) for p in {sites!r}]; from autograder.forkserver import serve; serve({sites!r}); os._exit(0)"
 )
+PREFIX = "autograder-runtime-"
+#: the file in a staged folder that names the process that staged it
+OWNER = "owner.json"
+#: a folder without an owner file is left alone this long (seconds): it may be being staged
+UNOWNED_AGE = 24 * 3600
 
 
 class Runtime:
@@ -54,8 +65,11 @@ class Runtime:
 
     def _stage(self) -> None:
         interpreter, packages = isolation.python_problems()
-        self.base = Path(tempfile.mkdtemp(prefix="autograder-runtime-", dir=isolation.temp_root()))
+        temp = isolation.temp_root()
+        sweep(temp)
+        self.base = Path(tempfile.mkdtemp(prefix=PREFIX, dir=temp))
         os.chmod(self.base, 0o755)
+        _write_owner(self.base)
         isolation.stage_framework(self.base / "stage")
         self.root = str(self.base / "stage")
         if interpreter or packages:
@@ -140,3 +154,82 @@ def close_all() -> None:
             runtime.close()
         _current.clear()
         _retired.clear()
+
+
+# ---------------------------------------------------------------- folders left by ended processes
+
+
+def _read(path: str) -> str:
+    try:
+        with open(path) as file:
+            return file.read().strip()
+    except OSError:
+        return ""
+
+
+def _started(pid: int) -> str:
+    """When ``pid`` started (clock ticks after boot, from /proc/<pid>/stat; '' where unknown)."""
+    fields = _read(f"/proc/{pid}/stat").rpartition(")")[2].split()
+    return fields[19] if len(fields) > 19 else ""
+
+
+def _pid_namespace() -> str:
+    try:
+        return os.readlink("/proc/self/ns/pid")
+    except OSError:
+        return ""
+
+
+def _owner() -> dict:
+    """This process, as an owner file names it: its pid, with its start time, the boot and the pid
+    namespace (a pid reused by a later process, or one from another boot, is not the owner)."""
+    pid = os.getpid()
+    return {"pid": pid, "start": _started(pid), "boot": _read("/proc/sys/kernel/random/boot_id"),
+            "pid_namespace": _pid_namespace(), "command": sys.argv}
+
+
+def _write_owner(base: Path) -> None:
+    partial = base / (OWNER + ".partial")
+    partial.write_text(json.dumps(_owner()))
+    os.replace(partial, base / OWNER)
+
+
+def _ended(owner: dict, here: dict) -> bool:
+    """Whether the process an owner file names has certainly ended (False when it may be alive);
+    ``here`` is this process's own record."""
+    if owner["boot"] and here["boot"] and owner["boot"] != here["boot"]:
+        return True
+    if owner["pid_namespace"] != here["pid_namespace"]:
+        return False  # its pid names another process here
+    try:
+        os.kill(owner["pid"], 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:
+        pass  # alive, as another user
+    started = _started(owner["pid"])
+    return bool(owner["start"] and started) and started != owner["start"]
+
+
+def sweep(temp: str) -> list:
+    """Remove this user's staged folders in ``temp`` whose owner has ended without removing them
+    (and those older than :data:`UNOWNED_AGE` without a readable owner file); return their paths."""
+    here, removed = _owner(), []
+    with os.scandir(temp) as entries:
+        for entry in entries:
+            try:
+                if not entry.name.startswith(PREFIX) or not entry.is_dir(follow_symlinks=False):
+                    continue
+                st = entry.stat(follow_symlinks=False)
+                if st.st_uid != os.geteuid():
+                    continue
+                try:
+                    ended = _ended(json.loads((Path(entry.path) / OWNER).read_text()), here)
+                except (FileNotFoundError, ValueError, KeyError, TypeError):
+                    ended = time.time() - st.st_mtime > UNOWNED_AGE
+            except OSError:
+                continue  # removed meanwhile
+            if ended:
+                isolation.remove_tree(entry.path)
+                removed.append(entry.path)
+    return removed

@@ -198,6 +198,16 @@ def _course_short_errors():
 _course_short_errors()
 del _course_short_errors
 """
+
+#: run silently in the kernel after the last cell: the kernel is then killed, which runs no exit handlers, so
+#: the grading runtime a check cell staged (``autograder.runtime``) is removed first
+CLOSE_RUNTIMES = r"""
+import sys as _sys
+if "autograder.runtime" in _sys.modules:
+    _sys.modules["autograder.runtime"].close_all()
+del _sys
+"""
+
 #: how ``SHORT_ERRORS`` starts the outputs it shortens
 TODO_MARK, AFTER_TODO_MARK = "not written yet: TODO ", "not run: this cell needs what a cell above"
 
@@ -353,13 +363,16 @@ def execute(nb, timeout=900, cwd=HERE, small=False, impl=None, progress=None, ke
             await client.async_wait_for_reply(client.kc.execute(SHORT_ERRORS, silent=True, store_history=False))
 
         # the outputs are in ``nb`` once the last cell ran: a graceful shutdown only waits, seconds per
-        # notebook, for the kernel's interpreter to finalize
+        # notebook, for the kernel's interpreter to finalize (CLOSE_RUNTIMES does what matters of it)
         client = NotebookClient(nb, timeout=timeout, kernel_name=kernel_name, allow_errors=keep_going,
                                 resources={"metadata": {"path": str(cwd)}}, on_notebook_start=short_errors,
                                 on_cell_start=report.on_cell_start if report else None,
                                 shutdown_kernel="immediate")
         try:
-            client.execute()
+            with client.setup_kernel():
+                client.execute(cleanup_kc=False)
+                assert client.kc is not None
+                client.wait_for_reply(client.kc.execute(CLOSE_RUNTIMES, silent=True, store_history=False))
         finally:
             if report is not None:
                 report.close()

@@ -1,5 +1,14 @@
 """The runtime the grading sessions of one process share (``autograder.runtime``): built once,
-rebuilt when a framework file changes, removed at exit."""
+rebuilt when a framework file changes, removed at exit (or, when its process ended without exit
+handlers, by the next staging)."""
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -49,3 +58,59 @@ def test_a_stale_runtime_stays_until_its_last_session_ends(monkeypatch):
         runtime.release(new)
     assert old.users == 0
     runtime.close_all()
+
+
+STAGE_AND_END = ("import os, sys; from autograder import runtime, sandbox; "
+                 "print(runtime.acquire(True, sandbox.REPO_ROOT).base, flush=True); "
+                 "os._exit(0) if sys.argv[1] == 'exit' else None")
+
+
+@pytest.fixture
+def temp_root(monkeypatch):
+    """A temporary directory the children's uid can search, for this test's staged folders."""
+    root = Path(tempfile.mkdtemp(prefix="runtime-sweep-"))
+    root.chmod(0o755)
+    monkeypatch.setenv("TMPDIR", str(root))
+    yield root
+    isolation.remove_tree(root)
+
+
+def stage_in_a_child(how: str) -> Path:
+    """The folder a child process staged, the child having ended by ``how``: ``exit`` (``os._exit``,
+    its exit handlers not run) or ``return``."""
+    done = subprocess.run([sys.executable, "-c", STAGE_AND_END, how], cwd=sandbox.REPO_ROOT,
+                          capture_output=True, text=True, timeout=120, check=True)
+    return Path(done.stdout.strip())
+
+
+def owned(root: Path, **owner) -> Path:
+    folder = Path(tempfile.mkdtemp(prefix=runtime.PREFIX, dir=root))
+    (folder / runtime.OWNER).write_text(json.dumps({**runtime._owner(), **owner}))
+    return folder
+
+
+@pytest.mark.skipif(not isolation.is_root(), reason="isolating the children needs root")
+def test_a_folder_left_by_a_process_that_ended_without_exit_handlers_goes_at_the_next_staging(temp_root):
+    alive = owned(temp_root)  # this process: alive
+    left = stage_in_a_child("exit")
+    assert left.parent == temp_root and (left / "stage").is_dir()
+    assert json.loads((left / runtime.OWNER).read_text())["pid"] != os.getpid()
+    stage_in_a_child("return")
+    assert sorted(temp_root.iterdir()) == [alive]
+
+
+def test_the_sweep_removes_only_folders_whose_owner_has_ended(tmp_path):
+    here = runtime._owner()
+    if not here["start"]:
+        pytest.skip("no /proc here: a process's start time is unknown")
+    kept = [owned(tmp_path), owned(tmp_path, pid=1, start=runtime._started(1)),  # alive (perhaps another user's)
+            owned(tmp_path, pid_namespace="pid:[1]", pid=2 ** 22 + 1)]  # another namespace's pid: unknown
+    unowned = Path(tempfile.mkdtemp(prefix=runtime.PREFIX, dir=tmp_path))
+    ended = [owned(tmp_path, pid=2 ** 22 + 1),  # above pid_max: no such process
+             owned(tmp_path, start=str(int(here["start"]) + 1)),  # a pid now another process's
+             owned(tmp_path, boot="another boot")]
+    assert sorted(runtime.sweep(str(tmp_path))) == sorted(map(str, ended))
+    assert sorted(tmp_path.iterdir()) == sorted(kept + [unowned])
+    old = time.time() - runtime.UNOWNED_AGE - 60
+    os.utime(unowned, (old, old))
+    assert runtime.sweep(str(tmp_path)) == [str(unowned)]

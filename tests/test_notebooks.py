@@ -10,6 +10,7 @@ else a kernelspec written to a temporary ``JUPYTER_PATH`` folder.
 """
 
 import sys
+from pathlib import Path
 
 import nbformat
 import pytest
@@ -112,6 +113,21 @@ def _kernel_executable():
 
 def test_kernel_runs_this_interpreter():
     assert _kernel_executable() == sys.executable
+
+
+def test_the_killed_kernel_leaves_no_grading_runtime():
+    """The kernel is killed after the last cell (no exit handlers): the runtime a check cell staged goes first."""
+    from nbformat.v4 import new_code_cell, new_notebook
+
+    from autograder import isolation
+
+    if not isolation.is_root():
+        pytest.skip("a runtime is staged in a folder of its own only when isolating the children (root)")
+    nb = new_notebook(cells=[new_code_cell("from autograder import runtime, sandbox\n"
+                                           "print(runtime.acquire(True, sandbox.REPO_ROOT).base, end='')")])
+    build.execute(nb, timeout=120)
+    staged = Path(nb.cells[0].outputs[0]["text"])
+    assert staged.name.startswith("autograder-runtime-") and not staged.exists()
 
 
 def test_kernel_falls_back_to_a_temporary_kernelspec(monkeypatch):
