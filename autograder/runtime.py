@@ -167,7 +167,7 @@ def _read(path: str) -> str:
         return ""
 
 
-def _started(pid: int) -> str:
+def process_start(pid: int) -> str:
     """When ``pid`` started (clock ticks after boot, from /proc/<pid>/stat; '' where unknown)."""
     fields = _read(f"/proc/{pid}/stat").rpartition(")")[2].split()
     return fields[19] if len(fields) > 19 else ""
@@ -180,17 +180,17 @@ def _pid_namespace() -> str:
         return ""
 
 
-def _owner() -> dict:
+def owner_record() -> dict:
     """This process, as an owner file names it: its pid, with its start time, the boot and the pid
     namespace (a pid reused by a later process, or one from another boot, is not the owner)."""
     pid = os.getpid()
-    return {"pid": pid, "start": _started(pid), "boot": _read("/proc/sys/kernel/random/boot_id"),
+    return {"pid": pid, "start": process_start(pid), "boot": _read("/proc/sys/kernel/random/boot_id"),
             "pid_namespace": _pid_namespace(), "command": sys.argv}
 
 
 def _write_owner(base: Path) -> None:
     partial = base / (OWNER + ".partial")
-    partial.write_text(json.dumps(_owner()))
+    partial.write_text(json.dumps(owner_record()))
     os.replace(partial, base / OWNER)
 
 
@@ -207,14 +207,14 @@ def _ended(owner: dict, here: dict) -> bool:
         return True
     except PermissionError:
         pass  # alive, as another user
-    started = _started(owner["pid"])
+    started = process_start(owner["pid"])
     return bool(owner["start"] and started) and started != owner["start"]
 
 
 def sweep(temp: str) -> list:
     """Remove this user's staged folders in ``temp`` whose owner has ended without removing them
     (and those older than :data:`UNOWNED_AGE` without a readable owner file); return their paths."""
-    here, removed = _owner(), []
+    here, removed = owner_record(), []
     with os.scandir(temp) as entries:
         for entry in entries:
             try:

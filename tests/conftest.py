@@ -38,6 +38,17 @@ def oracle_cache(tmp_path_factory):
         os.environ[CACHE_VARIABLE] = before
 
 
+@pytest.fixture(scope="session", autouse=True)
+def shared_notebooks(tmp_path_factory):
+    """Where the xdist workers of a run share their executed notebooks (``executed_notebooks.SHARED``): pytest's
+    temporary folder of the run, removed with the older runs' (a folder of its own in /tmp stayed, 31 MB a run)."""
+    import executed_notebooks
+
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        executed_notebooks.SHARED = tmp_path_factory.getbasetemp().parent / "executed-notebooks"
+    yield
+
+
 @pytest.fixture
 def data_folder():
     """The shared data folder (``course.core.data.data_dir()``); skip when it is absent."""

@@ -2,7 +2,7 @@
 
 ``executed_small(path)`` runs ``notebooks.build.execute(..., small=True)`` on the notebook of ``path``
 (a key of ``notebooks.build.NOTEBOOKS``) once per test run: the first worker to ask executes it and
-writes it to a folder the run's workers share (``PYTEST_XDIST_TESTRUNUID``, set by pytest-xdist), the
+writes it to a folder the run's workers share (``SHARED``, in pytest's temporary folder of the run), the
 others wait for it and read it. Without xdist it is kept in this process. Each call returns a fresh
 copy, so a test may change what it gets.
 """
@@ -20,13 +20,15 @@ from notebooks import build
 _HERE: dict = {}
 
 
+#: the folder the run's xdist workers share (set by conftest's ``shared_notebooks``: in the run's temporary
+#: folder, which pytest removes with the older runs'); None without xdist
+SHARED: Path | None = None
+
+
 def _shared_folder() -> Path | None:
-    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
-    if not run:
-        return None
-    folder = Path(tempfile.gettempdir()) / f"course-executed-notebooks-{run}"
-    folder.mkdir(exist_ok=True)
-    return folder
+    if SHARED is not None:
+        SHARED.mkdir(exist_ok=True)
+    return SHARED
 
 
 def _execute(path):

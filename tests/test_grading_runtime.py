@@ -85,7 +85,7 @@ def stage_in_a_child(how: str) -> Path:
 
 def owned(root: Path, **owner) -> Path:
     folder = Path(tempfile.mkdtemp(prefix=runtime.PREFIX, dir=root))
-    (folder / runtime.OWNER).write_text(json.dumps({**runtime._owner(), **owner}))
+    (folder / runtime.OWNER).write_text(json.dumps({**runtime.owner_record(), **owner}))
     return folder
 
 
@@ -100,10 +100,10 @@ def test_a_folder_left_by_a_process_that_ended_without_exit_handlers_goes_at_the
 
 
 def test_the_sweep_removes_only_folders_whose_owner_has_ended(tmp_path):
-    here = runtime._owner()
+    here = runtime.owner_record()
     if not here["start"]:
         pytest.skip("no /proc here: a process's start time is unknown")
-    kept = [owned(tmp_path), owned(tmp_path, pid=1, start=runtime._started(1)),  # alive (perhaps another user's)
+    kept = [owned(tmp_path), owned(tmp_path, pid=1, start=runtime.process_start(1)),  # alive (perhaps another user's)
             owned(tmp_path, pid_namespace="pid:[1]", pid=2 ** 22 + 1)]  # another namespace's pid: unknown
     unowned = Path(tempfile.mkdtemp(prefix=runtime.PREFIX, dir=tmp_path))
     ended = [owned(tmp_path, pid=2 ** 22 + 1),  # above pid_max: no such process
