@@ -9,8 +9,9 @@ once: :func:`acquire` hands each :class:`autograder.sandbox.Session` the current
 removed when its last session ends); everything is removed when the process exits.
 
 A process that ends without running its exit handlers (killed, or ended by ``os._exit``) leaves
-its staged folder behind: each folder names its owner (:data:`OWNER`), and staging a new one
-first removes those in the same temporary directory whose owner has ended (:func:`sweep`).
+its staged folder behind: the process holds a lock on a file of its folder (:data:`LOCK`), which the
+kernel frees when it ends, and staging a new folder first removes those in the same temporary
+directory whose lock is free (:func:`sweep`).
 
 Sharing gives a student's code nothing it did not have: the copies are root-owned and
 read-only to the children, the fork server runs as the grader and never imports student code,
@@ -18,7 +19,6 @@ and each session still has its own implementations, uids, working directories an
 """
 
 import atexit
-import json
 import os
 import sys
 import tempfile
@@ -34,10 +34,11 @@ SERVER_BOOTSTRAP = (
     "[site.addsitedir(p) for p in {sites!r}]; from autograder.forkserver import serve; serve({sites!r}); os._exit(0)"
 )
 PREFIX = "autograder-runtime-"
-#: the file in a staged folder that names the process that staged it
-OWNER = "owner.json"
-#: a folder without an owner file is left alone this long (seconds): it may be being staged
-UNOWNED_AGE = 24 * 3600
+#: the file of a staged folder its process holds a lock on (``flock``) while it lives: the kernel frees the lock
+#: when the process ends, however it ends
+LOCK = "owner.lock"
+#: a folder without a lock file is left alone this long (seconds): it may be being staged
+UNLOCKED_AGE = 24 * 3600
 
 
 class Runtime:
@@ -54,6 +55,7 @@ class Runtime:
         self.env: dict = {}
         self.root = str(repo_root)
         self.base: Path | None = None
+        self._lock_file = None  # held while the staged folder is in use (:func:`sweep`)
         self._server: forkserver.ForkServer | None = None
         self._server_lock = threading.Lock()
         if isolate:
@@ -69,7 +71,7 @@ class Runtime:
         sweep(temp)
         self.base = Path(tempfile.mkdtemp(prefix=PREFIX, dir=temp))
         os.chmod(self.base, 0o755)
-        _write_owner(self.base)
+        self._lock_file = _hold_lock(self.base)
         isolation.stage_framework(self.base / "stage")
         self.root = str(self.base / "stage")
         if interpreter or packages:
@@ -108,6 +110,9 @@ class Runtime:
         if self.base is not None:
             isolation.remove_tree(self.base)
             self.base = None
+        if self._lock_file is not None:
+            self._lock_file.close()
+            self._lock_file = None
 
 
 _lock = threading.Lock()
@@ -159,77 +164,51 @@ def close_all() -> None:
 # ---------------------------------------------------------------- folders left by ended processes
 
 
-def _read(path: str) -> str:
+def _hold_lock(base: Path):
+    """An open file holding the lock on ``base``'s :data:`LOCK`, taken before the file has that name (a sweep
+    never finds it free). POSIX only: a runtime is staged where the children are isolated (Linux, as root)."""
+    import fcntl
+
+    partial = base / (LOCK + ".partial")
+    handle = open(partial, "w")
+    fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    os.replace(partial, base / LOCK)
+    return handle
+
+
+def _remove_if_abandoned(folder: str, age: float) -> bool:
+    """Remove ``folder`` (its age in seconds) if its process has ended: its lock is free, or it has no lock file
+    and is older than :data:`UNLOCKED_AGE`. The lock is held while removing (two sweeps never both do)."""
+    import fcntl
+
     try:
-        with open(path) as file:
-            return file.read().strip()
-    except OSError:
-        return ""
-
-
-def process_start(pid: int) -> str:
-    """When ``pid`` started (clock ticks after boot, from /proc/<pid>/stat; '' where unknown)."""
-    fields = _read(f"/proc/{pid}/stat").rpartition(")")[2].split()
-    return fields[19] if len(fields) > 19 else ""
-
-
-def _pid_namespace() -> str:
-    try:
-        return os.readlink("/proc/self/ns/pid")
-    except OSError:
-        return ""
-
-
-def owner_record() -> dict:
-    """This process, as an owner file names it: its pid, with its start time, the boot and the pid
-    namespace (a pid reused by a later process, or one from another boot, is not the owner)."""
-    pid = os.getpid()
-    return {"pid": pid, "start": process_start(pid), "boot": _read("/proc/sys/kernel/random/boot_id"),
-            "pid_namespace": _pid_namespace(), "command": sys.argv}
-
-
-def _write_owner(base: Path) -> None:
-    partial = base / (OWNER + ".partial")
-    partial.write_text(json.dumps(owner_record()))
-    os.replace(partial, base / OWNER)
-
-
-def _ended(owner: dict, here: dict) -> bool:
-    """Whether the process an owner file names has certainly ended (False when it may be alive);
-    ``here`` is this process's own record."""
-    if owner["boot"] and here["boot"] and owner["boot"] != here["boot"]:
+        handle = open(Path(folder) / LOCK)
+    except FileNotFoundError:
+        if age <= UNLOCKED_AGE:
+            return False  # being staged, or removed meanwhile
+        isolation.remove_tree(folder)
         return True
-    if owner["pid_namespace"] != here["pid_namespace"]:
-        return False  # its pid names another process here
-    try:
-        os.kill(owner["pid"], 0)
-    except ProcessLookupError:
+    with handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return False  # its process lives
+        isolation.remove_tree(folder)
         return True
-    except PermissionError:
-        pass  # alive, as another user
-    started = process_start(owner["pid"])
-    return bool(owner["start"] and started) and started != owner["start"]
 
 
 def sweep(temp: str) -> list:
-    """Remove this user's staged folders in ``temp`` whose owner has ended without removing them
-    (and those older than :data:`UNOWNED_AGE` without a readable owner file); return their paths."""
-    here, removed = owner_record(), []
+    """Remove this user's staged folders in ``temp`` whose process has ended without removing them; return their
+    paths."""
+    removed = []
     with os.scandir(temp) as entries:
         for entry in entries:
             try:
                 if not entry.name.startswith(PREFIX) or not entry.is_dir(follow_symlinks=False):
                     continue
                 st = entry.stat(follow_symlinks=False)
-                if st.st_uid != os.geteuid():
-                    continue
-                try:
-                    ended = _ended(json.loads((Path(entry.path) / OWNER).read_text()), here)
-                except (FileNotFoundError, ValueError, KeyError, TypeError):
-                    ended = time.time() - st.st_mtime > UNOWNED_AGE
+                if st.st_uid == os.geteuid() and _remove_if_abandoned(entry.path, time.time() - st.st_mtime):
+                    removed.append(entry.path)
             except OSError:
                 continue  # removed meanwhile
-            if ended:
-                isolation.remove_tree(entry.path)
-                removed.append(entry.path)
     return removed

@@ -2,7 +2,6 @@
 rebuilt when a framework file changes, removed at exit (or, when its process ended without exit
 handlers, by the next staging)."""
 
-import json
 import os
 import subprocess
 import sys
@@ -83,34 +82,44 @@ def stage_in_a_child(how: str) -> Path:
     return Path(done.stdout.strip())
 
 
-def owned(root: Path, **owner) -> Path:
+def staged_folder(root: Path, lock: bool = True) -> Path:
+    """A folder as staging makes it, in ``root``: with its lock file (``lock``), the lock free."""
     folder = Path(tempfile.mkdtemp(prefix=runtime.PREFIX, dir=root))
-    (folder / runtime.OWNER).write_text(json.dumps({**runtime.owner_record(), **owner}))
+    if lock:
+        (folder / runtime.LOCK).write_text("")
     return folder
 
 
 @pytest.mark.skipif(not isolation.is_root(), reason="isolating the children needs root")
 def test_a_folder_left_by_a_process_that_ended_without_exit_handlers_goes_at_the_next_staging(temp_root):
-    alive = owned(temp_root)  # this process: alive
-    left = stage_in_a_child("exit")
-    assert left.parent == temp_root and (left / "stage").is_dir()
-    assert json.loads((left / runtime.OWNER).read_text())["pid"] != os.getpid()
-    stage_in_a_child("return")
-    assert sorted(temp_root.iterdir()) == [alive]
+    import fcntl
+
+    alive = staged_folder(temp_root)
+    with open(alive / runtime.LOCK) as held:  # its process (this one) lives
+        fcntl.flock(held, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        left = stage_in_a_child("exit")
+        assert left.parent == temp_root and (left / "stage").is_dir() and (left / runtime.LOCK).is_file()
+        stage_in_a_child("return")
+        assert sorted(temp_root.iterdir()) == [alive]
 
 
-def test_the_sweep_removes_only_folders_whose_owner_has_ended(tmp_path):
-    here = runtime.owner_record()
-    if not here["start"]:
-        pytest.skip("no /proc here: a process's start time is unknown")
-    kept = [owned(tmp_path), owned(tmp_path, pid=1, start=runtime.process_start(1)),  # alive (perhaps another user's)
-            owned(tmp_path, pid_namespace="pid:[1]", pid=2 ** 22 + 1)]  # another namespace's pid: unknown
-    unowned = Path(tempfile.mkdtemp(prefix=runtime.PREFIX, dir=tmp_path))
-    ended = [owned(tmp_path, pid=2 ** 22 + 1),  # above pid_max: no such process
-             owned(tmp_path, start=str(int(here["start"]) + 1)),  # a pid now another process's
-             owned(tmp_path, boot="another boot")]
-    assert sorted(runtime.sweep(str(tmp_path))) == sorted(map(str, ended))
-    assert sorted(tmp_path.iterdir()) == sorted(kept + [unowned])
-    old = time.time() - runtime.UNOWNED_AGE - 60
-    os.utime(unowned, (old, old))
-    assert runtime.sweep(str(tmp_path)) == [str(unowned)]
+def test_the_sweep_removes_only_folders_whose_process_has_ended(tmp_path):
+    import fcntl
+
+    alive = staged_folder(tmp_path)
+    held = open(alive / runtime.LOCK)  # its process (here, this one) holds the lock
+    fcntl.flock(held, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    ended = staged_folder(tmp_path)  # the lock free: its process has ended
+    unlocked = staged_folder(tmp_path, lock=False)  # no lock file yet: being staged
+    other = tmp_path / "not-a-runtime"
+    other.mkdir()
+    try:
+        assert runtime.sweep(str(tmp_path)) == [str(ended)]
+        assert sorted(tmp_path.iterdir()) == sorted([alive, unlocked, other])
+        old = time.time() - runtime.UNLOCKED_AGE - 60
+        os.utime(unlocked, (old, old))
+        assert runtime.sweep(str(tmp_path)) == [str(unlocked)]
+        assert sorted(tmp_path.iterdir()) == sorted([alive, other])
+    finally:
+        held.close()
+    assert runtime.sweep(str(tmp_path)) == [str(alive)]
