@@ -8,7 +8,16 @@ import pytest
 
 from course.core.impl import REPO_ROOT
 
-THREADS = "import threadpoolctl; print(sorted({i['num_threads'] for i in threadpoolctl.threadpool_info()}))"
+VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "COURSE_BLAS_THREADS")
+
+
+def thread_counts(imports: str, **env) -> str:
+    """The sorted thread counts of every BLAS loaded after ``imports``, in a fresh process with ``env``."""
+    clean = {k: v for k, v in os.environ.items() if k not in VARIABLES}
+    code = (f"{imports}; import threadpoolctl; "
+            "print(sorted({i['num_threads'] for i in threadpoolctl.threadpool_info()}))")
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**clean, **env},
+                          cwd=REPO_ROOT, check=True).stdout.strip()
 
 
 @pytest.mark.parametrize("imports", [
@@ -17,17 +26,8 @@ THREADS = "import threadpoolctl; print(sorted({i['num_threads'] for i in threadp
     "import numpy, scipy.linalg, course",
 ])
 def test_every_blas_runs_on_one_thread(imports):
-    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS",
-                                                             "MKL_NUM_THREADS", "COURSE_BLAS_THREADS")}
-    out = subprocess.run([sys.executable, "-c", f"{imports}; {THREADS}"], capture_output=True, text=True,
-                         env=env, cwd=REPO_ROOT, check=True).stdout
-    assert out.strip() == "[1]", imports
+    assert thread_counts(imports) == "[1]"
 
 
 def test_course_blas_threads_sets_another_count():
-    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS",
-                                                             "MKL_NUM_THREADS")}
-    env["COURSE_BLAS_THREADS"] = "2"
-    out = subprocess.run([sys.executable, "-c", f"import numpy, course, scipy.linalg; {THREADS}"],
-                         capture_output=True, text=True, env=env, cwd=REPO_ROOT, check=True).stdout
-    assert out.strip() == "[2]"
+    assert thread_counts("import numpy, course, scipy.linalg", COURSE_BLAS_THREADS="2") == "[2]"
