@@ -46,7 +46,6 @@ def shared_notebooks(tmp_path_factory):
 
     if os.environ.get("PYTEST_XDIST_WORKER"):
         executed_notebooks.SHARED = tmp_path_factory.getbasetemp().parent / "executed-notebooks"
-    yield
 
 
 @pytest.fixture
